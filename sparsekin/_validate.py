@@ -1,0 +1,106 @@
+"""Checks shared by the model, the laws and the model-file reader.
+
+Each check returns the value in its canonical Python form or raises a `ModelError` that
+names the element and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+
+from .errors import ModelError
+
+#: Largest magnitude accepted for any number in a model: beyond it, products of two
+#: coordinates overflow or lose every significant digit.
+MAX_MAGNITUDE = 1e15
+
+
+def finite_float(value: object, element: str) -> float:
+    """`value` as a float, if it is a real, finite number of sensible magnitude."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ModelError(f"expected a number, got {_shown(value)}", element=element)
+    number = float(value)
+    if not math.isfinite(number):
+        raise ModelError(f"expected a finite number, got {number!r}", element=element)
+    if abs(number) > MAX_MAGNITUDE:
+        raise ModelError(
+            f"expected a number of magnitude at most {MAX_MAGNITUDE:g}, got {number!r}",
+            element=element,
+        )
+    return number
+
+
+def positive_int(value: object, element: str, minimum: int = 1) -> int:
+    """`value` as an int, if it is a whole number >= `minimum`."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ModelError(f"expected a whole number, got {_shown(value)}", element=element)
+    if value < minimum:
+        raise ModelError(f"expected a whole number >= {minimum}, got {value}", element=element)
+    return int(value)
+
+
+def name(value: object, element: str) -> str:
+    """`value`, if it is a non-empty string."""
+    if not isinstance(value, str) or not value.strip():
+        raise ModelError(f"expected a non-empty name, got {_shown(value)}", element=element)
+    return value
+
+
+def pair(value: object, element: str) -> tuple[float, float]:
+    """`value` as ``(x, y)``, if it is a sequence of two finite numbers."""
+    if isinstance(value, (str, bytes)) or not _is_sequence(value) or len(value) != 2:
+        raise ModelError(f"expected [x, y], got {_shown(value)}", element=element)
+    return (finite_float(value[0], f"{element}[0]"), finite_float(value[1], f"{element}[1]"))
+
+
+def point_reference(value: object, element: str) -> str | tuple[float, float]:
+    """A point name, or coordinates ``(x, y)``."""
+    if isinstance(value, str):
+        return name(value, element)
+    if not _is_sequence(value):
+        raise ModelError(
+            f"expected a point name or [x, y], got {_shown(value)}", element=element
+        )
+    return pair(value, element)
+
+
+def two_names(value: object, element: str) -> tuple[str, str]:
+    """`value` as a pair of names, ``[i, j]``."""
+    if isinstance(value, str) or not _is_sequence(value) or len(value) != 2:
+        raise ModelError(f"expected two body names [i, j], got {_shown(value)}", element=element)
+    return (name(value[0], f"{element}[0]"), name(value[1], f"{element}[1]"))
+
+
+def names(value: object, element: str) -> tuple[str, ...]:
+    """`value` as a tuple of names."""
+    if isinstance(value, str) or not _is_sequence(value):
+        raise ModelError(f"expected a list of names, got {_shown(value)}", element=element)
+    return tuple(name(item, f"{element}[{index}]") for index, item in enumerate(value))
+
+
+def choice(value: object, element: str, allowed: Sequence[str]) -> str:
+    """`value`, if it is one of `allowed`."""
+    if not isinstance(value, str) or value not in allowed:
+        expected = ", ".join(f'"{item}"' for item in allowed)
+        raise ModelError(f"expected one of {expected}, got {_shown(value)}", element=element)
+    return value
+
+
+def known_list(known: Sequence[str], limit: int = 6) -> str:
+    """Up to `limit` names for an error message, eliding the middle of long lists."""
+    if len(known) <= limit:
+        return ", ".join(known)
+    return f"{', '.join(known[: limit - 2])} … {', '.join(known[-2:])}"
+
+
+def _is_sequence(value: object) -> bool:
+    return isinstance(value, Sequence) or (
+        hasattr(value, "__len__") and hasattr(value, "__getitem__") and not isinstance(value, dict)
+    )
+
+
+def _shown(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

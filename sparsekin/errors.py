@@ -1,0 +1,90 @@
+"""Exceptions raised by sparsekin.
+
+Every exception derives from `SparsekinError`.  A mistake in a model (in Python or in a
+model file) is a `ModelError` that names the element (``joints[3].bodies``) and, for a
+file, the file.  An analysis that cannot go on raises a `ConvergenceError` (Newton did not
+converge) or a `SingularJacobianError` (the constraint Jacobian could not be factored);
+both carry the time, the driver values and the samples solved before the failure
+(``result``), so nothing is lost.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["SparsekinError", "ModelError", "ConvergenceError", "SingularJacobianError"]
+
+
+class SparsekinError(Exception):
+    """Base class of every error raised by sparsekin."""
+
+
+class ModelError(SparsekinError, ValueError):
+    """A mistake in a mechanism description.
+
+    Parameters
+    ----------
+    reason : str
+        What is wrong and what was expected.
+    element : str
+        Where: ``"joints[3].bodies"``, ``"drivers[0].law.amplitude"``; empty for the model
+        as a whole.
+    file : str or None
+        The model file, when the mechanism came from one.
+
+    Examples
+    --------
+    >>> str(ModelError('unknown body "c11"', element="joints[3].bodies", file="m.toml"))
+    'm.toml: joints[3].bodies: unknown body "c11"'
+    """
+
+    def __init__(self, reason: str, *, element: str = "", file: str | None = None) -> None:
+        self.reason = reason
+        self.element = element
+        self.file = file
+        super().__init__(": ".join(part for part in (file, element, reason) if part))
+
+    def within(self, prefix: str) -> ModelError:
+        """The same error, located inside the element `prefix` (``"drivers[0].law"``)."""
+        if not self.element:
+            element = prefix
+        elif self.element.startswith("["):
+            element = prefix + self.element
+        else:
+            element = f"{prefix}.{self.element}"
+        return ModelError(self.reason, element=element, file=self.file)
+
+    def in_file(self, file: str) -> ModelError:
+        """The same error, reported against the model file `file`."""
+        return ModelError(self.reason, element=self.element, file=file)
+
+
+class ConvergenceError(SparsekinError, RuntimeError):
+    """The position analysis could not converge at some time.
+
+    Attributes
+    ----------
+    time : float
+        Time of the sample that failed, s.
+    driver_values : dict[str, float]
+        Value of every driver's law at `time` (m or rad), by driver label.
+    result : KinematicsResult or None
+        The samples solved before the failure (possibly none).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        time: float,
+        driver_values: dict[str, float],
+        result: Any = None,
+    ) -> None:
+        super().__init__(message)
+        self.time = time
+        self.driver_values = driver_values
+        self.result = result
+
+
+class SingularJacobianError(ConvergenceError):
+    """The constraint Jacobian is singular: a locked or under-constrained mechanism."""
