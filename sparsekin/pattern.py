@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ModelError
 from .model import (
     COORDINATE_NAMES,
     GROUND,
@@ -187,11 +186,8 @@ def _translational_geometry(mechanism: Mechanism, joint: Translational):
 def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     """Compute the constraint parameters and the Jacobian pattern of `mechanism`.
 
-    Raises
-    ------
-    ModelError
-        If the numbers of equations and coordinates differ (the mechanism is not driven
-        to zero degrees of freedom, or has more equations than coordinates).
+    The system need not be square: a mechanism with free motions or redundant
+    equations has a pattern too (the solvers refuse it, the diagnostics study it).
     """
     collect = _Collector(mechanism)
     element_first_row = []
@@ -229,23 +225,7 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
             collect.add_difference(3 * i + k, 3 * collect.ground + k, 0.0, k == 2)
     element_first_row.append(collect.row)
 
-    n_equations, n_coordinates = collect.row, mechanism.n_coordinates
-    if n_equations != n_coordinates:
-        raise ModelError(_dof_message(n_coordinates, n_equations, len(mechanism.drivers)))
     return _assemble_pattern(collect, mechanism, np.array(element_first_row), driver_initial)
-
-
-def _dof_message(n_coordinates: int, n_equations: int, n_drivers: int) -> str:
-    free = n_coordinates - n_equations
-    if free > 0:
-        return (
-            f"{n_coordinates} coordinates but {n_equations} equations: {free} degree(s) of freedom "
-            f"left after the {n_drivers} driver(s); expected one driver per degree of freedom"
-        )
-    return (
-        f"{n_coordinates} coordinates but {n_equations} equations: {-free} more equation(s) than "
-        "coordinates; expected as many equations as coordinates (remove redundant joints or drivers)"
-    )
 
 
 def _assemble_pattern(collect: _Collector, mechanism, element_first_row, driver_initial):

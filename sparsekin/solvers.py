@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .assembly import Assembler
-from .errors import ConvergenceError, SingularJacobianError
+from .errors import ConvergenceError, ModelError, SingularJacobianError
 from .laws import Spline
 from .linalg import SingularMatrix, SuperLUSolver
 from .model import COORDINATE_NAMES, Mechanism
@@ -162,6 +162,8 @@ def solve_kinematics(
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
         raise ValueError(f"`max_iterations` must be a whole number >= 1, got {max_iterations!r}.")
     pattern = build_pattern(mechanism)
+    if pattern.n_equations != pattern.n_coordinates:
+        raise ModelError(_degrees_of_freedom_message(pattern.n_coordinates, pattern.n_equations, len(mechanism.drivers)))
     assembler = Assembler(mechanism, pattern)
     linear_solver = SuperLUSolver()
     weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
@@ -263,6 +265,19 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
                     f"defined on [{first:g}, {last:g}] s."
                 )
     return array
+
+
+def _degrees_of_freedom_message(n_coordinates: int, n_equations: int, n_drivers: int) -> str:
+    free = n_coordinates - n_equations
+    if free > 0:
+        return (
+            f"{n_coordinates} coordinates but {n_equations} equations: {free} degree(s) of freedom "
+            f"left after the {n_drivers} driver(s); expected one driver per degree of freedom"
+        )
+    return (
+        f"{n_coordinates} coordinates but {n_equations} equations: {-free} more equation(s) than "
+        "coordinates; expected as many equations as coordinates (remove redundant joints or drivers)"
+    )
 
 
 def _checked_positive(value, name: str) -> float:
