@@ -50,7 +50,7 @@ def name(value: object, element: str) -> str:
 
 def pair(value: object, element: str) -> tuple[float, float]:
     """`value` as ``(x, y)``, if it is a sequence of two finite numbers."""
-    if isinstance(value, (str, bytes)) or not _is_sequence(value) or len(value) != 2:
+    if isinstance(value, (str, bytes)) or not is_sequence(value) or len(value) != 2:
         raise ModelError(f"expected [x, y], got {_shown(value)}", element=element)
     return (finite_float(value[0], f"{element}[0]"), finite_float(value[1], f"{element}[1]"))
 
@@ -59,7 +59,7 @@ def point_reference(value: object, element: str) -> str | tuple[float, float]:
     """A point name, or coordinates ``(x, y)``."""
     if isinstance(value, str):
         return name(value, element)
-    if not _is_sequence(value):
+    if not is_sequence(value):
         raise ModelError(
             f"expected a point name or [x, y], got {_shown(value)}", element=element
         )
@@ -68,14 +68,14 @@ def point_reference(value: object, element: str) -> str | tuple[float, float]:
 
 def two_names(value: object, element: str) -> tuple[str, str]:
     """`value` as a pair of names, ``[i, j]``."""
-    if isinstance(value, str) or not _is_sequence(value) or len(value) != 2:
+    if isinstance(value, str) or not is_sequence(value) or len(value) != 2:
         raise ModelError(f"expected two body names [i, j], got {_shown(value)}", element=element)
     return (name(value[0], f"{element}[0]"), name(value[1], f"{element}[1]"))
 
 
 def names(value: object, element: str) -> tuple[str, ...]:
     """`value` as a tuple of names."""
-    if isinstance(value, str) or not _is_sequence(value):
+    if isinstance(value, str) or not is_sequence(value):
         raise ModelError(f"expected a list of names, got {_shown(value)}", element=element)
     return tuple(name(item, f"{element}[{index}]") for index, item in enumerate(value))
 
@@ -88,6 +88,21 @@ def choice(value: object, element: str, allowed: Sequence[str]) -> str:
     return value
 
 
+def number_list(value: object, element: str) -> tuple[float, ...]:
+    """`value` as a tuple of finite numbers."""
+    if isinstance(value, (str, bytes)) or not is_sequence(value):
+        raise ModelError(f"expected a list of numbers, got {_shown(value)}", element=element)
+    return tuple(finite_float(item, f"{element}[{index}]") for index, item in enumerate(value))
+
+
+def non_negative_float(value: object, element: str) -> float:
+    """`value` as a float, if it is a finite number >= 0."""
+    number = finite_float(value, element)
+    if number < 0.0:
+        raise ModelError(f"expected a number >= 0, got {number!r}", element=element)
+    return number
+
+
 def known_list(known: Sequence[str], limit: int = 6) -> str:
     """Up to `limit` names for an error message, eliding the middle of long lists."""
     if len(known) <= limit:
@@ -95,7 +110,8 @@ def known_list(known: Sequence[str], limit: int = 6) -> str:
     return f"{', '.join(known[: limit - 2])} … {', '.join(known[-2:])}"
 
 
-def _is_sequence(value: object) -> bool:
+def is_sequence(value: object) -> bool:
+    """A list-like value (a tuple, a list, an array), not a string or a mapping."""
     return isinstance(value, Sequence) or (
         hasattr(value, "__len__") and hasattr(value, "__getitem__") and not isinstance(value, dict)
     )

@@ -7,8 +7,8 @@ starts where the model was drawn.  Any object with an `evaluate` method of the s
 is a law (see `Law`).
 
 >>> value, rate, acceleration = Harmonic(amplitude=0.05, omega=1.5).evaluate(0.0, initial=0.8)
->>> (value, rate, acceleration)
-(0.8, 0.075, -0.0)
+>>> [round(float(v), 12) + 0.0 for v in (value, rate, acceleration)]  # at t = 0
+[0.8, 0.075, 0.0]
 """
 
 from __future__ import annotations
@@ -45,9 +45,9 @@ class Harmonic:
 
     def __post_init__(self) -> None:
         for field_name in ("amplitude", "omega", "phase"):
-            _validate.finite_float(getattr(self, field_name), field_name)
+            _set(self, field_name, _validate.finite_float(getattr(self, field_name), field_name))
         if self.offset is not None:
-            _validate.finite_float(self.offset, "offset")
+            _set(self, "offset", _validate.finite_float(self.offset, "offset"))
 
     def evaluate(self, t, initial):
         offset = initial if self.offset is None else self.offset
@@ -68,9 +68,9 @@ class Linear:
     start: float | None = None
 
     def __post_init__(self) -> None:
-        _validate.finite_float(self.rate, "rate")
+        _set(self, "rate", _validate.finite_float(self.rate, "rate"))
         if self.start is not None:
-            _validate.finite_float(self.start, "start")
+            _set(self, "start", _validate.finite_float(self.start, "start"))
 
     def evaluate(self, t, initial):
         start = initial if self.start is None else self.start
@@ -85,16 +85,13 @@ class Polynomial:
 
     def __post_init__(self) -> None:
         coefficients = self.coefficients
-        if isinstance(coefficients, str) or not hasattr(coefficients, "__len__") or not len(coefficients):
+        if isinstance(coefficients, (str, bytes)) or not _validate.is_sequence(coefficients) or not len(coefficients):
             raise ModelError(
-                f"expected a non-empty list of numbers, got {coefficients!r}",
-                element="coefficients",
+                f"expected a non-empty list of numbers, got {coefficients!r}", element="coefficients"
             )
-        for index, coefficient in enumerate(coefficients):
-            if index == 0 and coefficient is None:
-                continue
-            _validate.finite_float(coefficient, f"coefficients[{index}]")
-        object.__setattr__(self, "coefficients", tuple(coefficients))
+        first = None if coefficients[0] is None else _validate.finite_float(coefficients[0], "coefficients[0]")
+        rest = _validate.number_list(tuple(coefficients[1:]), "coefficients")
+        _set(self, "coefficients", (first, *rest))
 
     def evaluate(self, t, initial):
         c = np.array(
@@ -120,8 +117,8 @@ class Spline:
     _curve: CubicSpline = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        times = _finite_sequence(self.times, "times")
-        values = _finite_sequence(self.values, "values")
+        times = _validate.number_list(self.times, "times")
+        values = _validate.number_list(self.values, "values")
         if len(times) < 2:
             raise ModelError(f"expected at least 2 samples, got {len(times)}", element="times")
         if len(values) != len(times):
@@ -131,9 +128,9 @@ class Spline:
             )
         if np.any(np.diff(times) <= 0.0):
             raise ModelError("expected strictly increasing times", element="times")
-        object.__setattr__(self, "times", times)
-        object.__setattr__(self, "values", values)
-        object.__setattr__(self, "_curve", CubicSpline(times, values))
+        _set(self, "times", times)
+        _set(self, "values", values)
+        _set(self, "_curve", CubicSpline(times, values))
 
     @property
     def time_range(self) -> tuple[float, float]:
@@ -144,7 +141,6 @@ class Spline:
         return self._curve(t), self._curve(t, 1), self._curve(t, 2)
 
 
-def _finite_sequence(values, element: str) -> tuple[float, ...]:
-    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
-        raise ModelError(f"expected a list of numbers, got {values!r}", element=element)
-    return tuple(_validate.finite_float(v, f"{element}[{k}]") for k, v in enumerate(values))
+def _set(law: object, field_name: str, value: object) -> None:
+    """Store the canonical form of a field of a frozen law (floats, tuples)."""
+    object.__setattr__(law, field_name, value)

@@ -6,6 +6,7 @@ Elements refer to bodies and points by name.  Every body has absolute coordinate
 global coordinates in the initial (assembly) configuration; a point rides on a body when
 the body lists it, and a point that no body lists stays on the ground.
 
+>>> from sparsekin import Linear
 >>> mechanism = Mechanism(
 ...     points={"O": (0.0, 0.0), "A": (0.1, 0.0)},
 ...     bodies=[Body("crank", origin="O", points=("O", "A"))],
@@ -71,7 +72,7 @@ class Body:
         _set(self, "points", _validate.names(self.points, "points"))
         for field_name in ("mass", "inertia"):
             if getattr(self, field_name) is not None:
-                _set(self, field_name, _validate.finite_float(getattr(self, field_name), field_name))
+                _set(self, field_name, _validate.non_negative_float(getattr(self, field_name), field_name))
         if self.com is not None:
             _set(self, "com", _validate.point_reference(self.com, "com"))
 
@@ -119,7 +120,7 @@ class Translational:
             if self.at is not None or self.direction is not None:
                 raise ModelError("give either `axis` or `at` with `direction`, not both", element="axis")
             axis = self.axis
-            if isinstance(axis, str) or not hasattr(axis, "__len__") or len(axis) != 2:
+            if isinstance(axis, str) or not _validate.is_sequence(axis) or len(axis) != 2:
                 raise ModelError(f"expected two points [P, Q], got {axis!r}", element="axis")
             _set(
                 self,
@@ -405,8 +406,13 @@ class Mechanism:
                     self._check_point(joint.at, f"{where}.at")
 
     def _check_drivers(self) -> None:
+        driver_names: set[str] = set()
         for index, driver in enumerate(self.drivers):
             where = f"drivers[{index}]"
+            if driver.name is not None:
+                if driver.name in driver_names:
+                    raise ModelError(f'duplicate driver name "{driver.name}"', element=f"{where}.name")
+                driver_names.add(driver.name)
             if isinstance(driver, TranslationalDriver):
                 try:
                     joint = self.joint_named(driver.joint)
