@@ -1,0 +1,334 @@
+"""The ``sparsekin`` command line.
+
+``sparsekin run MODEL.toml`` reads a model file, runs the kinematic analysis and writes
+``points.csv`` and ``coordinates.npz`` (with ``--plot``, also PNG figures) as described in
+``MODEL_FORMAT.md``.  Exit status: 0 on success, 2 on a bad model or bad arguments (one
+line on stderr, no traceback), 3 when the analysis stops (the samples solved so far are
+still written).
+
+Each subcommand is a pair of functions: one adds its parser to the subparsers, the other
+runs it and returns the exit status.  `SUBCOMMANDS` lists the first of each pair, so a
+new subcommand only needs its two functions and one entry there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import _validate
+from .errors import ConvergenceError, ModelError
+from .model import Mechanism
+from .modelfile import load_model
+from .solvers import KinematicsResult, solve_kinematics
+
+__all__ = ["main", "build_parser"]
+
+PROGRAM = "sparsekin"
+EXIT_SUCCESS = 0
+EXIT_USAGE = 2
+EXIT_STOPPED = 3
+#: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
+DEFAULT_STEPS = 101
+#: Parent of the default output folder, ``./sparsekin-out/<model name>``.
+DEFAULT_OUTPUT_ROOT = Path("sparsekin-out")
+#: Columns of ``points.csv`` for each output point, after the point name and a dot.
+POINT_COLUMNS = ("x", "y", "vx", "vy", "ax", "ay")
+#: Most point names listed in the message about an unknown point.
+LISTED_POINTS = 20
+
+
+class CommandError(Exception):
+    """A mistake in the command-line arguments: reported as one line, exit status 2."""
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What ``sparsekin run`` computes and where it writes.
+
+    Attributes
+    ----------
+    times : ndarray, shape (steps,)
+        Sample times, s, from 0 to the end time.
+    point_names : tuple of str
+        Output points, in the order of the columns of ``points.csv``.
+    directory : Path
+        Output folder.
+    plot : bool
+        Whether to write the PNG figures.
+    """
+
+    times: np.ndarray
+    point_names: tuple[str, ...]
+    directory: Path
+    plot: bool
+
+
+# ---------------------------------------------------------------------- entry point
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``sparsekin`` command line.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments after the program name; ``sys.argv[1:]`` when omitted.
+
+    Returns
+    -------
+    int
+        Exit status: 0 on success, 2 on a bad model or bad arguments, 3 when the analysis
+        stopped.
+    """
+    parser = build_parser()
+    try:
+        arguments = parser.parse_args(argv)
+    except SystemExit as exit_request:  # usage errors and --help: argparse has printed
+        return int(exit_request.code or 0)
+    try:
+        return arguments.handler(arguments)
+    except (CommandError, ModelError) as error:
+        _report(f"error: {error}")
+    except OSError as error:  # an output folder or file that cannot be written
+        _report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
+    return EXIT_USAGE
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser, with one subparser per entry of `SUBCOMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog=PROGRAM, description="Kinematic analysis of planar linkages described in a TOML model file."
+    )
+    subparsers = parser.add_subparsers(title="commands", dest="command", required=True, metavar="COMMAND")
+    for add_subcommand in SUBCOMMANDS:
+        add_subcommand(subparsers)
+    return parser
+
+
+def _report(message: str) -> None:
+    """Print ``sparsekin: <message>`` to stderr as one line."""
+    print(f"{PROGRAM}: {' '.join(message.splitlines())}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------- run
+def add_run_command(subparsers) -> None:
+    """Add ``run MODEL.toml [--t-end T] [--steps N] [--points A,J] [--out DIR] [--plot]``."""
+    parser = subparsers.add_parser(
+        "run",
+        help="analyse a model and write points.csv and coordinates.npz",
+        description="Solve positions, velocities and accelerations at steps times from 0 to t_end "
+        "and write points.csv, coordinates.npz and, with --plot, PNG figures.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument(
+        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
+        f"[analysis].steps, else {DEFAULT_STEPS})"
+    )
+    parser.add_argument(
+        "--points", metavar="A,J", help="output points, separated by commas (default: [analysis].points, "
+        "else every named point)"
+    )
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR",
+        help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/<model name>)",
+    )
+    parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
+    parser.set_defaults(handler=run_command)
+
+
+def run_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin run``; returns the exit status.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+        For a bad argument, a bad model file or an output folder that cannot be written;
+        `main` reports them.
+    """
+    mechanism = load_model(arguments.model)
+    settings = resolve_run_settings(arguments, mechanism)
+    if settings.plot:
+        _require_matplotlib()
+    settings.directory.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    try:
+        result = _solve(mechanism, settings.times, arguments.model)
+    except ConvergenceError as error:
+        written = write_outputs(mechanism, error.result, settings)
+        _report(f"analysis stopped: {error}")
+        _report(f"wrote {_count_samples(error.result)} of {settings.times.size} samples to "
+                f"{settings.directory}: {', '.join(path.name for path in written)}")
+        return EXIT_STOPPED
+    wall_time = time.perf_counter() - start
+    written = write_outputs(mechanism, result, settings)
+    print(_summary(mechanism, result, wall_time, written))
+    return EXIT_SUCCESS
+
+
+def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) -> RunSettings:
+    """Combine the options with the model's ``[analysis]`` defaults and check them.
+
+    Raises
+    ------
+    CommandError
+        If no end time is given, a number is out of range or a point is unknown.
+    """
+    analysis = mechanism.analysis
+    t_end = arguments.t_end if arguments.t_end is not None else analysis.t_end
+    if t_end is None:
+        raise CommandError("no end time: give --t-end T or [analysis].t_end in the model file")
+    steps = arguments.steps if arguments.steps is not None else (analysis.steps or DEFAULT_STEPS)
+    _check_times(t_end, steps)
+    if arguments.points is not None:
+        point_names = parse_point_names(arguments.points, mechanism)
+    else:
+        point_names = analysis.points if analysis.points is not None else tuple(mechanism.points)
+    directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
+    return RunSettings(np.linspace(0.0, t_end, steps), tuple(point_names), directory, arguments.plot)
+
+
+def _check_times(t_end: float, steps: int) -> None:
+    """Values out of range can only come from the options: ``[analysis]`` is checked on loading."""
+    if not (math.isfinite(t_end) and t_end >= 0.0):
+        raise CommandError(f"--t-end must be a finite number >= 0 (s), got {t_end!r}")
+    if steps < 1:
+        raise CommandError(f"--steps must be a whole number >= 1, got {steps}")
+    if t_end == 0.0 and steps > 1:
+        raise CommandError(f"t_end = 0 s gives one sample, not {steps}: give --t-end > 0 or --steps 1")
+
+
+def parse_point_names(text: str, mechanism: Mechanism) -> tuple[str, ...]:
+    """The point names in the comma-separated `text`, each checked against the model.
+
+    Examples
+    --------
+    >>> from sparsekin import Body, Mechanism
+    >>> model = Mechanism(points={"A": (0, 0), "J": (1, 0)}, bodies=[Body("c1", origin="A")])
+    >>> parse_point_names("J, A", model)
+    ('J', 'A')
+    >>> parse_point_names("A,Q", model)
+    Traceback (most recent call last):
+    ...
+    sparsekin.cli.CommandError: --points: unknown point "Q" (known: A, J)
+    """
+    names = tuple(dict.fromkeys(name.strip() for name in text.split(",")))
+    for name in names:
+        if not name:
+            raise CommandError(f"--points: empty name in {text!r}: expected names separated by commas")
+        if name not in mechanism.points:
+            known = _validate.known_list(list(mechanism.points), limit=LISTED_POINTS)
+            raise CommandError(f'--points: unknown point "{name}" (known: {known})')
+    return names
+
+
+def _require_matplotlib() -> None:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise CommandError('--plot needs matplotlib: pip install "sparsekin[plot]"') from None
+
+
+def _solve(mechanism: Mechanism, times: np.ndarray, model_path: Path) -> KinematicsResult:
+    """`solve_kinematics`, with its argument and model errors reported against the file."""
+    try:
+        return solve_kinematics(mechanism, times)
+    except ModelError as error:
+        raise (error if error.file else error.in_file(str(model_path))) from None
+    except ValueError as error:  # e.g. the times leave the range of a spline law
+        raise CommandError(str(error)) from None
+
+
+# ---------------------------------------------------------------------- output files
+def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings) -> list[Path]:
+    """Write ``points.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    result : KinematicsResult or None
+        The samples solved; None or empty after an early failure (then the files hold no
+        rows and no figure is drawn).
+    settings : RunSettings
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    directory = settings.directory
+    written = [
+        write_points_csv(result, settings.point_names, directory / "points.csv"),
+        write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"),
+    ]
+    if settings.plot and _count_samples(result) > 0:
+        from .plotting import draw_mechanism, plot_point_motion
+
+        written += plot_point_motion(result, settings.point_names, directory)
+        written.append(draw_mechanism(mechanism, result, directory))
+    return written
+
+
+def write_points_csv(result: KinematicsResult | None, point_names: Sequence[str], path: Path) -> Path:
+    """Write time, position, velocity and acceleration of each point, every float by `repr`.
+
+    The header is ``t,A.x,A.y,A.vx,A.vy,A.ax,A.ay,J.x,...``; `repr` writes the shortest
+    decimal that reads back as the same double.
+    """
+    header = ",".join(["t", *(f"{name}.{column}" for name in point_names for column in POINT_COLUMNS)])
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(header + "\n")
+        file.writelines(",".join(map(repr, row)) + "\n" for row in point_table(result, point_names).tolist())
+    return path
+
+
+def point_table(result: KinematicsResult | None, point_names: Sequence[str]) -> np.ndarray:
+    """The rows of ``points.csv``: shape (n_times, 1 + 6 * n_points), zero rows for None."""
+    if result is None:
+        return np.empty((0, 1 + len(POINT_COLUMNS) * len(point_names)))
+    columns = [result.times[:, np.newaxis]]
+    for name in point_names:
+        columns.extend(result.point(name))  # position, velocity, acceleration: (n_times, 2) each
+    return np.hstack(columns)
+
+
+def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:
+    """Write arrays ``t``, ``q``, ``qd``, ``qdd`` (n_times × 3·n_bodies) and ``body_names``."""
+    if result is None:
+        empty = np.empty((0, 3 * len(body_names)))
+        arrays = {"t": np.empty(0), "q": empty, "qd": empty, "qdd": empty}
+    else:
+        arrays = {
+            "t": result.times, "q": result.coordinates, "qd": result.velocities, "qdd": result.accelerations
+        }
+    np.savez(path, **arrays, body_names=np.array(body_names, dtype=str))
+    return path
+
+
+# ---------------------------------------------------------------------- messages
+def _count_samples(result: KinematicsResult | None) -> int:
+    return 0 if result is None else result.n_times
+
+
+def _summary(mechanism: Mechanism, result: KinematicsResult, wall_time: float, written: list[Path]) -> str:
+    """A few lines: samples, Newton corrections per step, factorizations, time, files."""
+    corrections = result.newton_iterations
+    lines = [
+        f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s",
+        f"Newton corrections per step: mean {corrections.mean():.2f}, max {corrections.max()}",
+        f"factorizations: {result.n_factorizations}, linear solves: {result.n_solves}, "
+        f"wall time: {wall_time:.3g} s",
+        "wrote:",
+        *(f"  {path}" for path in written),
+    ]
+    return "\n".join(lines)
+
+
+#: The subcommands: each adds its parser and sets ``handler`` to the function running it.
+SUBCOMMANDS = (add_run_command,)
