@@ -1,8 +1,91 @@
-"""sparsekin: kinematic analysis of planar linkages in absolute coordinates."""
+"""sparsekin: kinematic analysis of planar linkages in absolute coordinates.
+
+Each body has coordinates ``(x, y, angle)``; joints and drivers are constraint equations
+Phi(q, t) = 0.  At each time, Newton–Raphson solves the positions, then one sparse LU
+factorization of the Jacobian Phi_q gives the velocities (Phi_q qd = -Phi_t) and the
+accelerations (Phi_q qdd = gamma).
+
+The modules follow the data flow:
+
+=================  ===========================================================
+`model`            frozen description: `Mechanism`, `Body`, joints, drivers
+`laws`             motion laws of drivers: `Harmonic`, `Linear`, ...
+`modelfile`        the TOML model file: `load_model`, `save_model`
+`pattern`          Mechanism -> constraint arrays, CSR pattern and slots (once)
+`_kernels`         numba kernels that refill residual, Jacobian and gamma
+`assembly`         `Assembler`: owns the arrays and calls the kernels
+`linalg`           linear solvers behind one interface (SuperLU)
+`solvers`          `solve_kinematics` -> `KinematicsResult`
+`cli`              the ``sparsekin`` command
+=================  ===========================================================
+
+A slider-crank, from description to the motion of its slider:
+
+>>> import numpy as np
+>>> import sparsekin as sk
+>>> mechanism = sk.Mechanism(
+...     points={"O": (0.0, 0.0), "A": (0.1, 0.0), "B": (0.4, 0.0)},
+...     bodies=[
+...         sk.Body("crank", origin="O", points=("O", "A")),
+...         sk.Body("rod", origin="A", points=("A", "B")),
+...         sk.Body("slider", origin="B", points=("B",)),
+...     ],
+...     joints=[
+...         sk.Revolute(("crank", "ground"), at="O"),
+...         sk.Revolute(("crank", "rod"), at="A"),
+...         sk.Revolute(("rod", "slider"), at="B"),
+...         sk.Translational(("ground", "slider"), axis=("O", "B"), name="guide"),
+...     ],
+...     drivers=[sk.RotationalDriver(("crank", "ground"), law=sk.Linear(rate=2 * np.pi))],
+... )
+>>> result = sk.solve_kinematics(mechanism, times=np.linspace(0.0, 0.5, 51))
+>>> result.coordinates.shape  # 51 samples × (x, y, angle) of 3 bodies
+(51, 9)
+>>> bool(np.allclose(result.point("B").position[-1], [0.2, 0.0]))  # crank at 180°: 0.4 - 0.1 - 0.1
+True
+"""
+
 from .errors import ConvergenceError, ModelError, SingularJacobianError, SparsekinError
 from .laws import Harmonic, Law, Linear, Polynomial, Spline
 from .model import (
-    GROUND, AbsoluteDriver, Analysis, Body, Mechanism, Revolute, Rigid, RotationalDriver,
-    Translational, TranslationalDriver,
+    GROUND,
+    AbsoluteDriver,
+    Analysis,
+    Body,
+    Mechanism,
+    Revolute,
+    Rigid,
+    RotationalDriver,
+    Translational,
+    TranslationalDriver,
 )
+from .modelfile import load_model, save_model
 from .solvers import KinematicsResult, PointMotion, solve_kinematics
+
+__all__ = [
+    "GROUND",
+    "AbsoluteDriver",
+    "Analysis",
+    "Body",
+    "ConvergenceError",
+    "Harmonic",
+    "KinematicsResult",
+    "Law",
+    "Linear",
+    "Mechanism",
+    "ModelError",
+    "PointMotion",
+    "Polynomial",
+    "Revolute",
+    "Rigid",
+    "RotationalDriver",
+    "SingularJacobianError",
+    "SparsekinError",
+    "Spline",
+    "Translational",
+    "TranslationalDriver",
+    "load_model",
+    "save_model",
+    "solve_kinematics",
+]
+__version__ = "0.1.0"
