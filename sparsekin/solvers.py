@@ -154,8 +154,8 @@ def solve_kinematics(
     ...     drivers=[RotationalDriver(("crank", "ground"), law=Linear(rate=2.0))],
     ... )
     >>> result = solve_kinematics(crank, times=[0.0, 0.5])
-    >>> result.point("A").velocity[1].round(6)  # 0.1 m * 2 rad/s, perpendicular to the crank
-    array([-0.168294,  0.108060])
+    >>> result.point("A").velocity[1].round(6).tolist()  # 0.2 m/s, perpendicular to the crank at 1 rad
+    [-0.168294, 0.10806]
     """
     times = _checked_times(times, mechanism)
     tolerance = _checked_positive(tolerance, "tolerance")
