@@ -372,7 +372,13 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
     ]
     if named_sliders:
         driver_kinds.append(st.builds(TranslationalDriver, st.sampled_from(named_sliders), _laws()))
-    drivers = draw(st.lists(st.one_of(driver_kinds), max_size=3))
+    drivers = draw(
+        st.lists(
+            st.one_of(driver_kinds),
+            max_size=3,
+            unique_by=lambda driver: driver.name if driver.name is not None else object(),
+        )
+    )
     analysis = draw(
         st.builds(
             Analysis,

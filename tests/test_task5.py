@@ -12,7 +12,8 @@ from sparsekin import ConvergenceError, solve_kinematics
 from sparsekin.assembly import Assembler
 from sparsekin.pattern import build_pattern
 
-REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference"
+#: A copy of shared/reference/adams_point_A.csv (its header names the source).
+ADAMS_POINT_A = Path(__file__).resolve().parent / "data" / "adams_point_A.csv"
 PERIOD = 4 * math.pi / 3  # both strokes are L0 + 0.05 sin(1.5 t)
 
 
@@ -35,10 +36,9 @@ def test_jacobian_determinant_at_start_matches_report(task5):
     assert np.linalg.cond(jacobian) == pytest.approx(94, rel=0.01)  # task5.md: "about 94"
 
 
-@pytest.mark.skipif(not (REFERENCE / "adams_point_A.csv").exists(), reason="needs shared/reference")
 def test_point_a_matches_adams(task5):
     """ADAMS rounds to 1e-4 mm, so a correct solver is within 5e-5 mm (+ ADAMS' own error)."""
-    adams = np.loadtxt(REFERENCE / "adams_point_A.csv", delimiter=",", comments="#", skiprows=4)
+    adams = np.loadtxt(ADAMS_POINT_A, delimiter=",", comments="#", skiprows=4)
     assert adams.shape == (501, 3) and adams[-1, 0] == 5.0
     result = solve_kinematics(task5, adams[:, 0])
     deviation_mm = np.abs(result.point("A").position * 1000.0 - adams[:, 1:])
