@@ -25,6 +25,12 @@ from numba import njit
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 
 
+@njit(inline="always", **_JIT)
+def _turned(cosine, sine, vector):
+    """R(angle) @ vector for a local 2-vector, given cos and sin of the angle."""
+    return cosine * vector[0] - sine * vector[1], sine * vector[0] + cosine * vector[1]
+
+
 @njit(**_JIT)
 def fill_point_coincidence(q, body_i, body_j, local_i, local_j, row, slots, residual, jac_data):
     """Point s_i of body i coincides with point s_j of body j: 2 rows, 8 entries."""
@@ -33,10 +39,8 @@ def fill_point_coincidence(q, body_i, body_j, local_i, local_j, row, slots, resi
         cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
         cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
         # a = R_i s_i and b = R_j s_j, global vectors from the frames to the point
-        ax = cos_i * local_i[k, 0] - sin_i * local_i[k, 1]
-        ay = sin_i * local_i[k, 0] + cos_i * local_i[k, 1]
-        bx = cos_j * local_j[k, 0] - sin_j * local_j[k, 1]
-        by = sin_j * local_j[k, 0] + cos_j * local_j[k, 1]
+        ax, ay = _turned(cos_i, sin_i, local_i[k])
+        bx, by = _turned(cos_j, sin_j, local_j[k])
         residual[r] = q[i] + ax - q[j] - bx
         residual[r + 1] = q[i + 1] + ay - q[j + 1] - by
         s = slots[k]
@@ -57,13 +61,11 @@ def fill_point_coincidence_gamma(q, qd, body_i, body_j, local_i, local_j, row, g
         i, j, r = 3 * body_i[k], 3 * body_j[k], row[k]
         cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
         cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
+        ax, ay = _turned(cos_i, sin_i, local_i[k])
+        bx, by = _turned(cos_j, sin_j, local_j[k])
         wi2, wj2 = qd[i + 2] ** 2, qd[j + 2] ** 2
-        gamma[r] = (cos_i * local_i[k, 0] - sin_i * local_i[k, 1]) * wi2 - (
-            cos_j * local_j[k, 0] - sin_j * local_j[k, 1]
-        ) * wj2
-        gamma[r + 1] = (sin_i * local_i[k, 0] + cos_i * local_i[k, 1]) * wi2 - (
-            sin_j * local_j[k, 0] + cos_j * local_j[k, 1]
-        ) * wj2
+        gamma[r] = ax * wi2 - bx * wj2
+        gamma[r + 1] = ay * wi2 - by * wj2
 
 
 @njit(**_JIT)
@@ -73,12 +75,9 @@ def fill_projected_distance(q, body_i, body_j, local_i, local_j, direction, row,
         i, j = 3 * body_i[k], 3 * body_j[k]
         cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
         cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
-        nx = cos_i * direction[k, 0] - sin_i * direction[k, 1]
-        ny = sin_i * direction[k, 0] + cos_i * direction[k, 1]
-        ax = cos_i * local_i[k, 0] - sin_i * local_i[k, 1]
-        ay = sin_i * local_i[k, 0] + cos_i * local_i[k, 1]
-        bx = cos_j * local_j[k, 0] - sin_j * local_j[k, 1]
-        by = sin_j * local_j[k, 0] + cos_j * local_j[k, 1]
+        nx, ny = _turned(cos_i, sin_i, direction[k])
+        ax, ay = _turned(cos_i, sin_i, local_i[k])
+        bx, by = _turned(cos_j, sin_j, local_j[k])
         # e = r_j + b - r_i: the end point seen from body i's frame origin
         ex = q[j] + bx - q[i]
         ey = q[j + 1] + by - q[i + 1]
@@ -100,12 +99,9 @@ def fill_projected_distance_gamma(q, qd, body_i, body_j, local_i, local_j, direc
         cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
         cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
         wi, wj = qd[i + 2], qd[j + 2]
-        nx = cos_i * direction[k, 0] - sin_i * direction[k, 1]
-        ny = sin_i * direction[k, 0] + cos_i * direction[k, 1]
-        ax = cos_i * local_i[k, 0] - sin_i * local_i[k, 1]
-        ay = sin_i * local_i[k, 0] + cos_i * local_i[k, 1]
-        bx = cos_j * local_j[k, 0] - sin_j * local_j[k, 1]
-        by = sin_j * local_j[k, 0] + cos_j * local_j[k, 1]
+        nx, ny = _turned(cos_i, sin_i, direction[k])
+        ax, ay = _turned(cos_i, sin_i, local_i[k])
+        bx, by = _turned(cos_j, sin_j, local_j[k])
         dx = q[j] + bx - q[i] - ax
         dy = q[j + 1] + by - q[i + 1] - ay
         # d' = r_j' + Omega b wj - r_i' - Omega a wi
