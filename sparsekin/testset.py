@@ -1,0 +1,212 @@
+"""A scalable test set of planar mechanisms, from ten bodies to a million.
+
+Every function returns a `Mechanism` (which `save_model` can write) whose exact motion is
+known independently of the solver:
+
+* `task5` — the ten-body two-actuator linkage of the Task 5 report.
+* `task5_chain` — Task 5 units in series: unit k's ground pivots (L, N, H) ride on the
+  actuator-2 cylinder c10 of unit k-1.  Drivers are relative, so each unit moves relative
+  to its base exactly as a single Task 5 with its phase.
+* `four_bar_chain` — the IFToMM "N four-bar" benchmark: the couplers translate rigidly.
+* `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
+  its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
+  the horizontal bars translate.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .laws import Harmonic, Linear
+from .model import Body, Mechanism, Revolute, RotationalDriver, Translational, TranslationalDriver
+
+__all__ = ["TASK5_POINTS", "task5", "task5_chain", "four_bar_chain", "lattice", "task5_unit_phases"]
+
+#: Task 5 points in the drawn configuration, m (shared/reference/task5.md).
+TASK5_POINTS = {
+    "A": (-1.0, 0.2), "B": (-0.7, 0.8), "D": (-0.2, 0.5), "E": (0.1, 0.8), "F": (0.9, 0.7),
+    "G": (0.3, 0.6), "H": (0.7, -0.4), "I": (0.7, 0.3), "J": (0.0, 0.9), "K": (-1.2, 0.6),
+    "L": (0.6, 0.3), "M": (0.2, 0.6), "N": (0.4, -0.2),
+}  # fmt: skip
+#: Points carried by each Task 5 body; the first is the frame origin.
+_TASK5_BODIES = {
+    "c1": ("A", "B", "K"), "c2": ("J", "E", "M", "F"), "c3": ("L", "I", "F", "G"),
+    "c4": ("I", "A", "D"), "c5": ("B", "J"), "c6": ("D", "E"),
+    "c7": ("M",), "c8": ("N",), "c9": ("G",), "c10": ("H",),
+}  # fmt: skip
+#: Revolute joints (body, body, point); "base" is the ground of a unit.
+_TASK5_PINS = (
+    ("c3", "base", "L"), ("c3", "c4", "I"), ("c4", "c1", "A"), ("c1", "c5", "B"),
+    ("c5", "c2", "J"), ("c2", "c7", "M"), ("c2", "c3", "F"), ("c3", "c9", "G"),
+    ("c4", "c6", "D"), ("c6", "c2", "E"), ("c8", "base", "N"), ("c10", "base", "H"),
+)  # fmt: skip
+#: The two actuators: (name, cylinder, rod, start point, end point).
+_TASK5_ACTUATORS = (("actuator1", "c8", "c7", "N", "M"), ("actuator2", "c10", "c9", "H", "G"))
+#: Angular frequency of the Task 5 actuator strokes, rad/s.
+TASK5_OMEGA = 1.5
+#: Distance between successive units of `task5_chain` along x, m.
+TASK5_CHAIN_SPACING = 2.5
+#: Number of distinct actuator phases in `task5_chain`, spread evenly over a period.
+TASK5_CHAIN_PHASES = 11
+
+
+def _stroke_lengths() -> tuple[float, float]:
+    return tuple(
+        math.dist(TASK5_POINTS[start], TASK5_POINTS[end]) for _, _, _, start, end in _TASK5_ACTUATORS
+    )
+
+
+def _task5_unit(points, suffix: str, base: str, phase: float, amplitude: float):
+    """Bodies, joints and drivers of one Task 5 unit whose points are `points` (global)."""
+    angle = {}
+    for _, cylinder, rod, start, end in _TASK5_ACTUATORS:
+        (x0, y0), (x1, y1) = points[start + suffix], points[end + suffix]
+        angle[cylinder] = angle[rod] = math.atan2(y1 - y0, x1 - x0)
+    bodies = [
+        Body(name + suffix, origin=carried[0] + suffix, angle=angle.get(name, 0.0),
+             points=tuple(p + suffix for p in carried))
+        for name, carried in _TASK5_BODIES.items()
+    ]  # fmt: skip
+    joints = [
+        Revolute((i + suffix, base if j == "base" else j + suffix), at=at + suffix) for i, j, at in _TASK5_PINS
+    ]
+    joints += [
+        Translational((cylinder + suffix, rod + suffix), axis=(start + suffix, end + suffix), name=name + suffix)
+        for name, cylinder, rod, start, end in _TASK5_ACTUATORS
+    ]
+    drivers = [
+        TranslationalDriver(
+            name + suffix,
+            law=Harmonic(amplitude=amplitude, omega=TASK5_OMEGA, phase=phase, offset=None if phase == 0 else length),
+        )
+        for (name, *_), length in zip(_TASK5_ACTUATORS, _stroke_lengths())
+    ]
+    return bodies, joints, drivers
+
+
+def task5(amplitude: float = 0.05) -> Mechanism:
+    """The Task 5 linkage; both strokes follow L0 + amplitude · sin(1.5 t) m."""
+    bodies, joints, drivers = _task5_unit(TASK5_POINTS, "", "ground", 0.0, amplitude)
+    return Mechanism(points=TASK5_POINTS, bodies=bodies, joints=joints, drivers=drivers, name="task5")
+
+
+def task5_unit_phases(n_units: int) -> np.ndarray:
+    """Actuator phase of each unit of `task5_chain`, rad: 11 phases spread over 2π, repeated."""
+    return 2 * np.pi * (np.arange(n_units) % TASK5_CHAIN_PHASES) / TASK5_CHAIN_PHASES
+
+
+def _task5_points_at_phases(amplitude: float) -> np.ndarray:
+    """Points of a single Task 5 at the phases of `task5_unit_phases`, shape (phases, 13, 2).
+
+    One sweep over a period, at small steps so that Newton follows the branch.
+    """
+    from .solvers import solve_kinematics
+
+    steps_per_phase = 40
+    times = np.linspace(0.0, 2 * np.pi / TASK5_OMEGA, TASK5_CHAIN_PHASES * steps_per_phase + 1)
+    result = solve_kinematics(task5(amplitude), times)
+    rows = np.arange(TASK5_CHAIN_PHASES) * steps_per_phase
+    return np.stack([result.point(name).position[rows] for name in TASK5_POINTS], axis=1)
+
+
+def task5_chain(n_units: int, amplitude: float = 0.03) -> Mechanism:
+    """`n_units` Task 5 units in series: 10·n bodies, 2·n actuators.
+
+    Unit k sits `TASK5_CHAIN_SPACING`·k m to the right of unit 0, assembled at its phase
+    (`task5_unit_phases`); its pivots L, N and H ride on the cylinder c10 of unit k-1
+    (unit 0's on the ground).  Its strokes follow L0 + amplitude · sin(1.5 t + phase).
+    With amplitude 0.03 m (instead of Task 5's 0.05 m) every unit stays well clear of the
+    near dead centre at full stroke; with the phases spread evenly, the rotations of the
+    bases cancel over every 11 units, so the chain wiggles but does not curl up.
+    """
+    if isinstance(n_units, bool) or not isinstance(n_units, (int, np.integer)) or n_units < 1:
+        raise ValueError(f"`n_units` must be a whole number >= 1, got {n_units!r}.")
+    assembled = _task5_points_at_phases(amplitude)
+    phases = task5_unit_phases(n_units)
+    names = list(TASK5_POINTS)
+    points, bodies, joints, drivers = {}, [], [], []
+    for k in range(n_units):
+        suffix = f"_{k}"
+        shift = np.array([TASK5_CHAIN_SPACING * k, 0.0])
+        for name, position in zip(names, assembled[k % TASK5_CHAIN_PHASES] + shift):
+            points[name + suffix] = (float(position[0]), float(position[1]))
+        base = "ground" if k == 0 else f"c10_{k - 1}"
+        unit_bodies, unit_joints, unit_drivers = _task5_unit(points, suffix, base, float(phases[k]), amplitude)
+        bodies += unit_bodies
+        joints += unit_joints
+        drivers += unit_drivers
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"task5_chain_{n_units}")
+
+
+def four_bar_chain(n_loops: int, initial_angle: float = math.pi / 4, rate: float = 1.0) -> Mechanism:
+    """The IFToMM N-four-bar benchmark: n_loops parallelograms side by side, 2·n+1 bodies.
+
+    Crank i (i = 0 … n) turns about the ground pivot (i, 0); coupler i joins the tips of
+    cranks i and i+1.  Cranks and couplers are 1 m long.  Crank 0 is driven at `rate`
+    rad/s from `initial_angle`; every crank turns with it and the couplers translate.
+    Keep the crank angle away from 0 and π, where the parallelograms can fold.
+    """
+    if isinstance(n_loops, bool) or not isinstance(n_loops, (int, np.integer)) or n_loops < 1:
+        raise ValueError(f"`n_loops` must be a whole number >= 1, got {n_loops!r}.")
+    cosine, sine = math.cos(initial_angle), math.sin(initial_angle)
+    points = {}
+    for i in range(n_loops + 1):
+        points[f"O{i}"] = (float(i), 0.0)
+        points[f"T{i}"] = (i + cosine, sine)
+    cranks = [Body(f"crank{i}", origin=f"O{i}", angle=initial_angle, points=(f"O{i}", f"T{i}")) for i in range(n_loops + 1)]
+    couplers = [Body(f"coupler{i}", origin=f"T{i}", points=(f"T{i}", f"T{i + 1}")) for i in range(n_loops)]
+    joints = [Revolute((f"crank{i}", "ground"), at=f"O{i}") for i in range(n_loops + 1)]
+    for i in range(n_loops):
+        joints.append(Revolute((f"coupler{i}", f"crank{i}"), at=f"T{i}"))
+        joints.append(Revolute((f"coupler{i}", f"crank{i + 1}"), at=f"T{i + 1}"))
+    drivers = [RotationalDriver(("crank0", "ground"), law=Linear(rate=rate))]
+    return Mechanism(points=points, bodies=cranks + couplers, joints=joints, drivers=drivers, name=f"four_bar_chain_{n_loops}")
+
+
+#: Amplitude (rad) and angular frequency (rad/s) of the row actuators of `lattice`.
+LATTICE_AMPLITUDE = 0.3
+LATTICE_OMEGA = 2.0
+
+
+def lattice(rows: int, cols: int) -> Mechanism:
+    """A grid of rows × cols parallelogram cells on a fixed base: rows·(2·cols+1) bodies.
+
+    Node (r, c) starts at (c, r).  Row r (1 … rows) has vertical bars V{r}_{c} from node
+    (r-1, c) to (r, c) and horizontal bars H{r}_{c} from (r, c) to (r, c+1); the bottom
+    nodes are ground pivots.  Pinned at the nodes, the grid has one degree of freedom per
+    row (its shear); an actuator at the left edge drives the angle of V{r}_0 relative to
+    the bar below it to π/2 + 0.3 (sin(2 t + phase_r) - sin(phase_r)), so the grid starts
+    as drawn.  Every vertical bar of row r turns with it and the horizontal bars
+    translate; the angles stay within 0.6 rad of vertical, far from the folded positions
+    (a bar horizontal, 1.57 rad away).  Interior nodes join four bars, so the
+    Jacobian graph is a two-dimensional mesh.
+    """
+    for value, label in ((rows, "rows"), (cols, "cols")):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"`{label}` must be a whole number >= 1, got {value!r}.")
+    points = {f"n{r}_{c}": (float(c), float(r)) for r in range(rows + 1) for c in range(cols + 1)}
+    bodies, joints, drivers = [], [], []
+    for r in range(1, rows + 1):
+        for c in range(cols + 1):
+            bodies.append(Body(f"V{r}_{c}", origin=f"n{r - 1}_{c}", angle=math.pi / 2, points=(f"n{r - 1}_{c}", f"n{r}_{c}")))
+        for c in range(cols):
+            bodies.append(Body(f"H{r}_{c}", origin=f"n{r}_{c}", points=(f"n{r}_{c}", f"n{r}_{c + 1}")))
+        for c in range(cols + 1):
+            below = "ground" if r == 1 else f"V{r - 1}_{c}"
+            joints.append(Revolute((f"V{r}_{c}", below), at=f"n{r - 1}_{c}"))
+            if c < cols:
+                joints.append(Revolute((f"H{r}_{c}", f"V{r}_{c}"), at=f"n{r}_{c}"))
+            if c > 0:
+                joints.append(Revolute((f"H{r}_{c - 1}", f"V{r}_{c}"), at=f"n{r}_{c}"))
+        phase = 2 * np.pi * (r - 1) / max(rows, 1)
+        below = "ground" if r == 1 else f"H{r - 1}_0"
+        drivers.append(
+            RotationalDriver(
+                (f"V{r}_0", below),
+                law=Harmonic(amplitude=LATTICE_AMPLITUDE, omega=LATTICE_OMEGA, phase=float(phase),
+                             offset=math.pi / 2 - LATTICE_AMPLITUDE * math.sin(phase)),
+            )
+        )  # fmt: skip
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"lattice_{rows}x{cols}")
