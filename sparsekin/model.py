@@ -287,6 +287,7 @@ class Mechanism:
     name: str = "mechanism"
     analysis: Analysis = field(default_factory=Analysis)
     _body_index: dict[str, int] = field(init=False, repr=False, compare=False)
+    _joint_index: dict[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
@@ -355,10 +356,8 @@ class Mechanism:
         return (x, y, b.angle)
 
     def joint_named(self, name: str) -> Joint:
-        for joint in self.joints:
-            if joint.name == name:
-                return joint
-        raise KeyError(name)
+        """The joint called `name`; KeyError if there is none."""
+        return self.joints[self._joint_index[name]]
 
     def element_label(self, kind: str, index: int) -> str:
         """``joints[3] "pivot" (revolute c3–c4 at I)``: a label for messages."""
@@ -380,7 +379,8 @@ class Mechanism:
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where)
 
     def _check_joints(self) -> None:
-        joint_names: set[str] = set()
+        joint_names: dict[str, int] = {}
+        _set(self, "_joint_index", joint_names)
         for index, joint in enumerate(self.joints):
             where = f"joints[{index}]"
             for k, body in enumerate(joint.bodies):
@@ -388,7 +388,7 @@ class Mechanism:
             if joint.name is not None:
                 if joint.name in joint_names:
                     raise ModelError(f'duplicate joint name "{joint.name}"', element=f"{where}.name")
-                joint_names.add(joint.name)
+                joint_names[joint.name] = index
             if isinstance(joint, Revolute):
                 self._check_point(joint.at, f"{where}.at")
             elif isinstance(joint, Translational):
