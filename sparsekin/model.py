@@ -26,7 +26,7 @@ from typing import Union
 
 from . import _validate
 from .errors import ModelError
-from .laws import Law, Spline
+from .laws import Law
 
 __all__ = [
     "GROUND",
@@ -468,7 +468,3 @@ def _shown_point(reference: PointRef | None) -> str:
         return reference
     return f"({reference[0]:g}, {reference[1]:g})"
 
-
-def spline_laws(mechanism: Mechanism) -> list[tuple[int, Spline]]:
-    """The drivers whose law is a `Spline`, by index."""
-    return [(k, d.law) for k, d in enumerate(mechanism.drivers) if isinstance(d.law, Spline)]

@@ -407,7 +407,7 @@ def _coefficients(value: object, element: str) -> object:
 
 
 def _axis(value: object, element: str) -> object:
-    """A translational joint's axis, if it is an array (`Translational` takes a table's keys)."""
+    """A translational joint's axis, if it is an array; a table is refused in TOML's words."""
     if not isinstance(value, list):
         raise ModelError(f"expected two points [P, Q], got {_kind(value)}", element=element)
     return value

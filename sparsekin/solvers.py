@@ -188,14 +188,18 @@ def solve_kinematics(
             point_map=build_point_map(mechanism),
         )
 
-    q = pattern.initial_coordinates.copy()
     for k, t in enumerate(times):
-        if k > 0:
+        q = coordinates[k]  # Newton refines the predictor in place, in its row of the result
+        if k == 0:
+            q[:] = pattern.initial_coordinates
+        else:  # Taylor predictor from the previous sample
             h = t - times[k - 1]
-            q = coordinates[k - 1] + h * velocities[k - 1] + (0.5 * h * h) * accelerations[k - 1]
+            np.multiply(velocities[k - 1], h, out=q)
+            q += coordinates[k - 1]
+            q += (0.5 * h * h) * accelerations[k - 1]
         assembler.set_time(t)
         try:
-            q, iterations[k] = _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations)
+            iterations[k] = _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations)
             velocities[k] = linear_solver.solve(assembler.velocity_rhs)
             assembler.fill_acceleration_rhs(q, velocities[k])
             accelerations[k] = linear_solver.solve(assembler.acceleration_rhs)
@@ -213,7 +217,6 @@ def solve_kinematics(
                 driver_values=_driver_values(mechanism, assembler),
                 result=result(k),
             ) from error
-        coordinates[k] = q
     return result(n_times)
 
 
@@ -223,7 +226,7 @@ class _NoConvergence(Exception):
 
 
 def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations):
-    """Newton–Raphson from `q`; returns the converged q and the number of corrections.
+    """Newton–Raphson from `q`, which it refines in place; returns the number of corrections.
 
     On return, `linear_solver` holds the factorization of the Jacobian at the converged q.
     """
@@ -235,13 +238,13 @@ def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterat
             raise _NoConvergence("the residual is not finite")
         linear_solver.factor(assembler.jacobian)
         if norm <= tolerance:
-            return q, iteration
+            return iteration
         if iteration == max_iterations:
             break
         if iteration >= 3 and norm > 0.5 * previous_norm:
             raise _NoConvergence(f"Newton stalled after {iteration} corrections")
         previous_norm = norm
-        q = q - linear_solver.solve(assembler.residual)
+        q -= linear_solver.solve(assembler.residual)
     raise _NoConvergence(f"no convergence in {max_iterations} Newton corrections")
 
 
