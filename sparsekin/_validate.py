@@ -19,6 +19,8 @@ MAX_MAGNITUDE = 1e15
 
 def finite_float(value: object, element: str) -> float:
     """`value` as a float, if it is a real, finite number of sensible magnitude."""
+    if type(value) is float and -MAX_MAGNITUDE <= value <= MAX_MAGNITUDE:  # the common case, fast
+        return value
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ModelError(f"expected a number, got {_shown(value)}", element=element)
     number = float(value)
@@ -68,6 +70,9 @@ def point_reference(value: object, element: str) -> str | tuple[float, float]:
 
 def two_names(value: object, element: str) -> tuple[str, str]:
     """`value` as a pair of names, ``[i, j]``."""
+    if type(value) in (tuple, list) and len(value) == 2 and type(value[0]) is type(value[1]) is str:
+        if value[0].strip() and value[1].strip():  # the common case, fast
+            return (value[0], value[1])
     if isinstance(value, str) or not is_sequence(value) or len(value) != 2:
         raise ModelError(f"expected two body names [i, j], got {_shown(value)}", element=element)
     return (name(value[0], f"{element}[0]"), name(value[1], f"{element}[1]"))
@@ -75,6 +80,8 @@ def two_names(value: object, element: str) -> tuple[str, str]:
 
 def names(value: object, element: str) -> tuple[str, ...]:
     """`value` as a tuple of names."""
+    if type(value) in (tuple, list) and all(type(item) is str and item.strip() for item in value):
+        return tuple(value)  # the common case, fast
     if isinstance(value, str) or not is_sequence(value):
         raise ModelError(f"expected a list of names, got {_shown(value)}", element=element)
     return tuple(name(item, f"{element}[{index}]") for index, item in enumerate(value))
@@ -112,7 +119,7 @@ def known_list(known: Sequence[str], limit: int = 6) -> str:
 
 def is_sequence(value: object) -> bool:
     """A list-like value (a tuple, a list, an array), not a string or a mapping."""
-    return isinstance(value, Sequence) or (
+    return type(value) in (tuple, list) or isinstance(value, Sequence) or (
         hasattr(value, "__len__") and hasattr(value, "__getitem__") and not isinstance(value, dict)
     )
 

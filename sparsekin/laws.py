@@ -34,7 +34,7 @@ class Law(Protocol):
         ...
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Harmonic:
     """``offset + amplitude * sin(omega * t + phase)``; `offset` defaults to the initial value."""
 
@@ -60,7 +60,7 @@ class Harmonic:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Linear:
     """``start + rate * t``; `start` defaults to the initial value."""
 

@@ -20,9 +20,11 @@ the body lists it, and a point that no body lists stays on the ground.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Union
+
+import numpy as np
 
 from . import _validate
 from .errors import ModelError
@@ -53,7 +55,7 @@ def _set(instance: object, field_name: str, value: object) -> None:
     object.__setattr__(instance, field_name, value)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Body:
     """A rigid body with a frame at `origin`, turned by `angle` (rad), carrying `points`."""
 
@@ -77,7 +79,7 @@ class Body:
             _set(self, "com", _validate.point_reference(self.com, "com"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Revolute:
     """Bodies ``bodies[0]`` and ``bodies[1]`` share the point `at` (2 equations)."""
 
@@ -96,7 +98,7 @@ class Revolute:
         return f"revolute {self.bodies[0]}–{self.bodies[1]} at {_shown_point(self.at)}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Translational:
     """``bodies[1]`` slides along a line fixed in ``bodies[0]``; relative rotation locked.
 
@@ -150,7 +152,7 @@ class Translational:
         return f"translational {self.bodies[0]}–{self.bodies[1]} {where}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Rigid:
     """``bodies[0]`` and ``bodies[1]`` are welded together (3 equations)."""
 
@@ -167,7 +169,7 @@ class Rigid:
         return f"rigid {self.bodies[0]}–{self.bodies[1]}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class TranslationalDriver:
     """Drives the stroke of the translational joint named `joint`.
 
@@ -191,7 +193,7 @@ class TranslationalDriver:
         return f'stroke of joint "{self.joint}"'
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class RotationalDriver:
     """Drives the relative angle ``angle(bodies[0]) - angle(bodies[1])`` (rad)."""
 
@@ -212,7 +214,7 @@ class RotationalDriver:
         return f"angle {self.bodies[0]} − {self.bodies[1]}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class AbsoluteDriver:
     """Drives one coordinate (``"x"``, ``"y"`` or ``"angle"``) of the frame of `body`."""
 
@@ -235,7 +237,7 @@ class AbsoluteDriver:
         return f"{self.coordinate} of {self.body}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Analysis:
     """Defaults for ``sparsekin run``: end time (s), number of samples, output points."""
 
@@ -293,7 +295,7 @@ class Mechanism:
         _validate.name(self.name, "name")
         if not isinstance(self.points, Mapping):
             raise ModelError(f"expected a mapping of name to [x, y], got {type(self.points).__name__}", element="points")
-        _set(self, "points", {_validate.name(key, "points"): _validate.pair(value, f"points.{key}") for key, value in self.points.items()})
+        _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in self.points.items()})
         _set(self, "bodies", _tuple_of(self.bodies, Body, "bodies"))
         _set(self, "joints", _tuple_of(self.joints, (Revolute, Translational, Rigid), "joints"))
         _set(self, "drivers", _tuple_of(self.drivers, (TranslationalDriver, RotationalDriver, AbsoluteDriver), "drivers"))
@@ -301,23 +303,22 @@ class Mechanism:
             raise ModelError(f"expected an Analysis, got {type(self.analysis).__name__}", element="analysis")
         body_index: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
-            where = f"bodies[{index}]"
             if body.name == GROUND:
-                raise ModelError(f'"{GROUND}" is reserved for the fixed body', element=f"{where}.name")
+                raise ModelError(f'"{GROUND}" is reserved for the fixed body', element=f"bodies[{index}].name")
             if body.name in body_index:
-                raise ModelError(f'duplicate body name "{body.name}"', element=f"{where}.name")
+                raise ModelError(f'duplicate body name "{body.name}"', element=f"bodies[{index}].name")
             body_index[body.name] = index
-            self._check_point(body.origin, f"{where}.origin")
+            self._check_point(body.origin, "bodies[{}].origin", index)
             for k, point in enumerate(body.points):
-                self._check_point(point, f"{where}.points[{k}]")
+                self._check_point(point, "bodies[{}].points[{}]", index, k)
             if body.com is not None:
-                self._check_point(body.com, f"{where}.com")
+                self._check_point(body.com, "bodies[{}].com", index)
         _set(self, "_body_index", body_index)
         self._check_joints()
         self._check_drivers()
         if self.analysis.points is not None:
             for k, point in enumerate(self.analysis.points):
-                self._check_point(point, f"analysis.points[{k}]")
+                self._check_point(point, "analysis.points[{}]", k)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -347,6 +348,17 @@ class Mechanism:
         """Global initial coordinates of a point name or an ``(x, y)`` pair, m."""
         return self.points[reference] if isinstance(reference, str) else reference
 
+    def body_indices(self, names: Iterable[str]) -> np.ndarray:
+        """`body_index` of each name, as an int64 array (-1 for the ground)."""
+        index = self._body_index
+        return np.fromiter((-1 if name == GROUND else index[name] for name in names), dtype=np.int64)
+
+    def positions(self, references: Iterable[PointRef]) -> np.ndarray:
+        """`position` of each reference, as an array of shape (n, 2), m."""
+        points = self.points
+        flat = [coordinate for ref in references for coordinate in (points[ref] if type(ref) is str else ref)]
+        return np.array(flat, dtype=float).reshape(-1, 2)
+
     def frame(self, body: str) -> tuple[float, float, float]:
         """Initial ``(x, y, angle)`` of the frame of `body`; zeros for the ground."""
         if body == GROUND:
@@ -366,52 +378,52 @@ class Mechanism:
         return f"{kind}[{index}]{named} ({element.describe()})"
 
     # ------------------------------------------------------------------ checks
-    def _check_point(self, reference: PointRef, where: str) -> None:
+    # Each check takes its element as a format string and its arguments, formatted only
+    # when it fails: a million-body model is checked without a million f-strings.
+    def _check_point(self, reference: PointRef, where: str, *where_arguments) -> None:
         if isinstance(reference, str) and reference not in self.points:
             raise ModelError(
                 f'unknown point "{reference}" (known: {_validate.known_list(list(self.points))})',
-                element=where,
+                element=where.format(*where_arguments),
             )
 
-    def _check_body(self, body: str, where: str) -> None:
+    def _check_body(self, body: str, where: str, *where_arguments) -> None:
         if body != GROUND and body not in self._body_index:
             known = _validate.known_list([*self._body_index, GROUND])
-            raise ModelError(f'unknown body "{body}" (known: {known})', element=where)
+            raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))
 
     def _check_joints(self) -> None:
         joint_names: dict[str, int] = {}
         _set(self, "_joint_index", joint_names)
         for index, joint in enumerate(self.joints):
-            where = f"joints[{index}]"
             for k, body in enumerate(joint.bodies):
-                self._check_body(body, f"{where}.bodies[{k}]")
+                self._check_body(body, "joints[{}].bodies[{}]", index, k)
             if joint.name is not None:
                 if joint.name in joint_names:
-                    raise ModelError(f'duplicate joint name "{joint.name}"', element=f"{where}.name")
+                    raise ModelError(f'duplicate joint name "{joint.name}"', element=f"joints[{index}].name")
                 joint_names[joint.name] = index
             if isinstance(joint, Revolute):
-                self._check_point(joint.at, f"{where}.at")
+                self._check_point(joint.at, "joints[{}].at", index)
             elif isinstance(joint, Translational):
                 if joint.axis is not None:
-                    self._check_point(joint.axis[0], f"{where}.axis[0]")
-                    self._check_point(joint.axis[1], f"{where}.axis[1]")
+                    self._check_point(joint.axis[0], "joints[{}].axis[0]", index)
+                    self._check_point(joint.axis[1], "joints[{}].axis[1]", index)
                     p, q = self.position(joint.axis[0]), self.position(joint.axis[1])
                     if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
                         raise ModelError(
                             f"zero-length axis: {_shown_point(joint.axis[0])} and "
                             f"{_shown_point(joint.axis[1])} coincide; expected two distinct points",
-                            element=f"{where}.axis",
+                            element=f"joints[{index}].axis",
                         )
                 else:
-                    self._check_point(joint.at, f"{where}.at")
+                    self._check_point(joint.at, "joints[{}].at", index)
 
     def _check_drivers(self) -> None:
         driver_names: set[str] = set()
         for index, driver in enumerate(self.drivers):
-            where = f"drivers[{index}]"
             if driver.name is not None:
                 if driver.name in driver_names:
-                    raise ModelError(f'duplicate driver name "{driver.name}"', element=f"{where}.name")
+                    raise ModelError(f'duplicate driver name "{driver.name}"', element=f"drivers[{index}].name")
                 driver_names.add(driver.name)
             if isinstance(driver, TranslationalDriver):
                 try:
@@ -421,18 +433,26 @@ class Mechanism:
                     raise ModelError(
                         f'unknown joint "{driver.joint}" (known translational joints: '
                         f"{_validate.known_list(known) or 'none with a name'})",
-                        element=f"{where}.joint",
+                        element=f"drivers[{index}].joint",
                     ) from None
                 if not isinstance(joint, Translational):
                     raise ModelError(
                         f'joint "{driver.joint}" is {joint.type_name}; expected a translational joint',
-                        element=f"{where}.joint",
+                        element=f"drivers[{index}].joint",
                     )
             elif isinstance(driver, RotationalDriver):
                 for k, body in enumerate(driver.bodies):
-                    self._check_body(body, f"{where}.bodies[{k}]")
+                    self._check_body(body, "drivers[{}].bodies[{}]", index, k)
             else:
-                self._check_body(driver.body, f"{where}.body")
+                self._check_body(driver.body, "drivers[{}].body", index)
+
+
+def _point_pair(name: str, value: object) -> tuple[float, float]:
+    """The coordinates of point `name` as ``(x, y)``, checked."""
+    if type(value) is tuple and len(value) == 2 and type(value[0]) is type(value[1]) is float:
+        if abs(value[0]) <= _validate.MAX_MAGNITUDE and abs(value[1]) <= _validate.MAX_MAGNITUDE:
+            return value  # the common case, fast
+    return _validate.pair(value, f"points.{name}")
 
 
 def _joint_checks(joint) -> None:
@@ -446,7 +466,7 @@ def _joint_checks(joint) -> None:
 def _driver_checks(driver) -> None:
     if driver.name is not None:
         _validate.name(driver.name, "name")
-    if not isinstance(driver.law, Law):
+    if not callable(getattr(driver.law, "evaluate", None)):  # the `Law` protocol, without its slow isinstance
         raise ModelError(
             f"expected a law (an object with evaluate(t, initial)), got {type(driver.law).__name__}",
             element="law",

@@ -26,7 +26,7 @@ within rows), and for every entry of every equation its slot in the CSR ``data``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -134,123 +134,125 @@ class ConstraintPattern:
         return int(self.indptr[-1])
 
 
-class _Collector:
-    """Gathers equations, in row order, as the elements of a mechanism are visited."""
-
-    def __init__(self, mechanism: Mechanism) -> None:
-        self.mechanism = mechanism
-        n = mechanism.n_bodies
-        self.frames = np.zeros((n + 1, 3))
-        for index, body in enumerate(mechanism.bodies):
-            self.frames[index] = mechanism.frame(body.name)
-        self.ground = n
-        self.row = 0
-        self.coincidence: list[tuple[int, int, int, float, float]] = []
-        self.projection: list[tuple[int, int, int, float, float, float, float, float, float]] = []
-        self.difference: list[tuple[int, int, int, float]] = []
-        self.angle_rows: list[int] = []
-
-    def body(self, name: str) -> int:
-        return self.ground if name == GROUND else self.mechanism.body_index(name)
-
-    def add_coincidence(self, body_i: int, body_j: int, x: float, y: float) -> None:
-        self.coincidence.append((self.row, body_i, body_j, x, y))
-        self.row += 2
-
-    def add_projection(self, body_i: int, body_j: int, start, end, direction) -> None:
-        self.projection.append((self.row, body_i, body_j, *start, *end, *direction))
-        self.row += 1
-
-    def add_difference(self, plus: int, minus: int, target: float, is_angle: bool) -> None:
-        self.difference.append((self.row, plus, minus, target))
-        if is_angle:
-            self.angle_rows.append(self.row)
-        self.row += 1
-
-    def relative_angle(self, body_i: int, body_j: int) -> float:
-        return float(self.frames[body_i, 2] - self.frames[body_j, 2])
-
-
-def _translational_geometry(mechanism: Mechanism, joint: Translational):
-    """Start point, end point and unit axis of a translational joint, global, initial."""
-    if joint.axis is not None:
-        start = np.asarray(mechanism.position(joint.axis[0]), dtype=float)
-        end = np.asarray(mechanism.position(joint.axis[1]), dtype=float)
-        axis = end - start
-    else:
-        start = end = np.asarray(mechanism.position(joint.at), dtype=float)
-        axis = np.asarray(joint.direction, dtype=float)
-    return start, end, axis / np.hypot(*axis)
-
-
 def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     """Compute the constraint parameters and the Jacobian pattern of `mechanism`.
 
     The system need not be square: a mechanism with free motions or redundant
     equations has a pattern too (the solvers refuse it, the diagnostics study it).
+    Each kind of element is gathered in one pass and turned into arrays at once, so the
+    cost is a few list comprehensions per element kind: linear in the model size.
     """
-    collect = _Collector(mechanism)
-    element_first_row = []
-    for joint in mechanism.joints:
-        element_first_row.append(collect.row)
-        i, j = collect.body(joint.bodies[0]), collect.body(joint.bodies[1])
-        if isinstance(joint, Revolute):
-            collect.add_coincidence(i, j, *mechanism.position(joint.at))
-        elif isinstance(joint, Translational):
-            start, end, axis = _translational_geometry(mechanism, joint)
-            angle_i = 3 * i + 2
-            collect.add_difference(angle_i, 3 * j + 2, collect.relative_angle(i, j), True)
-            normal = np.array([-axis[1], axis[0]])
-            collect.add_projection(i, j, start, end, normal)
-        elif isinstance(joint, Rigid):
-            collect.add_coincidence(i, j, *collect.frames[j, :2])
-            collect.add_difference(3 * i + 2, 3 * j + 2, collect.relative_angle(i, j), True)
-    driver_initial = []
-    for driver in mechanism.drivers:
-        element_first_row.append(collect.row)
-        if isinstance(driver, TranslationalDriver):
-            joint = mechanism.joint_named(driver.joint)
-            i, j = collect.body(joint.bodies[0]), collect.body(joint.bodies[1])
-            start, end, axis = _translational_geometry(mechanism, joint)
-            driver_initial.append(float(np.dot(end - start, axis)))
-            collect.add_projection(i, j, start, end, axis)
-        elif isinstance(driver, RotationalDriver):
-            i, j = collect.body(driver.bodies[0]), collect.body(driver.bodies[1])
-            driver_initial.append(collect.relative_angle(i, j))
-            collect.add_difference(3 * i + 2, 3 * j + 2, 0.0, True)
-        elif isinstance(driver, AbsoluteDriver):
-            i = collect.body(driver.body)
-            k = COORDINATE_NAMES.index(driver.coordinate)
-            driver_initial.append(float(collect.frames[i, k]))
-            collect.add_difference(3 * i + k, 3 * collect.ground + k, 0.0, k == 2)
-    element_first_row.append(collect.row)
-
-    return _assemble_pattern(collect, mechanism, np.array(element_first_row), driver_initial)
-
-
-def _assemble_pattern(collect: _Collector, mechanism, element_first_row, driver_initial):
     n = mechanism.n_bodies
-    frames = collect.frames
+    joints, drivers = mechanism.joints, mechanism.drivers
+    frames = np.zeros((n + 1, 3))  # the ground is stored as body n, with zero coordinates
+    frames[:n, :2] = mechanism.positions([body.origin for body in mechanism.bodies])
+    frames[:n, 2] = [body.angle for body in mechanism.bodies]
 
-    coincidence = np.array(collect.coincidence, dtype=float).reshape(-1, 5)
-    c_row = coincidence[:, 0].astype(np.int64)
-    c_i = coincidence[:, 1].astype(np.int64)
-    c_j = coincidence[:, 2].astype(np.int64)
-    c_local_i = _to_local(frames[c_i], coincidence[:, 3:5])
-    c_local_j = _to_local(frames[c_j], coincidence[:, 3:5])
+    counts = [element.n_equations for element in joints] + [1] * len(drivers)
+    element_first_row = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=element_first_row[1:])
+    n_equations = int(element_first_row[-1])
+    joint_rows, driver_rows = element_first_row[: len(joints)], element_first_row[len(joints) : -1]
 
-    projection = np.array(collect.projection, dtype=float).reshape(-1, 9)
-    p_row = projection[:, 0].astype(np.int64)
-    p_i = projection[:, 1].astype(np.int64)
-    p_j = projection[:, 2].astype(np.int64)
-    p_local_i = _to_local(frames[p_i], projection[:, 3:5])
-    p_local_j = _to_local(frames[p_j], projection[:, 5:7])
-    p_direction = _rotate(projection[:, 7:9], -frames[p_i, 2])
+    def of_kind(elements, kind):
+        return [k for k, element in enumerate(elements) if isinstance(element, kind)]
 
-    difference = np.array(collect.difference, dtype=float).reshape(-1, 4)
-    d_row = difference[:, 0].astype(np.int64)
-    d_plus = difference[:, 1].astype(np.int64)
-    d_minus = difference[:, 2].astype(np.int64)
+    def stored_index(names):
+        index = mechanism.body_indices(names)
+        index[index < 0] = n
+        return index
+
+    def bodies_of(elements, picked):
+        return stored_index([body for k in picked for body in elements[k].bodies]).reshape(-1, 2).T
+
+    revolute, translational, rigid = (of_kind(joints, kind) for kind in (Revolute, Translational, Rigid))
+    stroke, rotational, absolute = (
+        of_kind(drivers, kind) for kind in (TranslationalDriver, RotationalDriver, AbsoluteDriver)
+    )
+
+    # Point coincidences: revolute joints at their point, rigid joints at body j's origin.
+    revolute_i, revolute_j = bodies_of(joints, revolute)
+    rigid_i, rigid_j = bodies_of(joints, rigid)
+    revolute_at = mechanism.positions([joints[k].at for k in revolute])
+    c_row = np.concatenate([joint_rows[revolute], joint_rows[rigid]])
+    c_i = np.concatenate([revolute_i, rigid_i])
+    c_j = np.concatenate([revolute_j, rigid_j])
+    c_point = np.concatenate([revolute_at, frames[rigid_j, :2]])
+
+    # Projected distances: translational joints on the normal, strokes along the axis.
+    slide_i, slide_j = bodies_of(joints, translational)
+    slide_start, slide_end, slide_axis = _translational_geometry(mechanism, [joints[k] for k in translational])
+    stroke_joints = [mechanism.joint_named(drivers[k].joint) for k in stroke]
+    stroke_i, stroke_j = bodies_of(stroke_joints, range(len(stroke_joints)))
+    stroke_start, stroke_end, stroke_axis = _translational_geometry(mechanism, stroke_joints)
+    p_row = np.concatenate([joint_rows[translational] + 1, driver_rows[stroke]])
+    p_i = np.concatenate([slide_i, stroke_i])
+    p_j = np.concatenate([slide_j, stroke_j])
+    p_start = np.concatenate([slide_start, stroke_start])
+    p_end = np.concatenate([slide_end, stroke_end])
+    p_direction_global = np.concatenate([np.stack([-slide_axis[:, 1], slide_axis[:, 0]], axis=1), stroke_axis])
+
+    # Coordinate differences: relative angles of translational and rigid joints and of
+    # rotational drivers, and the coordinate of an absolute driver minus the ground's.
+    turn_i, turn_j = bodies_of(drivers, rotational)
+    absolute_body = stored_index([drivers[k].body for k in absolute])
+    absolute_coordinate = np.array(
+        [COORDINATE_NAMES.index(drivers[k].coordinate) for k in absolute], dtype=np.int64
+    )
+    angle_i = np.concatenate([slide_i, rigid_i, turn_i])
+    angle_j = np.concatenate([slide_j, rigid_j, turn_j])
+    d_row = np.concatenate([joint_rows[translational], joint_rows[rigid] + 2, driver_rows[rotational], driver_rows[absolute]])
+    d_plus = np.concatenate([3 * angle_i + 2, 3 * absolute_body + absolute_coordinate])
+    d_minus = np.concatenate([3 * angle_j + 2, 3 * n + absolute_coordinate])
+
+    target = np.zeros(n_equations)
+    n_joint_angles = len(translational) + len(rigid)
+    target[d_row[:n_joint_angles]] = frames[angle_i[:n_joint_angles], 2] - frames[angle_j[:n_joint_angles], 2]
+    row_is_angle = np.zeros(n_equations, dtype=bool)
+    row_is_angle[d_row[: angle_i.size]] = True
+    row_is_angle[driver_rows[absolute][absolute_coordinate == 2]] = True
+
+    driver_initial = np.zeros(len(drivers))
+    driver_initial[stroke] = np.einsum("ij,ij->i", stroke_end - stroke_start, stroke_axis)
+    driver_initial[rotational] = frames[turn_i, 2] - frames[turn_j, 2]
+    driver_initial[absolute] = frames[absolute_body, absolute_coordinate]
+
+    return _assemble_pattern(
+        mechanism, frames, n_equations, element_first_row, driver_initial, target, row_is_angle,
+        (c_row, c_i, c_j, c_point), (p_row, p_i, p_j, p_start, p_end, p_direction_global), (d_row, d_plus, d_minus),
+    )  # fmt: skip
+
+
+def _translational_geometry(mechanism: Mechanism, joints) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Start points, end points and unit axes of translational joints, global, initial.
+
+    Each has shape (len(joints), 2).  For the ``at`` / ``direction`` form the start and
+    end are both the point ``at``.
+    """
+    references = [point for joint in joints for point in (joint.axis if joint.axis is not None else (joint.at, joint.at))]
+    geometry = mechanism.positions(references).reshape(-1, 4)
+    start, end = geometry[:, :2], geometry[:, 2:]
+    axis = end - start
+    at_form = np.array([joint.axis is None for joint in joints], dtype=bool)
+    if at_form.any():
+        axis[at_form] = np.array([joint.direction for joint in joints if joint.axis is None], dtype=float)
+    return start, end, axis / np.hypot(axis[:, 0], axis[:, 1])[:, None]
+
+
+def _assemble_pattern(
+    mechanism, frames, n_equations, element_first_row, driver_initial, target, row_is_angle,
+    coincidence, projection, difference,
+) -> ConstraintPattern:  # fmt: skip
+    """Local constraint parameters, and the CSR pattern with every equation's slots."""
+    n = mechanism.n_bodies
+    c_row, c_i, c_j, c_point = coincidence
+    c_local_i = _to_local(frames[c_i], c_point)
+    c_local_j = _to_local(frames[c_j], c_point)
+    p_row, p_i, p_j, p_start, p_end, p_direction_global = projection
+    p_local_i = _to_local(frames[p_i], p_start)
+    p_local_j = _to_local(frames[p_j], p_end)
+    p_direction = _rotate(p_direction_global, -frames[p_i, 2])
+    d_row, d_plus, d_minus = difference
 
     # (row, column) of every Jacobian entry, equation by equation, in kernel slot order.
     c_columns = np.where(_COINCIDENCE_COLUMNS < 3, 3 * c_i[:, None], 3 * c_j[:, None] - 3) + _COINCIDENCE_COLUMNS
@@ -264,26 +266,21 @@ def _assemble_pattern(collect: _Collector, mechanism, element_first_row, driver_
 
     n_coordinates = 3 * n
     kept = columns < n_coordinates
-    order = np.argsort(rows[kept] * n_coordinates + columns[kept], kind="stable")
+    order = _row_major_order(rows[kept], columns[kept], n_equations)
     nnz = order.size
     slots = np.full(rows.size, nnz, dtype=np.int64)
     slots[np.flatnonzero(kept)[order]] = np.arange(nnz)
     indices = columns[kept][order].astype(np.int32 if n_coordinates < 2**31 - 1 else np.int64)
-    indptr = np.zeros(collect.row + 1, dtype=indices.dtype)
-    np.cumsum(np.bincount(rows[kept], minlength=collect.row), out=indptr[1:])
+    indptr = np.zeros(n_equations + 1, dtype=indices.dtype)
+    np.cumsum(np.bincount(rows[kept], minlength=n_equations), out=indptr[1:])
     c_end = c_rows.size
     p_end = c_end + p_rows.size
-
-    target = np.zeros(collect.row)
-    target[d_row] = difference[:, 3]
-    row_is_angle = np.zeros(collect.row, dtype=bool)
-    row_is_angle[np.array(collect.angle_rows, dtype=np.int64)] = True
 
     all_points = np.array(list(mechanism.points.values()), dtype=float).reshape(-1, 2)
     length_scale = max(float(np.abs(all_points).max(initial=0.0)), float(np.abs(frames[:, :2]).max(initial=0.0)), 1e-3)
     return ConstraintPattern(
         n_bodies=n,
-        n_equations=collect.row,
+        n_equations=n_equations,
         coincidence_row=c_row,
         coincidence_body_i=c_i,
         coincidence_body_j=c_j,
@@ -303,14 +300,24 @@ def _assemble_pattern(collect: _Collector, mechanism, element_first_row, driver_
         difference_slots=slots[p_end:].reshape(-1, 2),
         target=target,
         row_is_angle=row_is_angle,
-        driver_row=element_first_row[len(mechanism.joints) : -1].astype(np.int64),
-        driver_initial=np.array(driver_initial, dtype=float),
+        driver_row=element_first_row[len(mechanism.joints) : -1].copy(),
+        driver_initial=driver_initial,
         element_first_row=element_first_row,
         indptr=indptr,
         indices=indices,
         initial_coordinates=frames[:n].ravel().copy(),
         length_scale=length_scale,
     )
+
+
+def _row_major_order(rows: np.ndarray, columns: np.ndarray, n_rows: int) -> np.ndarray:
+    """The permutation that sorts entries by row, then column, in linear time.
+
+    Two stable counting sorts (by column, then by row) in place of one comparison sort:
+    numpy's stable argsort of small-range integers is a radix sort.
+    """
+    by_column = np.argsort(columns, kind="stable")
+    return by_column[np.argsort(rows[by_column], kind="stable")]
 
 
 def _rotate(vectors: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -340,12 +347,14 @@ class PointMap:
     names: tuple[str, ...]
     body: np.ndarray
     local: np.ndarray
+    _index: dict[str, int] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_index", {name: k for k, name in enumerate(self.names)})
 
     def index(self, name: str) -> int:
-        try:
-            return self.names.index(name)
-        except ValueError:
-            raise KeyError(name) from None
+        """Position of point `name` in `names`; KeyError if there is none."""
+        return self._index[name]
 
 
 def build_point_map(mechanism: Mechanism) -> PointMap:
@@ -355,9 +364,13 @@ def build_point_map(mechanism: Mechanism) -> PointMap:
         for point in body.points:
             carrier.setdefault(point, index)
     names = tuple(mechanism.points)
-    body = np.array([carrier.get(point, -1) for point in names], dtype=np.int64)
-    positions = np.array([mechanism.points[point] for point in names], dtype=float).reshape(-1, 2)
+    body = np.fromiter((carrier.get(point, -1) for point in names), dtype=np.int64, count=len(names))
+    positions = mechanism.positions(names)
     frames = np.zeros((len(names), 3))
     on_body = body >= 0
-    frames[on_body] = np.array([mechanism.frame(mechanism.bodies[b].name) for b in body[on_body]]).reshape(-1, 3)
+    if on_body.any():
+        bodies = mechanism.bodies
+        carriers = np.flatnonzero(on_body)
+        frames[carriers, :2] = mechanism.positions([bodies[b].origin for b in body[carriers]])
+        frames[carriers, 2] = [bodies[b].angle for b in body[carriers]]
     return PointMap(names=names, body=body, local=_to_local(frames, positions))
