@@ -1,4 +1,5 @@
-"""Shared by tests/ and benchmarks/: their helper modules and a seeded random generator."""
+"""Shared by tests/ and benchmarks/: helper modules, a seeded random generator, and the
+benchmarks' ``--sizes`` option (``smoke``, the default, or ``full``)."""
 
 import sys
 from pathlib import Path
@@ -8,6 +9,16 @@ import pytest
 
 # tests/reference.py and tests/examples_loader.py are imported by name from both folders.
 sys.path.insert(0, str(Path(__file__).resolve().parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent / "benchmarks"))
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--sizes",
+        choices=("smoke", "full"),
+        default="smoke",
+        help="benchmark sizes: smoke (up to 100 bodies, the default) or full (up to 10^6 bodies)",
+    )
 
 
 @pytest.fixture

@@ -56,7 +56,7 @@ TASK5_CHAIN_PHASES = 11
 
 @contextmanager
 def _collection_paused():
-    """Pause Python's cyclic garbage collector while a large model is built.
+    """Pause Python's cyclic garbage collector while a large model is built (a decorator).
 
     A million-body model is some four million small objects and none of them forms a
     reference cycle; the collector's repeated passes over them cost a third of the build.
@@ -129,6 +129,7 @@ def _task5_points_at_phases(amplitude: float) -> np.ndarray:
     return np.stack([result.point(name).position[rows] for name in TASK5_POINTS], axis=1)
 
 
+@_collection_paused()
 def task5_chain(n_units: int, amplitude: float = 0.03) -> Mechanism:
     """`n_units` Task 5 units in series: 10·n bodies, 2·n actuators.
 
@@ -145,20 +146,20 @@ def task5_chain(n_units: int, amplitude: float = 0.03) -> Mechanism:
     phases = task5_unit_phases(n_units).tolist()
     names = list(TASK5_POINTS)
     points, bodies, joints, drivers = {}, [], [], []
-    with _collection_paused():
-        for k in range(n_units):
-            suffix = f"_{k}"
-            shift = TASK5_CHAIN_SPACING * k
-            for name, (x, y) in zip(names, assembled[k % TASK5_CHAIN_PHASES]):
-                points[name + suffix] = (x + shift, y)
-            base = "ground" if k == 0 else f"c10_{k - 1}"
-            unit_bodies, unit_joints, unit_drivers = _task5_unit(points, suffix, base, phases[k], amplitude)
-            bodies += unit_bodies
-            joints += unit_joints
-            drivers += unit_drivers
-        return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"task5_chain_{n_units}")
+    for k in range(n_units):
+        suffix = f"_{k}"
+        shift = TASK5_CHAIN_SPACING * k
+        for name, (x, y) in zip(names, assembled[k % TASK5_CHAIN_PHASES]):
+            points[name + suffix] = (x + shift, y)
+        base = "ground" if k == 0 else f"c10_{k - 1}"
+        unit_bodies, unit_joints, unit_drivers = _task5_unit(points, suffix, base, phases[k], amplitude)
+        bodies += unit_bodies
+        joints += unit_joints
+        drivers += unit_drivers
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"task5_chain_{n_units}")
 
 
+@_collection_paused()
 def four_bar_chain(n_loops: int, initial_angle: float = math.pi / 4, rate: float = 1.0) -> Mechanism:
     """The IFToMM N-four-bar benchmark: n_loops parallelograms side by side, 2·n+1 bodies.
 
@@ -189,6 +190,7 @@ LATTICE_AMPLITUDE = 0.3
 LATTICE_OMEGA = 2.0
 
 
+@_collection_paused()
 def lattice(rows: int, cols: int) -> Mechanism:
     """A grid of rows × cols parallelogram cells on a fixed base: rows·(2·cols+1) bodies.
 

@@ -1,0 +1,183 @@
+"""What the benchmarks time: the full time step of sparsekin and of two baselines.
+
+A `Stepper` runs the time loop of `sparsekin.solve_kinematics` (Taylor predictor,
+Newton–Raphson on the positions, then the velocity and acceleration solves) with a given
+linear solver, and records where the time goes:
+
+* ``assembly`` — driver laws, residual and Jacobian refills, gamma refills;
+* ``factorization`` — whatever the linear solver does to a new Jacobian;
+* ``solves`` — the solves with it.
+
+The linear solvers compared, measured in the same run:
+
+* `SuperLUSolver` — sparsekin's path: the CSR pattern is fixed and refilled in place by
+  the numba kernels, then factored by SuperLU (COLAMD) through its CSC view, and that
+  factorization serves every solve at the same position.
+* `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
+  ``numpy.linalg.solve`` for every linear system.
+* `RebuildBaseline` — the straightforward sparse code: the Jacobian rebuilt from (row,
+  column, value) triplets through COO → CSR at every Newton iteration, and
+  ``scipy.sparse.linalg.spsolve`` for every linear system.
+
+Both baselines reuse sparsekin's kernels to compute the values, so what they add is the
+cost of their linear algebra and matrix construction, nothing else.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.sparse import coo_array
+from scipy.sparse.linalg import spsolve
+
+from sparsekin.assembly import Assembler
+from sparsekin.linalg import SuperLUSolver
+from sparsekin.model import Mechanism
+from sparsekin.pattern import build_pattern
+from sparsekin.solvers import DEFAULT_TOLERANCE, NEWTON_MAXITER, _solve_positions
+
+__all__ = ["PHASES", "Stepper", "SuperLUSolver", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS"]
+
+#: The phases a time step is split into.
+PHASES = ("assembly", "factorization", "solves")
+
+
+class DenseBaseline:
+    """The homework method: a dense Jacobian and ``numpy.linalg.solve`` for each system."""
+
+    name = "dense"
+
+    def __init__(self, pattern) -> None:
+        self.n_factorizations = 0
+        self.n_solves = 0
+        self._dense = np.zeros((pattern.n_equations, pattern.n_coordinates))
+
+    def factor(self, jacobian) -> None:
+        self.n_factorizations += 1
+        self._dense[...] = jacobian.toarray()
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        self.n_solves += 1
+        return np.linalg.solve(self._dense, rhs)
+
+
+class RebuildBaseline:
+    """The straightforward sparse code: COO → CSR at every iteration, `spsolve` per system."""
+
+    name = "coo_spsolve"
+
+    def __init__(self, pattern) -> None:
+        self.n_factorizations = 0
+        self.n_solves = 0
+        self._rows = np.repeat(np.arange(pattern.n_equations), np.diff(pattern.indptr))
+        self._columns = pattern.indices
+        self._shape = (pattern.n_equations, pattern.n_coordinates)
+        self._matrix = None
+
+    def factor(self, jacobian) -> None:
+        self.n_factorizations += 1
+        triplets = (jacobian.data.copy(), (self._rows, self._columns))
+        self._matrix = coo_array(triplets, shape=self._shape).tocsr()
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        self.n_solves += 1
+        return spsolve(self._matrix, rhs)
+
+
+def _superlu(pattern) -> SuperLUSolver:
+    return SuperLUSolver()
+
+
+#: Linear solvers by name: each is built from the mechanism's pattern.
+LINEAR_SOLVERS = {"sparsekin": _superlu, "dense": DenseBaseline, "coo_spsolve": RebuildBaseline}
+
+
+class _Timed:
+    """Forwards calls to `target`, adding the time each named method takes to a phase."""
+
+    def __init__(self, target, seconds: dict[str, float], phase_of: dict[str, str]) -> None:
+        self._target = target
+        self._seconds = seconds
+        self._phase_of = phase_of
+
+    def __getattr__(self, name):
+        attribute = getattr(self._target, name)
+        phase = self._phase_of.get(name)
+        if phase is None:
+            return attribute
+        seconds = self._seconds
+
+        def timed(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return attribute(*args, **kwargs)
+            finally:
+                seconds[phase] += time.perf_counter() - start
+
+        return timed
+
+
+class Stepper:
+    """The time loop of `solve_kinematics`, one step at a time, with phase timers.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    linear_solver : str
+        A key of `LINEAR_SOLVERS`.
+    step : float
+        Time step, s.
+
+    The first sample (t = 0, Newton from the model's initial configuration) is solved on
+    construction, outside every timer; `reset` returns to it.
+    """
+
+    def __init__(self, mechanism: Mechanism, linear_solver: str, step: float) -> None:
+        self.pattern = pattern = build_pattern(mechanism)
+        self.step = step
+        self.seconds = dict.fromkeys(PHASES, 0.0)
+        self.assembler = _Timed(
+            Assembler(mechanism, pattern),
+            self.seconds,
+            {"set_time": "assembly", "fill_residual_jacobian": "assembly", "fill_acceleration_rhs": "assembly"},
+        )
+        self.solver = _Timed(
+            LINEAR_SOLVERS[linear_solver](pattern), self.seconds, {"factor": "factorization", "solve": "solves"}
+        )
+        self.weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
+        self.coordinates = pattern.initial_coordinates.copy()
+        self.velocities = np.zeros(pattern.n_coordinates)
+        self.accelerations = np.zeros(pattern.n_coordinates)
+        self.newton_iterations = 0
+        self.time = 0.0
+        self._solve_sample(0.0, self.coordinates)
+        self._start = (self.coordinates.copy(), self.velocities.copy(), self.accelerations.copy())
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the solved first sample, with the timers and counters at zero."""
+        self.coordinates[:], self.velocities[:], self.accelerations[:] = self._start
+        self.time = 0.0
+        self.newton_iterations = 0
+        for phase in PHASES:
+            self.seconds[phase] = 0.0
+
+    def run(self, n_steps: int) -> None:
+        """`n_steps` full time steps: positions, velocities and accelerations."""
+        h = self.step
+        for _ in range(n_steps):
+            self.time += h
+            predictor = self.coordinates + h * self.velocities + (0.5 * h * h) * self.accelerations
+            self._solve_sample(self.time, predictor)
+            self.coordinates = predictor
+
+    def _solve_sample(self, t: float, q: np.ndarray) -> None:
+        assembler, solver = self.assembler, self.solver
+        assembler.set_time(t)
+        self.newton_iterations += _solve_positions(
+            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER
+        )
+        self.velocities = solver.solve(assembler.velocity_rhs)
+        assembler.fill_acceleration_rhs(q, self.velocities)
+        self.accelerations = solver.solve(assembler.acceleration_rhs)
