@@ -1,6 +1,11 @@
-"""Write benchmarks/RESULTS.md from a pytest-benchmark JSON file.
+"""Run the full benchmark suite and write benchmarks/RESULTS.md from it.
 
-Usage: ``python3 benchmarks/make_results.py benchmarks/results.json [RESULTS.md]``.
+Usage:
+
+* ``python3 benchmarks/make_results.py`` runs `COMMAND` (the full sizes, about an hour on
+  this project's machines) and writes benchmarks/results.json and benchmarks/RESULTS.md;
+* ``python3 benchmarks/make_results.py results.json [RESULTS.md]`` only writes the tables
+  from an earlier run's JSON.
 
 Every figure comes from the JSON: the medians of `test_scaling.py::test_time_step` divided
 by the steps per round, the phase split and Newton iterations it recorded, and the build
@@ -10,18 +15,19 @@ times and peak memory of `test_scaling.py::test_setup_and_memory`.
 from __future__ import annotations
 
 import json
-import math
+import subprocess
 import sys
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
-#: The command that produces the JSON file this script reads.
+#: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
     "python3 -m pytest benchmarks --benchmark-enable --benchmark-only --sizes=full "
     "--benchmark-json=benchmarks/results.json"
 )
+_HERE = Path(__file__).resolve().parent
 #: Sizes over which the scaling exponents are fitted, bodies.
 FIT_RANGE = (1_000, 1_000_000)
 #: The solver whose time the ratios divide, and the baselines, in column order.
@@ -42,6 +48,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
+    others = []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -49,6 +56,9 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             steps[(info["family"], info["bodies"])][info["solver"]] = dict(info, seconds_per_step=per_step)
         elif record["name"].startswith("test_setup_and_memory"):
             setups[(info["family"], info["bodies"])] = info
+        else:
+            others.append(record)
+    document["others"] = others
     return steps, setups, document
 
 
@@ -75,7 +85,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         f"{cpu.get('count', '?')} logical CPUs, {machine.get('system', '?')} {machine.get('release', '')}, "
         f"Python {machine.get('python_version', '?')}",
         f"- **Commit**: {commit.get('id', '?')[:12]}{' (with uncommitted changes)' if commit.get('dirty') else ''}",
-        f"- **Command**: `{COMMAND}`, then `python3 benchmarks/make_results.py benchmarks/results.json`",
+        "- **Command**: `python3 benchmarks/make_results.py`, which runs",
+        f"  `{COMMAND}` and writes this file from the JSON",
         "",
         "Time per step: the median over rounds of the time of a round of full steps (positions by",
         "Newton–Raphson, velocities, accelerations of every body) divided by its steps; time step",
@@ -131,19 +142,29 @@ def render(steps: dict, setups: dict, document: dict) -> str:
     lines += ["## Scaling", "", f"Exponent of time per step against bodies, least squares over {FIT_RANGE[0]:,}–{FIT_RANGE[1]:,} bodies:", ""]
     for family, exponent in exponents.items():
         lines.append(f"- {family}: {'not enough sizes' if exponent is None else f'{exponent:.3f}'}")
+    if document["others"]:
+        lines += ["", "## Task 5 and its phases", "", "| benchmark | median | min | rounds | notes |", "|---|---|---|---|---|"]
+        for record in document["others"]:
+            stats = record["stats"]
+            notes = ", ".join(f"{key} {value:.4g}" if isinstance(value, float) else f"{key} {value}" for key, value in record["extra_info"].items())
+            lines.append(f"| `{record['name']}` | {_seconds(stats['median'])} | {_seconds(stats['min'])} | {stats['rounds']} | {notes} |")
     lines += ["", "Dense baseline: run up to 1,000 bodies only. At 10^4 bodies its matrix (3·10^4 squared) would take", "7.2 GB and each `numpy.linalg.solve` about 2/3·(3·10^4)^3 ≈ 1.8·10^13 flops, minutes per solve on this machine.", ""]
     return "\n".join(lines)
 
 
 def main(argv: list[str]) -> None:
-    source = Path(argv[0])
-    target = Path(argv[1]) if len(argv) > 1 else Path(__file__).resolve().parent / "RESULTS.md"
+    if argv:
+        source = Path(argv[0])
+    else:
+        subprocess.run(COMMAND.replace("python3", sys.executable, 1).split(), cwd=_HERE.parent, check=True)
+        source = _HERE / "results.json"
+    target = Path(argv[1]) if len(argv) > 1 else _HERE / "RESULTS.md"
     steps, setups, document = load(source)
     target.write_text(render(steps, setups, document))
     print(f"wrote {target}")
 
 
 if __name__ == "__main__":
-    if not 1 <= len(sys.argv) - 1 <= 2:
+    if len(sys.argv) > 3:
         sys.exit(__doc__)
     main(sys.argv[1:])
