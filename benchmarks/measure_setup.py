@@ -3,7 +3,7 @@
 Usage: ``python3 benchmarks/measure_setup.py FAMILY BODIES``.  Prints one JSON object:
 the seconds spent building the model, computing its pattern and solving the first sample
 (model to pattern to first factorization), and the process's peak resident memory after
-two time steps, with the peak of the same process before the model was built (the
+two time steps (Linux), with the peak of the same process before the model was built (the
 interpreter, numpy, scipy, numba and the compiled kernels), so that their difference is
 what the model costs.
 """
@@ -11,7 +11,6 @@ what the model costs.
 from __future__ import annotations
 
 import json
-import resource
 import sys
 import time
 from pathlib import Path
@@ -27,7 +26,16 @@ from sparsekin.pattern import build_pattern  # noqa: E402
 
 
 def _peak_rss_bytes() -> int:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # kB on Linux
+    """Peak resident memory of this process (VmHWM).
+
+    Not ``getrusage``'s ``ru_maxrss``: Linux carries that over from the parent across
+    fork and exec, so a child of a large pytest process would report the parent's size.
+    """
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024  # kB
+    raise RuntimeError("no VmHWM in /proc/self/status")
 
 
 def main(family: str, bodies: int) -> dict:
