@@ -16,6 +16,7 @@ The modules follow the data flow:
 `assembly`         `Assembler`: owns the arrays and calls the kernels
 `linalg`           linear solvers behind one interface (SuperLU)
 `solvers`          `solve_kinematics` -> `KinematicsResult`
+`diagnostics`      `check_model`, `analyse_jacobian`: rank, redundant equations, free motions
 `cli`              the ``sparsekin`` command
 =================  ===========================================================
 
@@ -45,7 +46,15 @@ A slider-crank, from description to the motion of its slider:
 True
 """
 
-from .errors import ConvergenceError, ModelError, SingularJacobianError, SparsekinError
+from .diagnostics import JacobianAnalysis, ModelReport, analyse_jacobian, check_model
+from .errors import (
+    ConvergenceError,
+    ModelError,
+    RedundantConstraintWarning,
+    SingularConfigurationError,
+    SingularJacobianError,
+    SparsekinError,
+)
 from .laws import Harmonic, Law, Linear, Polynomial, Spline
 from .model import (
     GROUND,
@@ -69,21 +78,27 @@ __all__ = [
     "Body",
     "ConvergenceError",
     "Harmonic",
+    "JacobianAnalysis",
     "KinematicsResult",
     "Law",
     "Linear",
     "Mechanism",
     "ModelError",
+    "ModelReport",
     "PointMotion",
     "Polynomial",
+    "RedundantConstraintWarning",
     "Revolute",
     "Rigid",
     "RotationalDriver",
+    "SingularConfigurationError",
     "SingularJacobianError",
     "SparsekinError",
     "Spline",
     "Translational",
     "TranslationalDriver",
+    "analyse_jacobian",
+    "check_model",
     "load_model",
     "save_model",
     "solve_kinematics",

@@ -105,7 +105,7 @@ class Assembler:
             (self._jac_buffer[: pattern.nnz], pattern.indices, pattern.indptr),
             shape=(n_equations, n_coordinates),
         )
-        if not np.shares_memory(self.jacobian.data, self._jac_buffer):
+        if pattern.nnz and not np.shares_memory(self.jacobian.data, self._jac_buffer):
             raise RuntimeError("scipy copied the Jacobian values; the in-place refill would be lost")
         self.residual = np.zeros(n_equations)
         self.acceleration_rhs = np.zeros(n_equations)

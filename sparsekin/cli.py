@@ -6,6 +6,12 @@
 line on stderr, no traceback), 3 when the analysis stops (the samples solved so far are
 still written).
 
+``sparsekin check MODEL.toml`` assembles the model and prints its degrees of freedom, the
+rank of its Jacobian, its redundant equations and its free motions
+(`sparsekin.diagnostics.check_model`).  Exit status: 0 for a sound model, 1 when it has
+a problem (redundant equations, free motions, or it cannot be assembled), 2 on a bad
+model file or bad arguments.
+
 Each subcommand is a pair of functions: one adds its parser to the subparsers, the other
 runs it and returns the exit status.  `SUBCOMMANDS` lists the first of each pair, so a
 new subcommand only needs its two functions and one entry there.
@@ -17,6 +23,7 @@ import argparse
 import math
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate
+from .diagnostics import check_model
 from .errors import ConvergenceError, ModelError
 from .model import Mechanism
 from .modelfile import load_model
@@ -33,6 +41,7 @@ __all__ = ["main", "build_parser"]
 
 PROGRAM = "sparsekin"
 EXIT_SUCCESS = 0
+EXIT_PROBLEM = 1
 EXIT_USAGE = 2
 EXIT_STOPPED = 3
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
@@ -83,8 +92,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit status: 0 on success, 2 on a bad model or bad arguments, 3 when the analysis
-        stopped.
+        Exit status: 0 on success, 1 when ``check`` finds a problem in the model, 2 on a bad
+        model or bad arguments, 3 when the analysis stopped.
     """
     parser = build_parser()
     try:
@@ -236,13 +245,54 @@ def _require_matplotlib() -> None:
 
 
 def _solve(mechanism: Mechanism, times: np.ndarray, model_path: Path) -> KinematicsResult:
-    """`solve_kinematics`, with its argument and model errors reported against the file."""
+    """`solve_kinematics`, with its argument and model errors reported against the file.
+
+    Warnings (redundant equations left out) are printed as one line each.
+    """
     try:
-        return solve_kinematics(mechanism, times)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return solve_kinematics(mechanism, times)
+            finally:
+                for warning in caught:
+                    _report(f"warning: {warning.message}")
     except ModelError as error:
         raise (error if error.file else error.in_file(str(model_path))) from None
     except ValueError as error:  # e.g. the times leave the range of a spline law
         raise CommandError(str(error)) from None
+
+
+# ---------------------------------------------------------------------- check
+def add_check_command(subparsers) -> None:
+    """Add ``check MODEL.toml [--time T]``."""
+    parser = subparsers.add_parser(
+        "check",
+        help="report degrees of freedom, redundant equations and free motions of a model",
+        description="Assemble the model and report its degrees of freedom (by count and by the rank of "
+        "the Jacobian), its redundant equations and its free motions. Exit status 0 when the model is "
+        "sound, 1 when it has a problem, 2 on a bad file.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument("--time", type=float, default=0.0, metavar="T",
+                        help="time of the analysis, s (default 0): the drivers take their values then")  # fmt: skip
+    parser.set_defaults(handler=check_command)
+
+
+def check_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin check``: print the report; 0 if the model is sound, else 1.
+
+    Raises
+    ------
+    CommandError, ModelError
+        For a bad time or a bad model file; `main` reports them.
+    """
+    mechanism = load_model(arguments.model)
+    if not math.isfinite(arguments.time):
+        raise CommandError(f"--time must be a finite number (s), got {arguments.time!r}")
+    report = check_model(mechanism, time=arguments.time)
+    print(report)
+    return EXIT_SUCCESS if report.sound else EXIT_PROBLEM
 
 
 # ---------------------------------------------------------------------- output files
@@ -331,4 +381,4 @@ def _summary(mechanism: Mechanism, result: KinematicsResult, wall_time: float, w
 
 
 #: The subcommands: each adds its parser and sets ``handler`` to the function running it.
-SUBCOMMANDS = (add_run_command,)
+SUBCOMMANDS = (add_run_command, add_check_command)

@@ -3,16 +3,25 @@
 Every exception derives from `SparsekinError`.  A mistake in a model (in Python or in a
 model file) is a `ModelError` that names the element (``joints[3].bodies``) and, for a
 file, the file.  An analysis that cannot go on raises a `ConvergenceError` (Newton did not
-converge) or a `SingularJacobianError` (the constraint Jacobian could not be factored);
-both carry the time, the driver values and the samples solved before the failure
-(``result``), so nothing is lost.
+converge), or a `SingularConfigurationError` when the mechanism reached a singular
+configuration (a lock-up, a dead centre); both carry the time, the driver values and the
+samples solved before the failure (``result``), so nothing is lost.
+
+Warnings: `RedundantConstraintWarning` when the analysis leaves out redundant equations.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["SparsekinError", "ModelError", "ConvergenceError", "SingularJacobianError"]
+__all__ = [
+    "SparsekinError",
+    "ModelError",
+    "ConvergenceError",
+    "SingularJacobianError",
+    "SingularConfigurationError",
+    "RedundantConstraintWarning",
+]
 
 
 class SparsekinError(Exception):
@@ -88,3 +97,45 @@ class ConvergenceError(SparsekinError, RuntimeError):
 
 class SingularJacobianError(ConvergenceError):
     """The constraint Jacobian is singular: a locked or under-constrained mechanism."""
+
+
+class SingularConfigurationError(SingularJacobianError):
+    """The mechanism reached a singular configuration: a lock-up or a dead centre.
+
+    The analysis stopped at the last configuration it could solve, where the Jacobian is
+    (nearly) singular.  The message names the motion that the constraints no longer
+    control and the constraints involved.
+
+    Attributes
+    ----------
+    time : float
+        The first time the analysis could not reach, s: the singular configuration lies
+        between the last solved sample and this time (within a millionth of the step).
+    driver_values : dict[str, float]
+        Value of every driver's law at `time`.
+    result : KinematicsResult or None
+        The samples solved before the singular configuration.
+    smallest_singular_value : float
+        Smallest singular value of the scaled Jacobian at the last solved configuration,
+        relative to its largest.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        time: float,
+        driver_values: dict[str, float],
+        result: Any = None,
+        smallest_singular_value: float = 0.0,
+    ) -> None:
+        super().__init__(message, time=time, driver_values=driver_values, result=result)
+        self.smallest_singular_value = smallest_singular_value
+
+
+class RedundantConstraintWarning(UserWarning):
+    """Some equations depend on the others and are left out of the analysis.
+
+    Issued by `solve_kinematics` for a model with redundant but consistent joints (a
+    parallelogram with a third parallel crank, say); the message names the equations.
+    """

@@ -9,32 +9,91 @@ converged position then serves two more solves:
 
 Convergence is judged on the residual, lengths relative to the size of the model (so a
 chain 10^4 m long converges as surely as a 1 m linkage) and angles in radians.
+
+Robustness, in the order the run meets it:
+
+* **Redundant equations.**  A model with more equations than coordinates is analysed
+  once at t = 0 (`sparsekin.diagnostics.analyse_jacobian`); the equations that depend
+  on the others are left out of every solve (a square view of the assembler's arrays,
+  refilled in place), with a `RedundantConstraintWarning` naming them.  They must stay
+  satisfied; a model with free motions is refused.
+* **Step subdivision.**  When Newton fails from the predictor, or the solved positions,
+  velocities and accelerations break the corrected trapezoidal rule over the step (the
+  sign of a jump to another assembly branch), the step is halved and the intermediate
+  samples are solved internally, without being stored.
+* **Lock-up.**  When Newton still fails on a step a million times shorter, the Jacobian
+  at the last solved configuration tells a singular configuration (its smallest singular
+  value has collapsed) from other failures; the first is a `SingularConfigurationError`
+  naming the uncontrolled motion and the constraints involved, the second a
+  `ConvergenceError`.  Both keep the samples solved.
 """
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
+from scipy.sparse import csr_array
 
+from ._kernels import _JIT
 from .assembly import Assembler
-from .errors import ConvergenceError, ModelError, SingularJacobianError
+from .diagnostics import (
+    CONSISTENCY_TOLERANCE,
+    analyse_jacobian,
+    coordinate_label,
+    describe_motion,
+    equation_label,
+    equations_summary,
+    motion_summary,
+    residual_weights,
+    row_preference,
+    shares,
+)
+from .errors import ConvergenceError, ModelError, RedundantConstraintWarning, SingularConfigurationError
 from .laws import Spline
 from .linalg import SingularMatrix, SuperLUSolver
-from .model import COORDINATE_NAMES, Mechanism
-from .pattern import EQUATION_NAMES, ConstraintPattern, PointMap, build_pattern, build_point_map
+from .model import Mechanism
+from .pattern import ConstraintPattern, PointMap, build_pattern, build_point_map
 
-__all__ = ["KinematicsResult", "PointMotion", "solve_kinematics"]
+__all__ = ["KinematicsResult", "PointMotion", "coordinate_label", "equation_label", "solve_kinematics"]
 
 #: Most Newton corrections at one time sample.
 NEWTON_MAXITER = 12
 #: Default convergence tolerance: the largest residual, lengths relative to the model size
 #: and angles in rad.  Near the rounding floor, so that positions carry full accuracy.
 DEFAULT_TOLERANCE = 1e-12
-#: Models up to this many coordinates get a dense diagnosis of a singular Jacobian.
-_DIAGNOSIS_MAX_COORDINATES = 3000
-#: How many drivers and constraints an error message lists.
+#: Smallest and largest accepted `tolerance`: below about 4 eps the residual cannot be
+#: reached in floating point; above 1 % of the model size a "solution" is not one.
+TOLERANCE_RANGE = (4 * np.finfo(float).eps, 1e-2)
+#: Branch guard.  Over a step h from sample 0 to sample 1 of a smooth motion,
+#: ``q1 - q0 = h/2 (qd0 + qd1) - h²/12 (qdd1 - qdd0) + O(h^5)`` (the corrected trapezoidal
+#: rule).  A solution that jumped to another assembly branch breaks this by a finite
+#: amount, and Newton travelled a finite distance from the predictor to reach it.  The
+#: step is halved when both happen: the defect of that rule exceeds `BRANCH_DEFECT_RATIO`
+#: times the displacement (and `BRANCH_MIN_DEFECT`), and Newton's total correction exceeds
+#: `BRANCH_MIN_CORRECTION` — distances are the largest coordinate, angles in rad and
+#: lengths relative to the model size.  For a harmonic motion of angular frequency w the
+#: defect ratio is about (h w)^4 / 720: a step must cover more than 1.5 rad of phase to
+#: be halved without cause.  Near a dead centre, where the motion stops being smooth on
+#: the scale of the step, Newton from the predictor moves little (Task 5 at 1 ms: 1.5e-3
+#: rad at the last sample before it), whereas a jump moves by the distance between the
+#: branches (0.13 rad for the four-bar of tests/test_branch_following.py).
+BRANCH_DEFECT_RATIO = 0.01
+BRANCH_MIN_DEFECT = 1e-8
+BRANCH_MIN_CORRECTION = 5e-3
+#: How many times a step is halved at most: for a suspect branch (then the result is
+#: accepted) and for a failure of Newton (then the analysis stops).
+BRANCH_MAX_HALVINGS = 8
+FAILURE_MAX_HALVINGS = 20
+#: Lock-up: after a failure on the shortest step, the configuration is singular if the
+#: smallest singular value of the scaled Jacobian, relative to its largest, has fallen
+#: below this fraction of its value at the first sample.
+LOCK_RATIO = 1e-2
+#: How many drivers, coordinates and constraints an error message lists.
 _LISTED = 4
 
 
@@ -59,11 +118,17 @@ class KinematicsResult:
         their first and second time derivatives.
     body_names : tuple of str
     newton_iterations : ndarray of int, shape (n_times,)
-        Newton corrections at each time.
+        Newton corrections at each time (over all its sub-steps when the step to it was
+        subdivided).
     n_factorizations, n_solves : int
         Factorizations of the Jacobian and linear solves in the whole run.
     complete : bool
         False when the analysis stopped early: then only the samples solved are here.
+    n_subdivisions : int
+        How many times a step was halved (a Newton failure, or a suspected jump to
+        another assembly branch); 0 on a well-sampled run.
+    redundant_equations : tuple of str
+        The equations left out as redundant (empty for most models).
     """
 
     times: np.ndarray
@@ -76,6 +141,8 @@ class KinematicsResult:
     n_solves: int
     complete: bool
     point_map: PointMap = field(repr=False)
+    n_subdivisions: int = 0
+    redundant_equations: tuple[str, ...] = ()
 
     @property
     def n_times(self) -> int:
@@ -111,6 +178,7 @@ class KinematicsResult:
         return PointMotion(position, velocity, acceleration)
 
 
+
 def solve_kinematics(
     mechanism: Mechanism,
     times,
@@ -123,15 +191,17 @@ def solve_kinematics(
     Parameters
     ----------
     mechanism : Mechanism
-        A mechanism with as many equations (joints and drivers) as coordinates.
+        A mechanism whose equations (joints and drivers) control every coordinate.  It
+        may have more equations than coordinates if the surplus are redundant and
+        consistent: they are left out, with a `RedundantConstraintWarning`.
     times : array_like, shape (n_times,)
-        Strictly increasing sample times, s.  The first sample starts Newton from the
-        initial configuration of the model.
+        Strictly increasing, finite sample times, s.  The first sample starts Newton
+        from the initial configuration of the model.
     tolerance : float
         Largest accepted residual: lengths relative to the size of the model, angles in
-        rad.
+        rad; within `TOLERANCE_RANGE`.
     max_iterations : int
-        Most Newton corrections at one time.
+        Most Newton corrections at one time, at least 1.
 
     Returns
     -------
@@ -139,10 +209,23 @@ def solve_kinematics(
 
     Raises
     ------
+    TypeError, ValueError
+        If an argument is not of the expected type, shape or range.
     ModelError
-        If the mechanism does not have as many equations as coordinates.
-    ConvergenceError, SingularJacobianError
-        If a sample cannot be solved; ``error.result`` holds the samples before it.
+        If the mechanism has free motions (fewer independent equations than
+        coordinates), or redundant equations that contradict the others or involve
+        drivers.
+    SingularConfigurationError
+        If the mechanism reaches a singular configuration (a lock-up, a dead centre):
+        ``error.result`` holds the samples before it.
+    ConvergenceError
+        If a sample cannot be solved for another reason; ``error.result`` holds the
+        samples before it.
+
+    Warns
+    -----
+    RedundantConstraintWarning
+        When redundant equations are left out.
 
     Examples
     --------
@@ -157,72 +240,416 @@ def solve_kinematics(
     >>> result.point("A").velocity[1].round(6).tolist()  # 0.2 m/s, perpendicular to the crank at 1 rad
     [-0.168294, 0.10806]
     """
+    if not isinstance(mechanism, Mechanism):
+        raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
     times = _checked_times(times, mechanism)
-    tolerance = _checked_positive(tolerance, "tolerance")
+    tolerance = _checked_tolerance(tolerance)
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
         raise ValueError(f"`max_iterations` must be a whole number >= 1, got {max_iterations!r}.")
+    max_iterations = int(max_iterations)
     pattern = build_pattern(mechanism)
-    if pattern.n_equations != pattern.n_coordinates:
-        raise ModelError(_degrees_of_freedom_message(pattern.n_coordinates, pattern.n_equations, len(mechanism.drivers)))
+    if pattern.n_equations == 0:  # nothing to solve, or nothing that holds the bodies
+        return _without_equations(mechanism, pattern, times)
     assembler = Assembler(mechanism, pattern)
     linear_solver = SuperLUSolver()
-    weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
+    run = _Run(mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # non-finite values are checked
+        return run.solve()
 
-    n_times, n_coordinates = times.size, pattern.n_coordinates
-    coordinates = np.empty((n_times, n_coordinates))
-    velocities = np.empty((n_times, n_coordinates))
-    accelerations = np.empty((n_times, n_coordinates))
-    iterations = np.zeros(n_times, dtype=np.int64)
 
-    def result(n_solved: int) -> KinematicsResult:
+def _without_equations(mechanism: Mechanism, pattern: ConstraintPattern, times) -> KinematicsResult:
+    """The result for a mechanism without bodies; a `ModelError` if it has bodies but no equations."""
+    if pattern.n_coordinates:
+        bodies = ", ".join(mechanism.body_names[:_LISTED]) + (", …" if mechanism.n_bodies > _LISTED else "")
+        raise ModelError(
+            f"{pattern.n_coordinates} coordinates but no equation: every body ({bodies}) moves freely; "
+            "expected joints and drivers"
+        )
+    empty = np.zeros((times.size, 0))
+    return KinematicsResult(
+        times=times, coordinates=empty, velocities=empty.copy(), accelerations=empty.copy(),
+        body_names=(), newton_iterations=np.zeros(times.size, dtype=np.int64), n_factorizations=0,
+        n_solves=0, complete=True, point_map=build_point_map(mechanism),
+    )  # fmt: skip
+
+
+class _Run:
+    """The state of one `solve_kinematics` run: arrays of results, the system solved, counters."""
+
+    def __init__(self, mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations):
+        self.mechanism, self.pattern, self.assembler = mechanism, pattern, assembler
+        self.linear_solver, self.times = linear_solver, times
+        self.tolerance, self.max_iterations = tolerance, max_iterations
+        self.system = assembler  # or a _ReducedSystem without the redundant equations
+        self.weights = residual_weights(pattern)
+        self.system_weights = self.weights  # those of the system's rows
+        self.coordinate_weights = np.full(pattern.n_coordinates, 1.0 / pattern.length_scale)
+        self.coordinate_weights[2::3] = 1.0
+        n_times, n_coordinates = times.size, pattern.n_coordinates
+        self.coordinates = np.empty((n_times, n_coordinates))
+        self.velocities = np.empty((n_times, n_coordinates))
+        self.accelerations = np.empty((n_times, n_coordinates))
+        self.iterations = np.zeros(n_times, dtype=np.int64)
+        self.predicted = np.empty(n_coordinates)  # the predictor of the current step, for the branch guard
+        self.n_subdivisions = 0
+        self.redundant_rows = np.zeros(0, dtype=np.int64)
+
+    # ------------------------------------------------------------------ the loop
+    def solve(self) -> KinematicsResult:
+        times, pattern = self.times, self.pattern
+        if pattern.n_equations != pattern.n_coordinates:
+            self._analyse_non_square()
+        self._first_sample()
+        for k in range(1, times.size):
+            q = self.coordinates[k]  # Newton refines the predictor in place, in its row of the result
+            h = times[k] - times[k - 1]
+            np.multiply(self.velocities[k - 1], h, out=q)  # Taylor predictor from the previous sample
+            q += self.coordinates[k - 1]
+            q += (0.5 * h * h) * self.accelerations[k - 1]
+            np.copyto(self.predicted, q)
+            self.system.set_time(times[k])
+            try:
+                self.iterations[k] = self._solve_positions(q)
+                self._solve_rates(q, self.velocities[k], self.accelerations[k])
+                if _jumped(
+                    h, self.coordinates[k - 1], self.velocities[k - 1], self.accelerations[k - 1],
+                    q, self.velocities[k], self.accelerations[k], self.predicted, self.coordinate_weights,
+                    BRANCH_DEFECT_RATIO, BRANCH_MIN_DEFECT, BRANCH_MIN_CORRECTION,
+                ):  # fmt: skip
+                    raise _BranchJump
+            except (_NoConvergence, SingularMatrix, _BranchJump):
+                self._subdivide(k)
+            if self.redundant_rows.size:
+                self._check_left_out(k)
+        return self.result(times.size)
+
+    def result(self, n_solved: int) -> KinematicsResult:
         return KinematicsResult(
-            times=times[:n_solved],
-            coordinates=coordinates[:n_solved],
-            velocities=velocities[:n_solved],
-            accelerations=accelerations[:n_solved],
-            body_names=mechanism.body_names,
-            newton_iterations=iterations[:n_solved],
-            n_factorizations=linear_solver.n_factorizations,
-            n_solves=linear_solver.n_solves,
-            complete=n_solved == n_times,
-            point_map=build_point_map(mechanism),
+            times=self.times[:n_solved],
+            coordinates=self.coordinates[:n_solved],
+            velocities=self.velocities[:n_solved],
+            accelerations=self.accelerations[:n_solved],
+            body_names=self.mechanism.body_names,
+            newton_iterations=self.iterations[:n_solved],
+            n_factorizations=self.linear_solver.n_factorizations,
+            n_solves=self.linear_solver.n_solves,
+            complete=n_solved == self.times.size,
+            point_map=build_point_map(self.mechanism),
+            n_subdivisions=self.n_subdivisions,
+            redundant_equations=tuple(self._label(row) for row in self.redundant_rows),
         )
 
-    for k, t in enumerate(times):
-        q = coordinates[k]  # Newton refines the predictor in place, in its row of the result
-        if k == 0:
-            q[:] = pattern.initial_coordinates
-        else:  # Taylor predictor from the previous sample
-            h = t - times[k - 1]
-            np.multiply(velocities[k - 1], h, out=q)
-            q += coordinates[k - 1]
-            q += (0.5 * h * h) * accelerations[k - 1]
-        assembler.set_time(t)
+    def _solve_positions(self, q) -> int:
+        return _solve_positions(
+            self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations
+        )
+
+    def _solve_rates(self, q, velocity, acceleration) -> None:
+        """Velocities and accelerations at the converged `q`, with the factorization there."""
+        velocity[:] = self.linear_solver.solve(self.system.velocity_rhs)
+        self.system.fill_acceleration_rhs(q, velocity)
+        acceleration[:] = self.linear_solver.solve(self.system.acceleration_rhs)
+
+    def _first_sample(self) -> None:
+        q = self.coordinates[0]
+        q[:] = self.pattern.initial_coordinates
+        t = self.times[0]
+        self.system.set_time(t)
         try:
-            iterations[k] = _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations)
-            velocities[k] = linear_solver.solve(assembler.velocity_rhs)
-            assembler.fill_acceleration_rhs(q, velocities[k])
-            accelerations[k] = linear_solver.solve(assembler.acceleration_rhs)
-        except _NoConvergence as failure:
+            self.iterations[0] = self._solve_positions(q)
+            self._solve_rates(q, self.velocities[0], self.accelerations[0])
+        except (_NoConvergence, SingularMatrix) as failure:
+            reason = _reason(failure)
+            worst = self._worst_residual()
+            self.system.set_time(t)
+            self.system.fill_residual_jacobian(self.pattern.initial_coordinates)
+            analysis = analyse_jacobian(self.system.jacobian)
+            if analysis.rank < self.pattern.n_coordinates:
+                raise self._singular_error(analysis, self.pattern.initial_coordinates, t, 0) from None
             raise ConvergenceError(
-                _failure_message(mechanism, pattern, assembler, t, failure.reason, weights),
+                f"cannot assemble the model at t = {t:.6g} s: {reason} ({self._drivers_text()}){worst}",
                 time=float(t),
-                driver_values=_driver_values(mechanism, assembler),
-                result=result(k),
+                driver_values=self._driver_values(),
+                result=self.result(0),
             ) from None
-        except SingularMatrix as error:
-            raise SingularJacobianError(
-                _failure_message(mechanism, pattern, assembler, t, "singular Jacobian", weights, singular=True),
-                time=float(t),
-                driver_values=_driver_values(mechanism, assembler),
-                result=result(k),
-            ) from error
-    return result(n_times)
+        if self.redundant_rows.size:
+            self._check_left_out(0)
+
+    # ------------------------------------------------------------------ subdivision
+    def _subdivide(self, k: int) -> None:
+        """Solve sample k from sample k - 1 in shorter steps, halved as often as needed.
+
+        The intermediate samples are solved (positions, velocities, accelerations) but
+        not stored.  A step whose result jumps away from its predictor is halved up to
+        `BRANCH_MAX_HALVINGS` times, then accepted; a step on which Newton fails is
+        halved up to `FAILURE_MAX_HALVINGS` times, then the analysis stops.
+        """
+        times = self.times
+        start, end = float(times[k - 1]), float(times[k])
+        span = end - start
+        t = start
+        q, velocity, acceleration = (self.coordinates[k - 1].copy(), self.velocities[k - 1].copy(),
+                                     self.accelerations[k - 1].copy())  # fmt: skip
+        trial = np.empty_like(q)
+        trial_velocity, trial_acceleration = np.empty_like(q), np.empty_like(q)
+        h = 0.5 * span
+        self.n_subdivisions += 1
+        corrections = 0
+        while True:
+            last = end - t <= h * (1.0 + 1e-9)
+            step = end - t if last else h
+            t_next = end if last else t + h
+            np.multiply(velocity, step, out=trial)
+            trial += q
+            trial += (0.5 * step * step) * acceleration
+            np.copyto(self.predicted, trial)
+            self.system.set_time(t_next)
+            try:
+                n = self._solve_positions(trial)
+                self._solve_rates(trial, trial_velocity, trial_acceleration)
+                if step > span / 2**BRANCH_MAX_HALVINGS and _jumped(
+                    step, q, velocity, acceleration, trial, trial_velocity, trial_acceleration,
+                    self.predicted, self.coordinate_weights,
+                    BRANCH_DEFECT_RATIO, BRANCH_MIN_DEFECT, BRANCH_MIN_CORRECTION,
+                ):  # fmt: skip
+                    raise _BranchJump
+            except (_NoConvergence, SingularMatrix, _BranchJump) as failure:
+                if step <= span / 2**FAILURE_MAX_HALVINGS:
+                    raise self._stopped(k, t, q, t_next, _reason(failure)) from None
+                h = 0.5 * step
+                self.n_subdivisions += 1
+                continue
+            corrections += n
+            t = t_next
+            q, trial = trial, q
+            velocity, trial_velocity = trial_velocity, velocity
+            acceleration, trial_acceleration = trial_acceleration, acceleration
+            if last:
+                break
+            h = min(2.0 * h, span)
+        self.coordinates[k], self.velocities[k], self.accelerations[k] = q, velocity, acceleration
+        self.iterations[k] = corrections
+
+    # ------------------------------------------------------------------ failures
+    def _stopped(self, k, t_good, q_good, t_failed, reason) -> ConvergenceError:
+        """The error for a step that failed on the shortest subdivision.
+
+        A singular configuration if the smallest singular value of the (scaled)
+        Jacobian at the last configuration solved has collapsed compared with the first
+        sample; another failure otherwise.
+        """
+        worst = self._worst_residual()
+        self.system.set_time(self.times[0])
+        self.system.fill_residual_jacobian(self.coordinates[0])
+        reference = analyse_jacobian(self.system.jacobian).smallest_singular_value
+        self.system.set_time(t_good)
+        self.system.fill_residual_jacobian(q_good)
+        analysis = analyse_jacobian(self.system.jacobian)
+        if analysis.rank < analysis.shape[1] or analysis.smallest_singular_value <= LOCK_RATIO * reference:
+            return self._singular_error(
+                analysis, q_good, t_failed, k, reference, f"{reason} on a step of {t_failed - t_good:.2g} s"
+            )
+        self.system.set_time(t_failed)
+        return ConvergenceError(
+            f"{reason} at t = {t_failed:.6g} s ({self._drivers_text()}){worst}; the step was halved down "
+            f"to {t_failed - t_good:.2g} s and the Jacobian at the last configuration solved "
+            f"(t = {t_good:.8g} s) is regular (smallest singular value "
+            f"{analysis.smallest_singular_value:.2g} of the largest, scaled)",
+            time=float(t_failed),
+            driver_values=self._driver_values(),
+            result=self.result(k),
+        )
+
+    def _singular_error(self, analysis, q, t, k, reference=None, how="") -> SingularConfigurationError:
+        """A `SingularConfigurationError` at time `t`, the motion and constraints from `analysis`."""
+        rows = self.system.rows if self.system is not self.assembler else None
+        motion = motion_summary(self.mechanism, analysis.smallest_motion, limit=_LISTED)
+        bodies = describe_motion(
+            self.mechanism, self.pattern, q, analysis.column_scale * analysis.smallest_motion,
+            analysis.smallest_motion, limit=3,
+        )  # fmt: skip
+        equations = equations_summary(
+            self.mechanism, self.pattern, analysis.smallest_equations, rows=rows, limit=_LISTED
+        )
+        value = analysis.smallest_singular_value
+        if analysis.rank < analysis.shape[1]:
+            size = f"the Jacobian has rank {analysis.rank} for {analysis.shape[1]} coordinates"
+        else:
+            versus = f" (it was {reference:.2g} at t = {self.times[0]:g} s)" if reference is not None else ""
+            size = f"smallest singular value of the scaled Jacobian {value:.2g} of the largest{versus}"
+        self.system.set_time(t)
+        return SingularConfigurationError(
+            f"singular configuration at t = {t:.6g} s: {self._drivers_text(prefix='')}; uncontrolled motion: "
+            f"{motion} — {bodies}; constraints involved: {equations}; {size}" + (f"; {how}" if how else ""),
+            time=float(t),
+            driver_values=self._driver_values(),
+            result=self.result(k),
+            smallest_singular_value=float(value),
+        )
+
+    def _worst_residual(self) -> str:
+        residual = self.system.residual
+        if not residual.size or not np.all(np.isfinite(residual)):
+            return ""
+        worst = int(np.argmax(np.abs(residual) * self.system_weights))
+        row = worst if self.system is self.assembler else int(self.system.rows[worst])
+        return f"; largest residual {abs(residual[worst]):.3g} in {self._label(row)}"
+
+    def _driver_values(self) -> dict[str, float]:
+        return {
+            self.mechanism.element_label("drivers", k): float(value)
+            for k, value in enumerate(self.assembler.driver_values)
+        }
+
+    def _drivers_text(self, prefix: str = "drivers: ") -> str:
+        drivers = self._driver_values()
+        shown = "; ".join(f"{label} = {value:.6g}" for label, value in list(drivers.items())[:_LISTED])
+        if len(drivers) > _LISTED:
+            shown += f"; … ({len(drivers)} drivers)"
+        return prefix + (shown or "no drivers")
+
+    def _label(self, row: int) -> str:
+        return equation_label(self.mechanism, self.pattern, int(row))
+
+    # ------------------------------------------------------------------ redundant equations
+    def _analyse_non_square(self) -> None:
+        """Refuse free motions; find the redundant equations at the drawn configuration and
+        solve without them."""
+        mechanism, pattern, assembler = self.mechanism, self.pattern, self.assembler
+        drawn = pattern.initial_coordinates
+        assembler.set_time(self.times[0])
+        assembler.fill_residual_jacobian(drawn)
+        analysis = analyse_jacobian(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
+        n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
+        if analysis.n_free:
+            raise ModelError(self._free_motions_message(analysis, drawn))
+        if n_equations - analysis.n_redundant != n_coordinates:  # borderline ranks: no square system
+            raise ModelError(
+                f"{n_coordinates} coordinates but {n_equations} equations, of which "
+                f"{analysis.n_redundant} depend on the others at t = {self.times[0]:g} s, where "
+                f"{n_equations - n_coordinates} were expected: the drawn configuration is too close to "
+                "singular to tell (sparsekin check MODEL.toml shows more)"
+            )
+        n_joint_rows = int(pattern.element_first_row[len(mechanism.joints)])
+        for k, row in enumerate(analysis.redundant_rows):
+            if np.any(shares(analysis.dependencies[:, k])[n_joint_rows:] >= 1e-12):
+                raise ModelError(
+                    f"{n_coordinates} coordinates but {n_equations} equations, and the drivers take part in "
+                    f"a redundancy: {self._label(row)} depends on "
+                    f"{equations_summary(mechanism, pattern, analysis.dependencies[:, k], exclude=int(row))}"
+                    "; the drivers prescribe a motion that the joints already fix "
+                    "(remove a driver or a joint)"
+                )
+        self.redundant_rows = analysis.redundant_rows
+        self.system = _ReducedSystem(assembler, np.setdiff1d(np.arange(n_equations), analysis.redundant_rows))
+        self.system_weights = self.weights[self.system.rows]
+        listed = "; ".join(self._label(row) for row in self.redundant_rows[:_LISTED])
+        if self.redundant_rows.size > _LISTED:
+            listed += f"; … ({self.redundant_rows.size} equations)"
+        warnings.warn(
+            f"{n_equations} equations for {n_coordinates} coordinates: {self.redundant_rows.size} redundant "
+            f"equation{'s' * (self.redundant_rows.size != 1)} left out (each depends on the others at t = "
+            f"{self.times[0]:g} s): {listed}",
+            RedundantConstraintWarning,
+            stacklevel=3,
+        )
+
+    def _free_motions_message(self, analysis, coordinates) -> str:
+        pattern, mechanism = self.pattern, self.mechanism
+        motions = "; ".join(
+            describe_motion(mechanism, pattern, coordinates, analysis.free_motions[:, k],
+                            analysis.scaled_free_motions[:, k], limit=3)
+            for k in range(min(analysis.n_free, _LISTED))
+        )  # fmt: skip
+        more = f"; … ({analysis.n_free} in all)" if analysis.n_free > _LISTED else ""
+        n_drivers = len(mechanism.drivers)
+        return (
+            f"{pattern.n_coordinates} coordinates but {pattern.n_equations} equations of rank "
+            f"{analysis.rank}: {analysis.n_free} free motion{'s' * (analysis.n_free != 1)} left after the "
+            f"{n_drivers} driver{'s' * (n_drivers != 1)}: {motions}{more}; expected one driver per degree of freedom "
+            "(sparsekin check MODEL.toml shows more)"
+        )
+
+    def _check_left_out(self, k: int) -> None:
+        """The redundant equations left out must still hold at the solved sample k."""
+        residual = np.abs(self.assembler.residual[self.redundant_rows]) * self.weights[self.redundant_rows]
+        worst = int(np.argmax(residual))
+        if residual[worst] <= CONSISTENCY_TOLERANCE:
+            return
+        row = int(self.redundant_rows[worst])
+        message = (
+            f"the redundant equation {self._label(row)} left out of the analysis is not satisfied at "
+            f"t = {self.times[k]:.6g} s: residual {abs(self.assembler.residual[row]):.3g}; the redundant "
+            "joints contradict each other"
+        )
+        if k == 0:
+            raise ModelError(message)
+        raise ConvergenceError(message, time=float(self.times[k]), driver_values=self._driver_values(),
+                               result=self.result(k))  # fmt: skip
+
+
+class _ReducedSystem:
+    """The equations that are not redundant: a square view of an `Assembler`'s arrays.
+
+    The CSR pattern of the kept rows and the positions of their values in the
+    assembler's Jacobian are computed once; each refill copies those values (one gather)
+    instead of building a matrix.
+
+    Attributes
+    ----------
+    rows : ndarray of int
+        The kept rows of the assembler's system.
+    residual, velocity_rhs, acceleration_rhs : ndarray, shape (n_rows,)
+    jacobian : csr_array, shape (n_rows, n_coordinates)
+    """
+
+    def __init__(self, assembler: Assembler, rows: np.ndarray) -> None:
+        self.assembler = assembler
+        self.rows = rows
+        full = assembler.jacobian
+        starts, ends = full.indptr[rows], full.indptr[rows + 1]
+        lengths = (ends - starts).astype(np.int64)
+        indptr = np.zeros(rows.size + 1, dtype=full.indptr.dtype)
+        np.cumsum(lengths, out=indptr[1:])
+        #: Positions in the full Jacobian's values of the kept rows' values, in order.
+        self._entries = np.repeat(starts - indptr[:-1], lengths) + np.arange(int(indptr[-1]))
+        values = np.zeros(self._entries.size)
+        shape = (rows.size, full.shape[1])
+        self.jacobian = csr_array((values, full.indices[self._entries], indptr), shape=shape)
+        self.residual = np.zeros(rows.size)
+        self.velocity_rhs = np.zeros(rows.size)
+        self.acceleration_rhs = np.zeros(rows.size)
+
+    @property
+    def driver_values(self) -> np.ndarray:
+        return self.assembler.driver_values
+
+    def set_time(self, t: float) -> None:
+        self.assembler.set_time(t)
+        np.take(self.assembler.velocity_rhs, self.rows, out=self.velocity_rhs)
+
+    def fill_residual_jacobian(self, coordinates: np.ndarray) -> None:
+        self.assembler.fill_residual_jacobian(coordinates)
+        np.take(self.assembler.residual, self.rows, out=self.residual)
+        np.take(self.assembler.jacobian.data, self._entries, out=self.jacobian.data)
+
+    def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
+        self.assembler.fill_acceleration_rhs(coordinates, velocities)
+        np.take(self.assembler.acceleration_rhs, self.rows, out=self.acceleration_rhs)
 
 
 class _NoConvergence(Exception):
     def __init__(self, reason: str) -> None:
         self.reason = reason
+
+
+def _reason(failure: Exception) -> str:
+    """Why a solve failed, in words."""
+    return failure.reason if isinstance(failure, _NoConvergence) else "the Jacobian is singular"
+
+
+class _BranchJump(Exception):
+    """The solved step breaks the corrected trapezoidal rule: perhaps a jump to another branch."""
 
 
 def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations):
@@ -248,6 +675,29 @@ def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterat
     raise _NoConvergence(f"no convergence in {max_iterations} Newton corrections")
 
 
+@njit(**_JIT)
+def _jumped(h, q0, qd0, qdd0, q1, qd1, qdd1, predicted, weights, ratio, min_defect, min_correction):
+    """Whether a solved step looks like a jump to another assembly branch (see `BRANCH_DEFECT_RATIO`).
+
+    The defect ``q1 - q0 - h/2 (qd0 + qd1) + h²/12 (qdd1 - qdd0)``, the displacement
+    ``q1 - q0`` and Newton's correction ``q1 - predicted`` are each measured by their
+    largest weighted coordinate.  A NaN anywhere counts as a jump.
+    """
+    defect = 0.0
+    displacement = 0.0
+    correction = 0.0
+    for i in range(q0.size):
+        move = q1[i] - q0[i]
+        d = abs(move - 0.5 * h * (qd0[i] + qd1[i]) + (h * h / 12.0) * (qdd1[i] - qdd0[i])) * weights[i]
+        m = abs(move) * weights[i]
+        c = abs(q1[i] - predicted[i]) * weights[i]
+        if not d <= defect:  # also true for a NaN
+            defect = d
+        displacement = max(displacement, m)
+        correction = max(correction, c)
+    return defect > min_defect and defect > ratio * displacement and correction > min_correction
+
+
 def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
     try:
         array = np.asarray(times, dtype=float)
@@ -270,81 +720,10 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
     return array
 
 
-def _degrees_of_freedom_message(n_coordinates: int, n_equations: int, n_drivers: int) -> str:
-    free = n_coordinates - n_equations
-    if free > 0:
-        return (
-            f"{n_coordinates} coordinates but {n_equations} equations: {free} degree(s) of freedom "
-            f"left after the {n_drivers} driver(s); expected one driver per degree of freedom"
-        )
-    return (
-        f"{n_coordinates} coordinates but {n_equations} equations: {-free} more equation(s) than "
-        "coordinates; expected as many equations as coordinates (remove redundant joints or drivers)"
-    )
-
-
-def _checked_positive(value, name: str) -> float:
+def _checked_tolerance(value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"`{name}` must be a positive number, got {value!r}.")
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"`{name}` must be a positive finite number, got {value!r}.")
+        raise ValueError(f"`tolerance` must be a positive number, got {value!r}.")
+    low, high = TOLERANCE_RANGE
+    if not (math.isfinite(value) and low <= value <= high):
+        raise ValueError(f"`tolerance` must be a number in [{low:.3g}, {high:g}], got {value!r}.")
     return float(value)
-
-
-# ---------------------------------------------------------------------- messages
-def _driver_values(mechanism: Mechanism, assembler: Assembler) -> dict[str, float]:
-    return {
-        mechanism.element_label("drivers", k): float(value) for k, value in enumerate(assembler.driver_values)
-    }
-
-
-def equation_label(mechanism: Mechanism, pattern: ConstraintPattern, row: int) -> str:
-    """``joints[2] (revolute c4–c1 at A), equation y``: the element and equation of a row."""
-    element = int(np.searchsorted(pattern.element_first_row, row, side="right")) - 1
-    within = row - int(pattern.element_first_row[element])
-    n_joints = len(mechanism.joints)
-    if element < n_joints:
-        label = mechanism.element_label("joints", element)
-        equation = EQUATION_NAMES[mechanism.joints[element].type_name][within]
-    else:
-        label = mechanism.element_label("drivers", element - n_joints)
-        equation = "driven value"
-    return f"{label}, equation {equation}"
-
-
-def coordinate_label(mechanism: Mechanism, column: int) -> str:
-    """``c3.angle``: the body and coordinate of a column."""
-    return f"{mechanism.bodies[column // 3].name}.{COORDINATE_NAMES[column % 3]}"
-
-
-def _failure_message(mechanism, pattern, assembler, t, reason, weights, singular=False) -> str:
-    drivers = _driver_values(mechanism, assembler)
-    shown = "; ".join(f"{label} = {value:.6g}" for label, value in list(drivers.items())[:_LISTED])
-    if len(drivers) > _LISTED:
-        shown += f"; … ({len(drivers)} drivers)"
-    message = f"{reason} at t = {t:.6g} s (drivers: {shown or 'none'})"
-    if singular and pattern.n_coordinates <= _DIAGNOSIS_MAX_COORDINATES:
-        message += _singular_diagnosis(mechanism, pattern, assembler)
-    elif assembler.residual.size:
-        worst = int(np.argmax(np.abs(assembler.residual) * weights))
-        message += (
-            f"; largest residual {abs(assembler.residual[worst]):.3g} in "
-            f"{equation_label(mechanism, pattern, worst)}"
-        )
-    return message
-
-
-def _singular_diagnosis(mechanism, pattern, assembler) -> str:
-    """The motion the constraints no longer control and the constraints involved."""
-    left, singular_values, right = np.linalg.svd(assembler.jacobian.toarray())
-    motion, equations = right[-1], left[:, -1]
-    moving = np.argsort(-np.abs(motion))[:_LISTED]
-    involved = np.argsort(-np.abs(equations))[:_LISTED]
-    moving = [coordinate_label(mechanism, c) for c in moving if abs(motion[c]) > 0.1 * np.abs(motion).max()]
-    involved = [
-        equation_label(mechanism, pattern, r) for r in involved if abs(equations[r]) > 0.1 * np.abs(equations).max()
-    ]
-    return (
-        f"; smallest singular value {singular_values[-1]:.3g}; uncontrolled motion of "
-        f"{', '.join(moving)}; constraints involved: {'; '.join(involved)}"
-    )
