@@ -8,11 +8,14 @@ linear solver, and records where the time goes:
 * ``factorization`` — whatever the linear solver does to a new Jacobian;
 * ``solves`` — the solves with it.
 
-The linear solvers compared, measured in the same run:
+The paths compared, measured in the same run:
 
-* `SuperLUSolver` — sparsekin's path: the CSR pattern is fixed and refilled in place by
-  the numba kernels, then factored by SuperLU (COLAMD) through its CSC view, and that
-  factorization serves every solve at the same position.
+* ``sparsekin`` — what `solve_kinematics` runs above a few hundred coordinates: the CSR
+  pattern is fixed and refilled in place by the numba kernels, `RefactorSolver`
+  refactors it numerically on the L and U patterns fixed by a first SuperLU
+  factorization, and chord Newton reuses the previous sample's factorization.
+* ``superlu`` — the same with a fresh SuperLU factorization (COLAMD, through the CSC
+  view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
   ``numpy.linalg.solve`` for every linear system.
 * `RebuildBaseline` — the straightforward sparse code: the Jacobian rebuilt from (row,
@@ -32,12 +35,12 @@ from scipy.sparse import coo_array
 from scipy.sparse.linalg import spsolve
 
 from sparsekin.assembly import Assembler
-from sparsekin.linalg import SuperLUSolver
+from sparsekin.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model import Mechanism
 from sparsekin.pattern import build_pattern
 from sparsekin.solvers import DEFAULT_TOLERANCE, NEWTON_MAXITER, _solve_positions
 
-__all__ = ["PHASES", "Stepper", "SuperLUSolver", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS"]
+__all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
 #: The phases a time step is split into.
 PHASES = ("assembly", "factorization", "solves")
@@ -85,12 +88,15 @@ class RebuildBaseline:
         return spsolve(self._matrix, rhs)
 
 
-def _superlu(pattern) -> SuperLUSolver:
-    return SuperLUSolver()
-
-
-#: Linear solvers by name: each is built from the mechanism's pattern.
-LINEAR_SOLVERS = {"sparsekin": _superlu, "dense": DenseBaseline, "coo_spsolve": RebuildBaseline}
+#: Linear solvers by path name: each is built from the mechanism's pattern.
+LINEAR_SOLVERS = {
+    "sparsekin": lambda pattern: RefactorSolver(),
+    "superlu": lambda pattern: SuperLUSolver(),
+    "dense": DenseBaseline,
+    "coo_spsolve": RebuildBaseline,
+}
+#: The paths whose Newton iteration is chord Newton (the others run plain Newton).
+CHORD = frozenset({"sparsekin"})
 
 
 class _Timed:
@@ -145,6 +151,7 @@ class Stepper:
         self.solver = _Timed(
             LINEAR_SOLVERS[linear_solver](pattern), self.seconds, {"factor": "factorization", "solve": "solves"}
         )
+        self.chord = linear_solver in CHORD
         self.weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
         self.coordinates = pattern.initial_coordinates.copy()
         self.velocities = np.zeros(pattern.n_coordinates)
@@ -176,7 +183,7 @@ class Stepper:
         assembler, solver = self.assembler, self.solver
         assembler.set_time(t)
         self.newton_iterations += _solve_positions(
-            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER
+            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER, chord=self.chord and t > 0.0
         )
         self.velocities = solver.solve(assembler.velocity_rhs)
         assembler.fill_acceleration_rhs(q, self.velocities)

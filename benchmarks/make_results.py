@@ -32,7 +32,7 @@ _HERE = Path(__file__).resolve().parent
 FIT_RANGE = (1_000, 1_000_000)
 #: The solver whose time the ratios divide, and the baselines, in column order.
 REFERENCE = "sparsekin"
-BASELINES = ("coo_spsolve", "dense")
+BASELINES = ("superlu", "coo_spsolve", "dense")
 
 
 def _seconds(value: float) -> str:
@@ -93,7 +93,9 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "0.01 s from the same solved first sample each round. The split (assembly: driver laws,",
         "residual, Jacobian and γ refills; factorization; solves) and the Newton iterations per",
         "step are those of the last round. Ratios are baseline time / sparsekin time in the same",
-        "run. `coo_spsolve`: Jacobian rebuilt COO → CSR and `spsolve` for every system; `dense`:",
+        "run. `sparsekin`: refactorization on a fixed pattern and chord Newton (what",
+        "`solve_kinematics` runs above 150 coordinates); `superlu`: a SuperLU factorization per",
+        "Newton iteration; `coo_spsolve`: Jacobian rebuilt COO → CSR and `spsolve` for every system; `dense`:",
         "dense Jacobian and `numpy.linalg.solve` for every system. Build: making the `Mechanism`;",
         "pattern: `build_pattern`; first sample: pattern, assembler and the first Newton solve;",
         "memory: peak resident set of a fresh process after two steps, less the same process's",
@@ -136,12 +138,14 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             else:
                 row += ["—"] * 5
             lines.append("| " + " | ".join(row) + " |")
-        points = [(b, steps[(family, b)][REFERENCE]["seconds_per_step"]) for b in sizes if REFERENCE in steps[(family, b)]]
-        exponents[family] = scaling_exponent(points)
+        for name in (REFERENCE, *BASELINES):
+            points = [(b, steps[(family, b)][name]["seconds_per_step"]) for b in sizes if name in steps[(family, b)]]
+            exponents[(family, name)] = scaling_exponent(points)
         lines.append("")
     lines += ["## Scaling", "", f"Exponent of time per step against bodies, least squares over {FIT_RANGE[0]:,}–{FIT_RANGE[1]:,} bodies:", ""]
-    for family, exponent in exponents.items():
-        lines.append(f"- {family}: {'not enough sizes' if exponent is None else f'{exponent:.3f}'}")
+    for (family, name), exponent in exponents.items():
+        if exponent is not None:
+            lines.append(f"- {family}, {name}: {exponent:.3f}")
     if document["others"]:
         lines += ["", "## Task 5 and its phases", "", "| benchmark | median | min | rounds | notes |", "|---|---|---|---|---|"]
         for record in document["others"]:

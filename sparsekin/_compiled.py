@@ -370,17 +370,19 @@ def _pack_geometry(pattern: ConstraintPattern, weights: np.ndarray) -> _Geometry
 
 
 @njit(inline="always", **_JIT)
-def _fill_residual_jacobian(g, q, target, residual, jac_data):
+def _fill_residual_jacobian(g, q, turns, target, residual, jac_data):
     """Residual and CSR Jacobian values at q (ground appended); returns the weighted norm.
 
-    The norm is NaN when any residual entry is not finite.
+    The norm is NaN when any residual entry is not finite.  `turns` receives the cos and
+    sin of every body's angle at q.
     """
+    _kernels.fill_body_turns(q, turns)
     _kernels.fill_point_coincidence(
-        q, g.coincidence_body_i, g.coincidence_body_j, g.coincidence_local_i, g.coincidence_local_j,
+        q, turns, g.coincidence_body_i, g.coincidence_body_j, g.coincidence_local_i, g.coincidence_local_j,
         g.coincidence_row, g.coincidence_slots, residual, jac_data,
     )  # fmt: skip
     _kernels.fill_projected_distance(
-        q, g.projection_body_i, g.projection_body_j, g.projection_local_i, g.projection_local_j,
+        q, turns, g.projection_body_i, g.projection_body_j, g.projection_local_i, g.projection_local_j,
         g.projection_direction, g.projection_row, g.projection_slots, residual, jac_data,
     )  # fmt: skip
     _kernels.fill_coordinate_difference(
@@ -418,19 +420,21 @@ def _solved(lu, pivots, b):
 
 
 @njit(inline="always", **_JIT)
-def _solve_positions(g, q, target, tolerance, max_iterations, chord, residual, jac_data, lu, pivots, counts):
+def _solve_positions(g, q, turns, target, tolerance, max_iterations, chord, residual, jac_data, lu, pivots, counts):
     """Newton from q (ground appended), refined in place; returns (corrections, status).
 
     Plain Newton (``chord`` False) follows `sparsekin.solvers._solve_positions` step for
     step.  Chord Newton solves with the factorization already in `lu` and gives up
-    (`_CHORD_REJECTED`, or any failure) when a correction contracts too little.  On
-    success `lu` holds the factorization of the Jacobian at the converged q.
+    (`_CHORD_REJECTED`, or any failure) when a correction contracts too little; once it
+    converges, one last Newton correction with the fresh factorization polishes q.  On
+    success `lu` holds the factorization of the Jacobian at the converged q (before that
+    last correction, which moves q by less than the tolerance).
     ``counts`` accumulates (factorizations, solves).
     """
     n = lu.shape[0]
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
-        norm = _fill_residual_jacobian(g, q, target, residual, jac_data)
+        norm = _fill_residual_jacobian(g, q, turns, target, residual, jac_data)
         if not math.isfinite(norm):
             return iteration, _RESIDUAL_NOT_FINITE
         converged = norm <= tolerance
@@ -441,6 +445,16 @@ def _solve_positions(g, q, target, tolerance, max_iterations, chord, residual, j
             if not _factor_jacobian(g, jac_data, lu, pivots):
                 return iteration, _SINGULAR
         if converged:
+            if chord and iteration > 0:
+                # Chord corrections converge linearly and stop anywhere below the tolerance:
+                # one Newton correction with the fresh factorization takes q to full accuracy,
+                # as plain Newton's quadratic convergence does.
+                counts[1] += 1
+                if not _solved(lu, pivots, residual):
+                    return iteration, _SINGULAR
+                for c in range(n):
+                    q[c] -= residual[c]
+                return iteration + 1, _SOLVED
             return iteration, _SOLVED
         if iteration == max_iterations:
             break
@@ -464,6 +478,7 @@ def _run_time_loop(
     n_drivers = g.driver_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
     qd = np.zeros(n + 3)
+    turns = np.zeros((n // 3 + 1, 2))  # cos and sin of each body's angle, the ground last
     predictor = np.empty(n)
     residual = np.empty(n)
     jac_data = np.zeros(g.indptr[n] + 1)  # one discard slot for the ground's columns
@@ -506,7 +521,7 @@ def _run_time_loop(
                 q[c] = predictor[c]
             use_chord = attempt == 0 and chord and k > 0
             corrections, status = _solve_positions(
-                g, q, target, tolerance, max_iterations, use_chord, residual, jac_data, lu, pivots, counts
+                g, q, turns, target, tolerance, max_iterations, use_chord, residual, jac_data, lu, pivots, counts
             )
             if status == _SOLVED:
                 break
@@ -522,12 +537,13 @@ def _run_time_loop(
             return k, _SINGULAR, counts[0], counts[1], n_restarts
         for c in range(n):
             qd[c] = rhs[c]
+        _kernels.fill_body_turns(q, turns)  # q moved by the last correction
         _kernels.fill_point_coincidence_gamma(
-            q, qd, g.coincidence_body_i, g.coincidence_body_j, g.coincidence_local_i, g.coincidence_local_j,
+            q, qd, turns, g.coincidence_body_i, g.coincidence_body_j, g.coincidence_local_i, g.coincidence_local_j,
             g.coincidence_row, gamma,
         )  # fmt: skip
         _kernels.fill_projected_distance_gamma(
-            q, qd, g.projection_body_i, g.projection_body_j, g.projection_local_i, g.projection_local_j,
+            q, qd, turns, g.projection_body_i, g.projection_body_j, g.projection_local_i, g.projection_local_j,
             g.projection_direction, g.projection_row, gamma,
         )  # fmt: skip
         for r in range(n):

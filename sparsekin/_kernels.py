@@ -10,6 +10,9 @@ Symbols (for these kernels only):
   entries of the ground's columns, which are discarded.
 * ``gamma`` — the acceleration right-hand side: -d²g/ds²(q + s·qd) at s = 0, so that
   ``jacobian @ qdd = gamma + (second time derivative of the targets)``.
+* ``turns`` — ``(cos, sin)`` of every body's angle, shape (n_bodies + 1, 2), the ground
+  last; `fill_body_turns` fills it once per configuration, so that each body's angle goes
+  through cos and sin once, not once per equation it takes part in.
 * ``R(angle)`` rotates a local vector into the global frame; ``Omega`` turns a vector by
   +90°, so that ``d/dangle R s = Omega R s``.
 """
@@ -32,12 +35,21 @@ def _turned(cosine, sine, vector):
 
 
 @njit(**_JIT)
-def fill_point_coincidence(q, body_i, body_j, local_i, local_j, row, slots, residual, jac_data):
+def fill_body_turns(q, turns):
+    """cos and sin of the angle of every body, the ground included: ``turns[b] = (cos, sin)``."""
+    for b in range(turns.shape[0]):
+        angle = q[3 * b + 2]
+        turns[b, 0] = math.cos(angle)
+        turns[b, 1] = math.sin(angle)
+
+
+@njit(**_JIT)
+def fill_point_coincidence(q, turns, body_i, body_j, local_i, local_j, row, slots, residual, jac_data):
     """Point s_i of body i coincides with point s_j of body j: 2 rows, 8 entries."""
     for k in range(row.size):
         i, j, r = 3 * body_i[k], 3 * body_j[k], row[k]
-        cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
-        cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
+        cos_i, sin_i = turns[body_i[k], 0], turns[body_i[k], 1]
+        cos_j, sin_j = turns[body_j[k], 0], turns[body_j[k], 1]
         # a = R_i s_i and b = R_j s_j, global vectors from the frames to the point
         ax, ay = _turned(cos_i, sin_i, local_i[k])
         bx, by = _turned(cos_j, sin_j, local_j[k])
@@ -55,12 +67,12 @@ def fill_point_coincidence(q, body_i, body_j, local_i, local_j, row, slots, resi
 
 
 @njit(**_JIT)
-def fill_point_coincidence_gamma(q, qd, body_i, body_j, local_i, local_j, row, gamma):
+def fill_point_coincidence_gamma(q, qd, turns, body_i, body_j, local_i, local_j, row, gamma):
     """gamma = R_i s_i angle_i'² - R_j s_j angle_j'²."""
     for k in range(row.size):
         i, j, r = 3 * body_i[k], 3 * body_j[k], row[k]
-        cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
-        cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
+        cos_i, sin_i = turns[body_i[k], 0], turns[body_i[k], 1]
+        cos_j, sin_j = turns[body_j[k], 0], turns[body_j[k], 1]
         ax, ay = _turned(cos_i, sin_i, local_i[k])
         bx, by = _turned(cos_j, sin_j, local_j[k])
         wi2, wj2 = qd[i + 2] ** 2, qd[j + 2] ** 2
@@ -69,12 +81,12 @@ def fill_point_coincidence_gamma(q, qd, body_i, body_j, local_i, local_j, row, g
 
 
 @njit(**_JIT)
-def fill_projected_distance(q, body_i, body_j, local_i, local_j, direction, row, slots, residual, jac_data):
+def fill_projected_distance(q, turns, body_i, body_j, local_i, local_j, direction, row, slots, residual, jac_data):
     """g = n · (r_j + R_j s_j - r_i - R_i s_i) with n = R_i u, u fixed in body i: 1 row, 6 entries."""
     for k in range(row.size):
         i, j = 3 * body_i[k], 3 * body_j[k]
-        cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
-        cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
+        cos_i, sin_i = turns[body_i[k], 0], turns[body_i[k], 1]
+        cos_j, sin_j = turns[body_j[k], 0], turns[body_j[k], 1]
         nx, ny = _turned(cos_i, sin_i, direction[k])
         ax, ay = _turned(cos_i, sin_i, local_i[k])
         bx, by = _turned(cos_j, sin_j, local_j[k])
@@ -92,12 +104,12 @@ def fill_projected_distance(q, body_i, body_j, local_i, local_j, direction, row,
 
 
 @njit(**_JIT)
-def fill_projected_distance_gamma(q, qd, body_i, body_j, local_i, local_j, direction, row, gamma):
+def fill_projected_distance_gamma(q, qd, turns, body_i, body_j, local_i, local_j, direction, row, gamma):
     """gamma = wi² n·(d - a) + wj² n·b - 2 wi (Omega n)·d', d = r_j + b - r_i - a."""
     for k in range(row.size):
         i, j = 3 * body_i[k], 3 * body_j[k]
-        cos_i, sin_i = math.cos(q[i + 2]), math.sin(q[i + 2])
-        cos_j, sin_j = math.cos(q[j + 2]), math.sin(q[j + 2])
+        cos_i, sin_i = turns[body_i[k], 0], turns[body_i[k], 1]
+        cos_j, sin_j = turns[body_j[k], 0], turns[body_j[k], 1]
         wi, wj = qd[i + 2], qd[j + 2]
         nx, ny = _turned(cos_i, sin_i, direction[k])
         ax, ay = _turned(cos_i, sin_i, local_i[k])

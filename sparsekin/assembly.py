@@ -99,6 +99,7 @@ class Assembler:
         # Coordinates and velocities with the ground appended as a body of zeros.
         self._q = np.zeros(n_coordinates + 3)
         self._qd = np.zeros(n_coordinates + 3)
+        self._turns = np.zeros((pattern.n_bodies + 1, 2))  # cos and sin of each body's angle
         # The CSR values, with one discard slot past the end for the ground's columns.
         self._jac_buffer = np.zeros(pattern.nnz + 1)
         self.jacobian = csr_array(
@@ -129,14 +130,15 @@ class Assembler:
 
     def fill_residual_jacobian(self, coordinates: np.ndarray) -> None:
         """Refill `residual` and the values of `jacobian` at `coordinates`."""
-        p, q = self.pattern, self._q
+        p, q, turns = self.pattern, self._q, self._turns
         q[:-3] = coordinates
+        _kernels.fill_body_turns(q, turns)
         _kernels.fill_point_coincidence(
-            q, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
+            q, turns, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
             p.coincidence_row, p.coincidence_slots, self.residual, self._jac_buffer,
         )  # fmt: skip
         _kernels.fill_projected_distance(
-            q, p.projection_body_i, p.projection_body_j, p.projection_local_i, p.projection_local_j,
+            q, turns, p.projection_body_i, p.projection_body_j, p.projection_local_i, p.projection_local_j,
             p.projection_direction, p.projection_row, p.projection_slots, self.residual, self._jac_buffer,
         )  # fmt: skip
         _kernels.fill_coordinate_difference(
@@ -147,15 +149,16 @@ class Assembler:
 
     def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
         """Refill `acceleration_rhs` (gamma plus the targets' second derivative)."""
-        p, q, qd = self.pattern, self._q, self._qd
+        p, q, qd, turns = self.pattern, self._q, self._qd, self._turns
         q[:-3] = coordinates
         qd[:-3] = velocities
+        _kernels.fill_body_turns(q, turns)
         _kernels.fill_point_coincidence_gamma(
-            q, qd, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
+            q, qd, turns, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
             p.coincidence_row, self._gamma,
         )  # fmt: skip
         _kernels.fill_projected_distance_gamma(
-            q, qd, p.projection_body_i, p.projection_body_j, p.projection_local_i, p.projection_local_j,
+            q, qd, turns, p.projection_body_i, p.projection_body_j, p.projection_local_i, p.projection_local_j,
             p.projection_direction, p.projection_row, self._gamma,
         )  # fmt: skip
         # Coordinate differences have no gamma: their rows of self._gamma stay zero.

@@ -10,6 +10,22 @@ converged position then serves two more solves:
 Convergence is judged on the residual, lengths relative to the size of the model (so a
 chain 10^4 m long converges as surely as a 1 m linkage) and angles in radians.
 
+Linear solvers (the `linear_solver` argument; ``"auto"`` picks the fastest):
+
+* ``"dense"`` — for small models, the whole time loop compiled with numba
+  (`sparsekin._compiled`) on a dense LU; a model it cannot run (a law of another kind,
+  redundant equations) and any sample it cannot solve go to the Python loop below, with
+  `DenseSolver`.
+* ``"refactor"`` — `RefactorSolver`: the ordering and the L and U patterns are fixed by a
+  first SuperLU factorization, every later factorization is a numeric refactorization.
+* ``"superlu"`` — a fresh SuperLU factorization at every Newton iteration.
+
+With ``"refactor"`` and ``"dense"`` the Newton corrections are *chord* corrections: they
+reuse the factorization of the previous sample while each one divides the residual by at
+least ``1 / CHORD_CONTRACTION``, and plain Newton restarts from the predictor otherwise.
+Every path factors the Jacobian at the converged position, so velocities and
+accelerations are solved with the Jacobian there, to the same accuracy on every path.
+
 Robustness, in the order the run meets it:
 
 * **Redundant equations.**  A model with more equations than coordinates is analysed
@@ -39,6 +55,7 @@ import numpy as np
 from numba import njit
 from scipy.sparse import csr_array
 
+from ._compiled import CHORD_CONTRACTION, solve_compiled, supports_compiled
 from ._kernels import _JIT
 from .assembly import Assembler
 from .diagnostics import (
@@ -55,7 +72,7 @@ from .diagnostics import (
 )
 from .errors import ConvergenceError, ModelError, RedundantConstraintWarning, SingularConfigurationError
 from .laws import Spline
-from .linalg import SingularMatrix, SuperLUSolver
+from .linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from .model import Mechanism
 from .pattern import ConstraintPattern, PointMap, build_pattern, build_point_map
 
@@ -95,6 +112,12 @@ FAILURE_MAX_HALVINGS = 20
 LOCK_RATIO = 1e-2
 #: How many drivers, coordinates and constraints an error message lists.
 _LISTED = 4
+#: The `linear_solver` argument of `solve_kinematics`.
+LINEAR_SOLVERS = ("auto", "superlu", "refactor", "dense")
+#: ``linear_solver="auto"`` runs the compiled dense loop up to this many coordinates and
+#: the refactorization path above: the crossover measured on the test set
+#: (benchmarks/RESULTS.md, "Crossover").
+COMPILED_MAX_COORDINATES = 150
 
 
 class PointMotion(NamedTuple):
@@ -129,6 +152,12 @@ class KinematicsResult:
         another assembly branch); 0 on a well-sampled run.
     redundant_equations : tuple of str
         The equations left out as redundant (empty for most models).
+    n_refactorizations : int
+        Numeric refactorizations on a fixed pattern (``linear_solver="refactor"``).
+    linear_solver : str
+        The path that solved the run: ``"compiled"`` (the compiled dense loop all the
+        way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
+        ``"refactor"`` or ``"superlu"``.
     """
 
     times: np.ndarray
@@ -143,6 +172,8 @@ class KinematicsResult:
     point_map: PointMap = field(repr=False)
     n_subdivisions: int = 0
     redundant_equations: tuple[str, ...] = ()
+    n_refactorizations: int = 0
+    linear_solver: str = "superlu"
 
     @property
     def n_times(self) -> int:
@@ -185,6 +216,7 @@ def solve_kinematics(
     *,
     tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = NEWTON_MAXITER,
+    linear_solver: str = "auto",
 ) -> KinematicsResult:
     """Positions, velocities and accelerations of `mechanism` at `times`.
 
@@ -202,6 +234,10 @@ def solve_kinematics(
         rad; within `TOLERANCE_RANGE`.
     max_iterations : int
         Most Newton corrections at one time, at least 1.
+    linear_solver : {"auto", "dense", "refactor", "superlu"}
+        How the linear systems are solved (see the module docstring).  ``"auto"`` takes
+        ``"dense"`` (the compiled loop) up to `COMPILED_MAX_COORDINATES` coordinates and
+        ``"refactor"`` above.  Every choice gives the same results to rounding.
 
     Returns
     -------
@@ -247,14 +283,21 @@ def solve_kinematics(
     if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
         raise ValueError(f"`max_iterations` must be a whole number >= 1, got {max_iterations!r}.")
     max_iterations = int(max_iterations)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
     pattern = build_pattern(mechanism)
     if pattern.n_equations == 0:  # nothing to solve, or nothing that holds the bodies
         return _without_equations(mechanism, pattern, times)
-    assembler = Assembler(mechanism, pattern)
-    linear_solver = SuperLUSolver()
-    run = _Run(mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations)
+    if linear_solver == "auto":
+        linear_solver = "dense" if pattern.n_coordinates <= COMPILED_MAX_COORDINATES else "refactor"
+    solver = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}[linear_solver]()
+    compiled = (
+        linear_solver == "dense" and pattern.n_equations == pattern.n_coordinates and supports_compiled(mechanism)
+    )
+    run = _Run(mechanism, pattern, Assembler(mechanism, pattern), solver, times, tolerance, max_iterations,
+               chord=linear_solver != "superlu")  # fmt: skip
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # non-finite values are checked
-        return run.solve()
+        return run.solve(compiled=compiled)
 
 
 def _without_equations(mechanism: Mechanism, pattern: ConstraintPattern, times) -> KinematicsResult:
@@ -276,10 +319,14 @@ def _without_equations(mechanism: Mechanism, pattern: ConstraintPattern, times) 
 class _Run:
     """The state of one `solve_kinematics` run: arrays of results, the system solved, counters."""
 
-    def __init__(self, mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations):
+    def __init__(self, mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations, chord):
         self.mechanism, self.pattern, self.assembler = mechanism, pattern, assembler
         self.linear_solver, self.times = linear_solver, times
         self.tolerance, self.max_iterations = tolerance, max_iterations
+        self.chord = chord
+        self.factored = False  # whether the linear solver holds a factorization to chord with
+        self.path = linear_solver.name
+        self.compiled_counts = (0, 0)  # factorizations and solves of the compiled loop
         self.system = assembler  # or a _ReducedSystem without the redundant equations
         self.weights = residual_weights(pattern)
         self.system_weights = self.weights  # those of the system's rows
@@ -295,12 +342,18 @@ class _Run:
         self.redundant_rows = np.zeros(0, dtype=np.int64)
 
     # ------------------------------------------------------------------ the loop
-    def solve(self) -> KinematicsResult:
+    def solve(self, compiled: bool = False) -> KinematicsResult:
+        """Solve every sample; with `compiled`, as many as the compiled loop can first."""
         times, pattern = self.times, self.pattern
         if pattern.n_equations != pattern.n_coordinates:
             self._analyse_non_square()
-        self._first_sample()
-        for k in range(1, times.size):
+        start = self._solve_compiled() if compiled else 0
+        if start == times.size:
+            return self.result(times.size)
+        if start == 0:
+            self._first_sample()
+            start = 1
+        for k in range(start, times.size):
             q = self.coordinates[k]  # Newton refines the predictor in place, in its row of the result
             h = times[k] - times[k - 1]
             np.multiply(self.velocities[k - 1], h, out=q)  # Taylor predictor from the previous sample
@@ -323,6 +376,20 @@ class _Run:
                 self._check_left_out(k)
         return self.result(times.size)
 
+    def _solve_compiled(self) -> int:
+        """Run the compiled loop; the number of samples it solved that pass the branch guard."""
+        outcome = solve_compiled(
+            self.mechanism, self.pattern, self.times, self.tolerance, self.max_iterations, self.weights,
+            self.coordinates, self.velocities, self.accelerations, self.iterations,
+        )  # fmt: skip
+        self.compiled_counts = (outcome.n_factorizations, outcome.n_solves)
+        solved = _first_branch_jump(
+            self.times, self.coordinates, self.velocities, self.accelerations, self.coordinate_weights,
+            outcome.n_solved, BRANCH_DEFECT_RATIO, BRANCH_MIN_DEFECT, BRANCH_MIN_CORRECTION,
+        )  # fmt: skip
+        self.path = "compiled" if solved == self.times.size else "compiled+dense"
+        return solved
+
     def result(self, n_solved: int) -> KinematicsResult:
         return KinematicsResult(
             times=self.times[:n_solved],
@@ -331,18 +398,23 @@ class _Run:
             accelerations=self.accelerations[:n_solved],
             body_names=self.mechanism.body_names,
             newton_iterations=self.iterations[:n_solved],
-            n_factorizations=self.linear_solver.n_factorizations,
-            n_solves=self.linear_solver.n_solves,
+            n_factorizations=self.linear_solver.n_factorizations + self.compiled_counts[0],
+            n_solves=self.linear_solver.n_solves + self.compiled_counts[1],
             complete=n_solved == self.times.size,
             point_map=build_point_map(self.mechanism),
             n_subdivisions=self.n_subdivisions,
             redundant_equations=tuple(self._label(row) for row in self.redundant_rows),
+            n_refactorizations=self.linear_solver.n_refactorizations,
+            linear_solver=self.path,
         )
 
     def _solve_positions(self, q) -> int:
-        return _solve_positions(
-            self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations
+        chord, self.factored = self.chord and self.factored, False
+        corrections = _solve_positions(
+            self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations, chord
         )
+        self.factored = True
+        return corrections
 
     def _solve_rates(self, q, velocity, acceleration) -> None:
         """Velocities and accelerations at the converged `q`, with the factorization there."""
@@ -652,11 +724,20 @@ class _BranchJump(Exception):
     """The solved step breaks the corrected trapezoidal rule: perhaps a jump to another branch."""
 
 
-def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations):
+def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations, chord=False):
     """Newton–Raphson from `q`, which it refines in place; returns the number of corrections.
 
+    With `chord`, first chord Newton: corrections solved with the factorization the
+    linear solver already holds, kept while each divides the residual by at least
+    ``1 / CHORD_CONTRACTION``; if that fails, plain Newton restarts from the original `q`.
     On return, `linear_solver` holds the factorization of the Jacobian at the converged q.
     """
+    if chord:
+        start = q.copy()
+        corrections = _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations)
+        if corrections is not None:
+            return corrections
+        q[:] = start
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
         assembler.fill_residual_jacobian(q)
@@ -673,6 +754,51 @@ def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterat
         previous_norm = norm
         q -= linear_solver.solve(assembler.residual)
     raise _NoConvergence(f"no convergence in {max_iterations} Newton corrections")
+
+
+def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations) -> int | None:
+    """Chord corrections from `q` with the factorization at hand; None if they do not converge fast.
+
+    At convergence the Jacobian at `q` is factored, as plain Newton leaves it, and one
+    Newton correction with it polishes `q` (it moves `q` by less than the tolerance).
+    """
+    previous_norm = np.inf
+    for iteration in range(max_iterations + 1):
+        assembler.fill_residual_jacobian(q)
+        norm = float(np.max(np.abs(assembler.residual) * weights, initial=0.0))
+        if norm <= tolerance:
+            linear_solver.factor(assembler.jacobian)
+            if iteration:
+                # Chord corrections converge linearly and stop anywhere below the tolerance;
+                # one Newton correction with the fresh factorization takes q to full
+                # accuracy, as plain Newton's quadratic convergence does.
+                q -= linear_solver.solve(assembler.residual)
+                return iteration + 1
+            return iteration
+        if not norm <= CHORD_CONTRACTION * previous_norm or iteration == max_iterations:  # also NaN
+            return None
+        previous_norm = norm
+        try:
+            q -= linear_solver.solve(assembler.residual)
+        except SingularMatrix:
+            return None
+    return None
+
+
+@njit(**_JIT)
+def _first_branch_jump(times, coordinates, velocities, accelerations, weights, stop, ratio, min_defect, min_correction):
+    """The first sample below `stop` whose step from the previous one fails `_jumped`; `stop` if none."""
+    predicted = np.empty(coordinates.shape[1])
+    for k in range(1, stop):
+        h = times[k] - times[k - 1]
+        for i in range(predicted.size):
+            predicted[i] = coordinates[k - 1, i] + h * velocities[k - 1, i] + 0.5 * h * h * accelerations[k - 1, i]
+        if _jumped(
+            h, coordinates[k - 1], velocities[k - 1], accelerations[k - 1], coordinates[k], velocities[k],
+            accelerations[k], predicted, weights, ratio, min_defect, min_correction,
+        ):  # fmt: skip
+            return k
+    return stop
 
 
 @njit(**_JIT)
@@ -700,7 +826,7 @@ def _jumped(h, q0, qd0, qdd0, q1, qd1, qdd1, predicted, weights, ratio, min_defe
 
 def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
     try:
-        array = np.asarray(times, dtype=float)
+        array = np.array(times, dtype=float)  # a copy, C-contiguous: the compiled loop reads it
     except (TypeError, ValueError):
         raise ValueError(f"`times` must be an array of numbers, got {type(times).__name__}.") from None
     if array.ndim != 1 or array.size == 0:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 from examples_loader import EXAMPLES, load_example
@@ -19,7 +20,8 @@ def test_task5_file_and_python_give_the_same_mechanism():
 def test_task5_script_prints_the_tool_point(capsys):
     load_example("task5").main()
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "Task 5: 1001 samples, 1000 Newton corrections"
+    summary = re.fullmatch(r"Task 5: 1001 samples, (\d+) Newton corrections", lines[0])
+    assert summary and 1000 <= int(summary.group(1)) <= 4 * 1000  # 1 to 4 (chord) per step of 10 ms
     assert lines[1].startswith("t =  0.00 s  K = (-1.20000,  0.60000) m")  # K as drawn in task5.md
     assert len(lines) == 12
 
