@@ -107,6 +107,11 @@ def _drop_stale_cache() -> None:
 
 _drop_stale_cache()
 
+#: Chord Newton ends with one Newton correction with the factorization at the converged
+#: position, unless the residual is already this fraction of the tolerance (at the
+#: default tolerance, a few rounding errors), where that correction would change nothing.
+#: Shared with the Python loop of `sparsekin.solvers`.
+POLISH_BELOW = 1e-3
 #: A chord correction must divide the residual by at least 1 / CHORD_CONTRACTION, or the
 #: sample restarts with plain Newton.
 CHORD_CONTRACTION = 0.1
@@ -426,7 +431,8 @@ def _solve_positions(g, q, turns, target, tolerance, max_iterations, chord, resi
     Plain Newton (``chord`` False) follows `sparsekin.solvers._solve_positions` step for
     step.  Chord Newton solves with the factorization already in `lu` and gives up
     (`_CHORD_REJECTED`, or any failure) when a correction contracts too little; once it
-    converges, one last Newton correction with the fresh factorization polishes q.  On
+    converges, one last Newton correction with the fresh factorization polishes q unless
+    the residual is already below ``POLISH_BELOW * tolerance``.  On
     success `lu` holds the factorization of the Jacobian at the converged q (before that
     last correction, which moves q by less than the tolerance).
     ``counts`` accumulates (factorizations, solves).
@@ -445,7 +451,7 @@ def _solve_positions(g, q, turns, target, tolerance, max_iterations, chord, resi
             if not _factor_jacobian(g, jac_data, lu, pivots):
                 return iteration, _SINGULAR
         if converged:
-            if chord and iteration > 0:
+            if chord and iteration > 0 and norm > POLISH_BELOW * tolerance:
                 # Chord corrections converge linearly and stop anywhere below the tolerance:
                 # one Newton correction with the fresh factorization takes q to full accuracy,
                 # as plain Newton's quadratic convergence does.

@@ -55,7 +55,7 @@ import numpy as np
 from numba import njit
 from scipy.sparse import csr_array
 
-from ._compiled import CHORD_CONTRACTION, solve_compiled, supports_compiled
+from ._compiled import CHORD_CONTRACTION, POLISH_BELOW, solve_compiled, supports_compiled
 from ._kernels import _JIT
 from .assembly import Assembler
 from .diagnostics import (
@@ -760,7 +760,8 @@ def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iteration
     """Chord corrections from `q` with the factorization at hand; None if they do not converge fast.
 
     At convergence the Jacobian at `q` is factored, as plain Newton leaves it, and one
-    Newton correction with it polishes `q` (it moves `q` by less than the tolerance).
+    Newton correction with it polishes `q` (it moves `q` by less than the tolerance)
+    unless the residual is already below ``POLISH_BELOW * tolerance``.
     """
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
@@ -768,7 +769,7 @@ def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iteration
         norm = float(np.max(np.abs(assembler.residual) * weights, initial=0.0))
         if norm <= tolerance:
             linear_solver.factor(assembler.jacobian)
-            if iteration:
+            if iteration and norm > POLISH_BELOW * tolerance:
                 # Chord corrections converge linearly and stop anywhere below the tolerance;
                 # one Newton correction with the fresh factorization takes q to full
                 # accuracy, as plain Newton's quadratic convergence does.

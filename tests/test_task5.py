@@ -117,10 +117,12 @@ def test_newton_converges_in_one_or_two_corrections_at_1_ms(task5):
 @pytest.mark.parametrize("linear_solver", ["dense", "refactor"])
 def test_chord_newton_factors_once_per_sample_at_1_ms(task5, linear_solver):
     """Chord corrections reuse the previous factorization; the Jacobian is factored only
-    at each converged position, then one Newton correction with it polishes q."""
+    at each converged position, then (unless the residual is already at rounding level)
+    one Newton correction with it polishes q."""
     result = solve_kinematics(task5, np.arange(0.0, 2.0, 0.001), linear_solver=linear_solver)
     assert result.linear_solver == ("compiled" if linear_solver == "dense" else "refactor")
-    assert set(result.newton_iterations[1:]) <= {0, 2}  # one chord correction and the polish
+    # one chord correction, and the polishing Newton correction unless already at rounding
+    assert set(result.newton_iterations[1:]) <= {0, 1, 2}
     # the first sample: plain Newton from the drawing (0 corrections: it is assembled)
     assert result.n_factorizations + result.n_refactorizations == result.n_times
     assert result.n_solves == result.newton_iterations.sum() + 2 * result.n_times
