@@ -16,7 +16,7 @@ __all__ = ["FAMILIES", "SIZES", "SMOKE_MAX_BODIES", "DENSE_MAX_BODIES", "build",
 #: Approximate numbers of bodies per family; each builder picks the nearest model.
 SIZES = {
     "task5_chain": (10, 100, 1_000, 10_000, 100_000, 1_000_000),
-    "four_bar_chain": (10, 100, 1_000, 10_000, 100_000, 1_000_000),
+    "four_bar_chain": (10, 100, 1_000, 10_000, 20_000, 100_000, 1_000_000),  # 20 001: issue 4's target
     "lattice": (10, 100, 1_000, 10_000, 100_000),
 }
 #: The test suite's smoke run stops here.

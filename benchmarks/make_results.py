@@ -94,7 +94,7 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "residual, Jacobian and γ refills; factorization; solves) and the Newton iterations per",
         "step are those of the last round. Ratios are baseline time / sparsekin time in the same",
         "run. `sparsekin`: refactorization on a fixed pattern and chord Newton (what",
-        "`solve_kinematics` runs above 150 coordinates); `superlu`: a SuperLU factorization per",
+        "`solve_kinematics` runs above `COMPILED_MAX_COORDINATES`); `superlu`: a SuperLU factorization per",
         "Newton iteration; `coo_spsolve`: Jacobian rebuilt COO → CSR and `spsolve` for every system; `dense`:",
         "dense Jacobian and `numpy.linalg.solve` for every system. Build: making the `Mechanism`;",
         "pattern: `build_pattern`; first sample: pattern, assembler and the first Newton solve;",
@@ -147,9 +147,16 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         if exponent is not None:
             lines.append(f"- {family}, {name}: {exponent:.3f}")
     if document["others"]:
-        lines += ["", "## Task 5 and its phases", "", "| benchmark | median | min | rounds | notes |", "|---|---|---|---|---|"]
+        lines += [
+            "", "## Whole runs through `solve_kinematics`, and the phases of a Task 5 step", "",
+            "`test_crossover`: the compiled dense loop against the refactorization path on small models",
+            "(`linear_solver=\"auto\"` switches at `COMPILED_MAX_COORDINATES`).", "",
+            "| benchmark | median | min | rounds | notes |", "|---|---|---|---|---|",
+        ]
         for record in document["others"]:
             stats = record["stats"]
+            if "samples" in record["extra_info"]:  # a whole run: its time per step
+                record["extra_info"]["time_per_step"] = _seconds(stats["median"] / (record["extra_info"]["samples"] - 1))
             notes = ", ".join(f"{key} {value:.4g}" if isinstance(value, float) else f"{key} {value}" for key, value in record["extra_info"].items())
             lines.append(f"| `{record['name']}` | {_seconds(stats['median'])} | {_seconds(stats['min'])} | {stats['rounds']} | {notes} |")
     lines += ["", "Dense baseline: run up to 1,000 bodies only. At 10^4 bodies its matrix (3·10^4 squared) would take", "7.2 GB and each `numpy.linalg.solve` about 2/3·(3·10^4)^3 ≈ 1.8·10^13 flops, minutes per solve on this machine.", ""]

@@ -34,13 +34,19 @@ def assembled(task5):
     return pattern, assembler, solver
 
 
-def test_full_run_10s_at_1ms(benchmark, task5):
-    solve_kinematics(task5, TIMES[:3])  # compile outside the timing
-    result = benchmark.pedantic(solve_kinematics, args=(task5, TIMES), rounds=3, iterations=1)
+@pytest.mark.parametrize("linear_solver", ["auto", "superlu"])
+def test_full_run_10s_at_1ms(benchmark, task5, linear_solver):
+    solve_kinematics(task5, TIMES[:3], linear_solver=linear_solver)  # compile outside the timing
+    result = benchmark.pedantic(
+        solve_kinematics, args=(task5, TIMES), kwargs={"linear_solver": linear_solver}, rounds=5, iterations=1
+    )
     assert result.complete
+    benchmark.extra_info["path"] = result.linear_solver
     benchmark.extra_info["samples"] = result.n_times
     benchmark.extra_info["newton_corrections_per_step"] = float(result.newton_iterations[1:].mean())
-    benchmark.extra_info["factorizations_per_step"] = result.n_factorizations / result.n_times
+    benchmark.extra_info["factorizations_per_step"] = (
+        result.n_factorizations + result.n_refactorizations
+    ) / result.n_times
 
 
 def test_refill_residual_and_jacobian(benchmark, assembled):

@@ -117,7 +117,7 @@ LINEAR_SOLVERS = ("auto", "superlu", "refactor", "dense")
 #: ``linear_solver="auto"`` runs the compiled dense loop up to this many coordinates and
 #: the refactorization path above: the crossover measured on the test set
 #: (benchmarks/RESULTS.md, "Crossover").
-COMPILED_MAX_COORDINATES = 150
+COMPILED_MAX_COORDINATES = 120
 
 
 class PointMotion(NamedTuple):
