@@ -1,8 +1,8 @@
 """What the benchmarks time: the full time step of sparsekin and of two baselines.
 
 A `Stepper` runs the time loop of `sparsekin.solve_kinematics` (Taylor predictor,
-Newton–Raphson on the positions, then the velocity and acceleration solves) with a given
-linear solver, and records where the time goes:
+Newton–Raphson on the positions, the velocity and acceleration solves, the branch guard)
+with a given linear solver, and records where the time goes:
 
 * ``assembly`` — driver laws, residual and Jacobian refills, gamma refills;
 * ``factorization`` — whatever the linear solver does to a new Jacobian;
@@ -38,7 +38,16 @@ from sparsekin.assembly import Assembler
 from sparsekin.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model import Mechanism
 from sparsekin.pattern import build_pattern
-from sparsekin.solvers import DEFAULT_TOLERANCE, NEWTON_MAXITER, _solve_positions
+from sparsekin.solvers import (
+    BRANCH_DEFECT_RATIO,
+    BRANCH_MIN_CORRECTION,
+    BRANCH_MIN_DEFECT,
+    DEFAULT_TOLERANCE,
+    NEWTON_MAXITER,
+    _Factorizer,
+    _jumped,
+    _solve_positions,
+)
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -146,13 +155,19 @@ class Stepper:
         self.assembler = _Timed(
             Assembler(mechanism, pattern),
             self.seconds,
-            {"set_time": "assembly", "fill_residual_jacobian": "assembly", "fill_acceleration_rhs": "assembly"},
+            {"set_time": "assembly", "fill_residual_jacobian": "assembly", "fill_acceleration_rhs": "assembly",
+             "fill_in_order": "factorization"},  # fmt: skip
         )
         self.solver = _Timed(
-            LINEAR_SOLVERS[linear_solver](pattern), self.seconds, {"factor": "factorization", "solve": "solves"}
+            LINEAR_SOLVERS[linear_solver](pattern),
+            self.seconds,
+            {"factor": "factorization", "factor_ordered": "factorization", "solve": "solves"},
         )
+        self.factorizer = _Factorizer(self.assembler, self.solver)
         self.chord = linear_solver in CHORD
         self.weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
+        self.coordinate_weights = np.full(pattern.n_coordinates, 1.0 / pattern.length_scale)
+        self.coordinate_weights[2::3] = 1.0
         self.coordinates = pattern.initial_coordinates.copy()
         self.velocities = np.zeros(pattern.n_coordinates)
         self.accelerations = np.zeros(pattern.n_coordinates)
@@ -171,19 +186,30 @@ class Stepper:
             self.seconds[phase] = 0.0
 
     def run(self, n_steps: int) -> None:
-        """`n_steps` full time steps: positions, velocities and accelerations."""
+        """`n_steps` full time steps: positions, velocities and accelerations, each checked
+        by the branch guard of `solve_kinematics`."""
         h = self.step
         for _ in range(n_steps):
             self.time += h
-            predictor = self.coordinates + h * self.velocities + (0.5 * h * h) * self.accelerations
-            self._solve_sample(self.time, predictor)
-            self.coordinates = predictor
+            previous = (self.coordinates, self.velocities, self.accelerations)
+            q = np.multiply(self.velocities, h)  # the Taylor predictor, as solve_kinematics makes it
+            q += self.coordinates
+            q += (0.5 * h * h) * self.accelerations
+            predicted = q.copy()
+            self._solve_sample(self.time, q)
+            self.coordinates = q
+            if _jumped(
+                h, *previous, q, self.velocities, self.accelerations, predicted, self.coordinate_weights,
+                BRANCH_DEFECT_RATIO, BRANCH_MIN_DEFECT, BRANCH_MIN_CORRECTION,
+            ):  # fmt: skip
+                raise RuntimeError(f"the benchmark's step at t = {self.time:g} s jumped branch; shorten it")
 
     def _solve_sample(self, t: float, q: np.ndarray) -> None:
         assembler, solver = self.assembler, self.solver
         assembler.set_time(t)
         self.newton_iterations += _solve_positions(
-            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER, chord=self.chord and t > 0.0
+            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER, self.chord and t > 0.0,
+            self.factorizer,
         )
         self.velocities = solver.solve(assembler.velocity_rhs)
         assembler.fill_acceleration_rhs(q, self.velocities)

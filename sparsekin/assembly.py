@@ -85,6 +85,10 @@ class Assembler:
         Phi(q, t) = g(q) - target(t), after `fill_residual_jacobian`.
     jacobian : scipy.sparse.csr_array, shape (n_equations, n_coordinates)
         Phi_q, after `fill_residual_jacobian`.  Its pattern is fixed; only ``data`` changes.
+        After `fill_in_order`, a copy made on each access (for diagnostics).
+    values : ndarray, shape (nnz,)
+        The values of the Jacobian as the kernels write them: ``jacobian.data`` itself,
+        or after `fill_in_order` the same values in the order given there.
     velocity_rhs : ndarray, shape (n_equations,)
         -Phi_t: the first time derivative of the targets, after `set_time`.
     acceleration_rhs : ndarray, shape (n_equations,)
@@ -102,12 +106,12 @@ class Assembler:
         self._turns = np.zeros((pattern.n_bodies + 1, 2))  # cos and sin of each body's angle
         # The CSR values, with one discard slot past the end for the ground's columns.
         self._jac_buffer = np.zeros(pattern.nnz + 1)
-        self.jacobian = csr_array(
-            (self._jac_buffer[: pattern.nnz], pattern.indices, pattern.indptr),
-            shape=(n_equations, n_coordinates),
-        )
-        if pattern.nnz and not np.shares_memory(self.jacobian.data, self._jac_buffer):
+        self.values = self._jac_buffer[: pattern.nnz]
+        self._csr = csr_array((self.values, pattern.indices, pattern.indptr), shape=(n_equations, n_coordinates))
+        if pattern.nnz and not np.shares_memory(self._csr.data, self._jac_buffer):
             raise RuntimeError("scipy copied the Jacobian values; the in-place refill would be lost")
+        self._slots = (pattern.coincidence_slots, pattern.projection_slots, pattern.difference_slots)
+        self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
         self.residual = np.zeros(n_equations)
         self.acceleration_rhs = np.zeros(n_equations)
         self._gamma = np.zeros(n_equations)
@@ -119,6 +123,34 @@ class Assembler:
         self.driver_values = np.zeros(n_drivers)
         self._driver_rates = np.zeros(n_drivers)
         self._driver_accelerations = np.zeros(n_drivers)
+
+    @property
+    def jacobian(self) -> csr_array:
+        if self._csr_position is None:
+            return self._csr
+        return csr_array((self.values[self._csr_position], self.pattern.indices, self.pattern.indptr),
+                         shape=self._csr.shape)  # fmt: skip
+
+    def fill_in_order(self, positions: np.ndarray | None) -> None:
+        """Write the k-th CSR value of the Jacobian to ``values[positions[k]]`` from now on.
+
+        A linear solver that reads the values in its own order (`RefactorSolver`'s
+        ``value_positions``) then takes `values` as they are, without a gather; `jacobian`
+        becomes a copy in CSR order.  ``None`` returns to the CSR order.
+        """
+        p = self.pattern
+        if positions is None:
+            self._slots = (p.coincidence_slots, p.projection_slots, p.difference_slots)
+            self._csr_position = None
+            return
+        positions = np.asarray(positions, dtype=np.int64)
+        if positions.shape != (p.nnz,) or (
+            p.nnz and (positions.min() < 0 or positions.max() >= p.nnz or np.bincount(positions).min() != 1)
+        ):
+            raise ValueError(f"`positions` must be a permutation of range({p.nnz}).")
+        composed = np.append(positions, p.nnz)  # the ground's discard slot stays where it is
+        self._slots = tuple(composed[slots] for slots in (p.coincidence_slots, p.projection_slots, p.difference_slots))
+        self._csr_position = positions
 
     def set_time(self, t: float) -> None:
         """Evaluate the driver laws at time `t` (s) and update the targets."""
@@ -135,14 +167,14 @@ class Assembler:
         _kernels.fill_body_turns(q, turns)
         _kernels.fill_point_coincidence(
             q, turns, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
-            p.coincidence_row, p.coincidence_slots, self.residual, self._jac_buffer,
+            p.coincidence_row, self._slots[0], self.residual, self._jac_buffer,
         )  # fmt: skip
         _kernels.fill_projected_distance(
             q, turns, p.projection_body_i, p.projection_body_j, p.projection_local_i, p.projection_local_j,
-            p.projection_direction, p.projection_row, p.projection_slots, self.residual, self._jac_buffer,
+            p.projection_direction, p.projection_row, self._slots[1], self.residual, self._jac_buffer,
         )  # fmt: skip
         _kernels.fill_coordinate_difference(
-            q, p.difference_plus, p.difference_minus, p.difference_row, p.difference_slots,
+            q, p.difference_plus, p.difference_minus, p.difference_row, self._slots[2],
             self.residual, self._jac_buffer,
         )  # fmt: skip
         self.residual -= self._target
@@ -150,9 +182,10 @@ class Assembler:
     def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
         """Refill `acceleration_rhs` (gamma plus the targets' second derivative)."""
         p, q, qd, turns = self.pattern, self._q, self._qd, self._turns
-        q[:-3] = coordinates
+        if not np.array_equal(q[:-3], coordinates):  # else `turns` is that of the last refill
+            q[:-3] = coordinates
+            _kernels.fill_body_turns(q, turns)
         qd[:-3] = velocities
-        _kernels.fill_body_turns(q, turns)
         _kernels.fill_point_coincidence_gamma(
             q, qd, turns, p.coincidence_body_i, p.coincidence_body_j, p.coincidence_local_i, p.coincidence_local_j,
             p.coincidence_row, self._gamma,

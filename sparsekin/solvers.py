@@ -325,6 +325,7 @@ class _Run:
         self.tolerance, self.max_iterations = tolerance, max_iterations
         self.chord = chord
         self.factored = False  # whether the linear solver holds a factorization to chord with
+        self.factorizer = None
         self.path = linear_solver.name
         self.compiled_counts = (0, 0)  # factorizations and solves of the compiled loop
         self.system = assembler  # or a _ReducedSystem without the redundant equations
@@ -410,9 +411,12 @@ class _Run:
 
     def _solve_positions(self, q) -> int:
         chord, self.factored = self.chord and self.factored, False
+        if self.factorizer is None or self.factorizer.system is not self.system:
+            self.factorizer = _Factorizer(self.system, self.linear_solver)
         corrections = _solve_positions(
-            self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations, chord
-        )
+            self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations, chord,
+            self.factorizer,
+        )  # fmt: skip
         self.factored = True
         return corrections
 
@@ -724,27 +728,57 @@ class _BranchJump(Exception):
     """The solved step breaks the corrected trapezoidal rule: perhaps a jump to another branch."""
 
 
-def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations, chord=False):
+class _Factorizer:
+    """Factors the Jacobian of `system` with `linear_solver`, reading its values in place.
+
+    With a solver that reads values in its own order (`RefactorSolver`) on an `Assembler`
+    (not on a `_ReducedSystem`), the first factorization fixes the solver's
+    value order; from then on the kernels write the Jacobian straight in that order
+    (`Assembler.fill_in_order`) and the solver refactors from it without a gather — a
+    random access over every value that cost about as much as the kernels at 10^6 bodies.
+    """
+
+    def __init__(self, system, linear_solver) -> None:
+        self.system, self.linear_solver = system, linear_solver
+        self._may_order = hasattr(linear_solver, "factor_ordered") and hasattr(system, "fill_in_order")
+        self._layout = None  # the solver's layout the system fills in, once ordered
+
+    def __call__(self) -> None:
+        system, solver = self.system, self.linear_solver
+        if self._layout is None:
+            solver.factor(system.jacobian)
+        else:
+            solver.factor_ordered(system.values)
+        if self._may_order and solver.layout_version != self._layout:
+            system.fill_in_order(solver.value_positions)
+            self._layout = solver.layout_version
+
+
+def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations, chord=False, factor=None):
     """Newton–Raphson from `q`, which it refines in place; returns the number of corrections.
 
     With `chord`, first chord Newton: corrections solved with the factorization the
     linear solver already holds, kept while each divides the residual by at least
     ``1 / CHORD_CONTRACTION``; if that fails, plain Newton restarts from the original `q`.
     On return, `linear_solver` holds the factorization of the Jacobian at the converged q.
+    `factor`, if given, factors the Jacobian just filled (a `_Factorizer`); by default
+    ``linear_solver.factor(assembler.jacobian)``.
     """
+    if factor is None:
+        factor = lambda: linear_solver.factor(assembler.jacobian)  # noqa: E731
     if chord:
         start = q.copy()
-        corrections = _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations)
+        corrections = _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations, factor)
         if corrections is not None:
             return corrections
         q[:] = start
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
         assembler.fill_residual_jacobian(q)
-        norm = float(np.max(np.abs(assembler.residual) * weights, initial=0.0))
+        norm = _weighted_norm(assembler.residual, weights)
         if not np.isfinite(norm):
             raise _NoConvergence("the residual is not finite")
-        linear_solver.factor(assembler.jacobian)
+        factor()
         if norm <= tolerance:
             return iteration
         if iteration == max_iterations:
@@ -756,7 +790,7 @@ def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterat
     raise _NoConvergence(f"no convergence in {max_iterations} Newton corrections")
 
 
-def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations) -> int | None:
+def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations, factor) -> int | None:
     """Chord corrections from `q` with the factorization at hand; None if they do not converge fast.
 
     At convergence the Jacobian at `q` is factored, as plain Newton leaves it, and one
@@ -766,9 +800,9 @@ def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iteration
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
         assembler.fill_residual_jacobian(q)
-        norm = float(np.max(np.abs(assembler.residual) * weights, initial=0.0))
+        norm = _weighted_norm(assembler.residual, weights)
         if norm <= tolerance:
-            linear_solver.factor(assembler.jacobian)
+            factor()
             if iteration and norm > POLISH_BELOW * tolerance:
                 # Chord corrections converge linearly and stop anywhere below the tolerance;
                 # one Newton correction with the fresh factorization takes q to full
@@ -784,6 +818,19 @@ def _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iteration
         except SingularMatrix:
             return None
     return None
+
+
+@njit(**_JIT)
+def _weighted_norm(residual, weights):
+    """max |residual| · weights, without temporaries; NaN if any entry is not finite."""
+    norm = 0.0
+    for r in range(residual.size):
+        weighted = abs(residual[r]) * weights[r]
+        if not weighted <= norm:  # larger, or NaN
+            if not math.isfinite(weighted):
+                return math.nan
+            norm = weighted
+    return norm
 
 
 @njit(**_JIT)
