@@ -65,7 +65,7 @@ def _model(family: str, bodies: int):
 def test_time_step(benchmark, family, bodies, solver):
     mechanism = _model(family, bodies)
     stepper = Stepper(mechanism, solver, STEP)
-    n_steps = steps_per_round(mechanism.n_bodies)
+    n_steps = steps_per_round(mechanism.n_bodies, solver)
     rounds = ROUNDS_BELOW_1E5 if mechanism.n_bodies < 100_000 else ROUNDS_FROM_1E5
     stepper.run(1)  # warm up: the first Newton step after the start, caches
     benchmark.pedantic(stepper.run, args=(n_steps,), setup=stepper.reset, rounds=rounds, iterations=1)

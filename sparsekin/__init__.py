@@ -14,7 +14,9 @@ The modules follow the data flow:
 `pattern`          Mechanism -> constraint arrays, CSR pattern and slots (once)
 `_kernels`         numba kernels that refill residual, Jacobian and gamma
 `assembly`         `Assembler`: owns the arrays and calls the kernels
-`linalg`           linear solvers behind one interface (SuperLU)
+`_lu_kernels`      numba LU: refactorization on fixed L/U patterns, solves, dense LU
+`linalg`           linear solvers behind one interface: SuperLU, refactorization, dense
+`_compiled`        the whole time loop of a small model in one numba call
 `solvers`          `solve_kinematics` -> `KinematicsResult`
 `diagnostics`      `check_model`, `analyse_jacobian`: rank, redundant equations, free motions
 `cli`              the ``sparsekin`` command
