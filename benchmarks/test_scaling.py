@@ -7,7 +7,7 @@ and records the split into assembly, factorization and solves and the Newton ite
 per step.  `test_setup_and_memory` builds, sets up and steps each sparsekin model in a
 fresh process and records the build and pattern times and the peak memory.
 
-Full run (documented in benchmarks/README.md, about an hour):
+Full run (documented in benchmarks/README.md, 8 minutes):
 ``python3 -m pytest benchmarks --benchmark-enable --benchmark-only --sizes=full
 --benchmark-json=benchmarks/results.json`` then
 ``python3 benchmarks/make_results.py benchmarks/results.json``.

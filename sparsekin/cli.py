@@ -372,8 +372,9 @@ def _summary(mechanism: Mechanism, result: KinematicsResult, wall_time: float, w
     lines = [
         f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s",
         f"Newton corrections per step: mean {corrections.mean():.2f}, max {corrections.max()}",
-        f"factorizations: {result.n_factorizations}, linear solves: {result.n_solves}, "
-        f"wall time: {wall_time:.3g} s",
+        f"linear solver: {result.linear_solver}; factorizations: {result.n_factorizations}"
+        + (f" (+ {result.n_refactorizations} refactorizations)" if result.n_refactorizations else "")
+        + f", linear solves: {result.n_solves}, wall time: {wall_time:.3g} s",
         "wrote:",
         *(f"  {path}" for path in written),
     ]
