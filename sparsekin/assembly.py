@@ -103,7 +103,9 @@ class Assembler:
         # Coordinates and velocities with the ground appended as a body of zeros.
         self._q = np.zeros(n_coordinates + 3)
         self._qd = np.zeros(n_coordinates + 3)
-        self._turns = np.zeros((pattern.n_bodies + 1, 2))  # cos and sin of each body's angle
+        # cos and sin of each body's angle in self._q (all angles 0 until the first fill)
+        self._turns = np.zeros((pattern.n_bodies + 1, 2))
+        self._turns[:, 0] = 1.0
         # The CSR values, with one discard slot past the end for the ground's columns.
         self._jac_buffer = np.zeros(pattern.nnz + 1)
         self.values = self._jac_buffer[: pattern.nnz]

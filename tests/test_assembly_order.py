@@ -60,3 +60,16 @@ def test_positions_must_be_a_permutation(chain, mistake):
         positions[0] = 1 if mistake == "duplicate" else pattern.nnz
     with pytest.raises(ValueError, match=r"`positions` must be a permutation of range"):
         Assembler(mechanism, pattern).fill_in_order(positions)
+
+
+def test_gamma_before_any_refill_uses_the_right_angles(chain, rng):
+    """γ reuses the cos and sin of the last refill when q has not moved: on a fresh assembler
+    (all angles 0), a first γ at q = 0 must see cos 1, sin 0."""
+    mechanism, pattern = chain
+    q, qd = np.zeros(pattern.n_coordinates), rng.standard_normal(pattern.n_coordinates)
+    fresh = Assembler(mechanism, pattern)
+    fresh.fill_acceleration_rhs(q, qd)
+    refilled = Assembler(mechanism, pattern)
+    refilled.fill_residual_jacobian(q + 1.0)  # other angles first
+    refilled.fill_acceleration_rhs(q, qd)
+    np.testing.assert_array_equal(fresh.acceleration_rhs, refilled.acceleration_rhs)
