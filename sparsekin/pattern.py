@@ -32,7 +32,6 @@ import numpy as np
 
 from .model import (
     COORDINATE_NAMES,
-    GROUND,
     AbsoluteDriver,
     Mechanism,
     Revolute,

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
 from scipy.interpolate import CubicSpline
 
 from sparsekin import (
