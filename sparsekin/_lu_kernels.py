@@ -11,7 +11,8 @@ Symbols (for these kernels only):
   ``l_indices``, ``l_values``.
 * ``U`` — upper triangular, strictly upper part by columns (rows in a topological order
   of the updates, see `analyse_lu_pattern`): ``u_indptr``, ``u_indices``, ``u_values``;
-  its diagonal (the pivots) in ``u_diag``.
+  the reciprocals of its diagonal (the pivots) in ``u_inverse``: the solves multiply
+  by them, a division per column being on their critical path.
 * ``perm_r``, ``perm_c`` — row ``i`` of ``A`` is row ``perm_r[i]`` of ``B``, column ``c``
   of ``A`` is column ``perm_c[c]`` of ``B``.
 * Right-hand sides and solutions have shape (n,), or (n, n_rhs) C-contiguous for the
@@ -134,7 +135,7 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
 @njit(**_JIT)
 def refactor_lu(
     values, gather, b_indptr, b_rows,
-    l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_diag, work, stats,
+    l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse, work, stats,
 ):  # fmt: skip
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
 
@@ -173,7 +174,6 @@ def refactor_lu(
                 work[l_indices[q]] -= l_values[q] * x_k
         pivot = work[j]
         work[j] = 0.0
-        u_diag[j] = pivot
         if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
             for q in range(l_indptr[j], l_indptr[j + 1]):
                 work[l_indices[q]] = 0.0
@@ -181,6 +181,7 @@ def refactor_lu(
             break
         max_u = max(max_u, abs(pivot))
         inverse = 1.0 / pivot
+        u_inverse[j] = inverse
         for q in range(l_indptr[j], l_indptr[j + 1]):
             i = l_indices[q]
             entry = work[i] * inverse
@@ -197,7 +198,7 @@ def refactor_lu(
 
 @njit(**_JIT)
 def solve_lu(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_diag,
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
     rhs, work, out, probe,
 ):  # fmt: skip
     """Solve ``A x = rhs`` with ``Pr A Pc = L U``: fill `out` (may be `rhs` itself).
@@ -213,7 +214,7 @@ def solve_lu(
         for p in range(l_indptr[j], l_indptr[j + 1]):
             work[l_indices[p]] -= l_values[p] * x_j
     for j in range(n - 1, -1, -1):  # U z = y
-        x_j = work[j] / u_diag[j]
+        x_j = work[j] * u_inverse[j]
         work[j] = x_j
         for p in range(u_indptr[j], u_indptr[j + 1]):
             work[u_indices[p]] -= u_values[p] * x_j
@@ -227,7 +228,7 @@ def solve_lu(
 
 @njit(**_JIT)
 def solve_lu_transposed(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_diag,
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
     rhs, work, out, probe,
 ):  # fmt: skip
     """Solve ``A^T x = rhs`` with ``Pr A Pc = L U`` (``A^T = Pc U^T L^T Pr``): fill `out`.
@@ -242,7 +243,7 @@ def solve_lu_transposed(
         total = work[j]
         for p in range(u_indptr[j], u_indptr[j + 1]):
             total -= u_values[p] * work[u_indices[p]]
-        work[j] = total / u_diag[j]
+        work[j] = total * u_inverse[j]
     for j in range(n - 1, -1, -1):  # L^T z = y
         total = work[j]
         for p in range(l_indptr[j], l_indptr[j + 1]):
@@ -258,7 +259,7 @@ def solve_lu_transposed(
 
 @njit(**_JIT)
 def solve_lu_many(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_diag,
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
     rhs, work, out, probe,
 ):  # fmt: skip
     """`solve_lu` for several right-hand sides in one pass: arrays of shape (n, n_rhs)."""
@@ -274,9 +275,9 @@ def solve_lu_many(
             for c in range(n_rhs):
                 work[i, c] -= factor * work[j, c]
     for j in range(n - 1, -1, -1):
-        pivot = u_diag[j]
+        inverse = u_inverse[j]
         for c in range(n_rhs):
-            work[j, c] /= pivot
+            work[j, c] *= inverse
         for p in range(u_indptr[j], u_indptr[j + 1]):
             k = u_indices[p]
             factor = u_values[p]
@@ -293,7 +294,7 @@ def solve_lu_many(
 
 @njit(**_JIT)
 def solve_lu_transposed_many(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_diag,
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
     rhs, work, out, probe,
 ):  # fmt: skip
     """`solve_lu_transposed` for several right-hand sides in one pass: shape (n, n_rhs)."""
@@ -308,9 +309,9 @@ def solve_lu_transposed_many(
             factor = u_values[p]
             for c in range(n_rhs):
                 work[j, c] -= factor * work[k, c]
-        pivot = u_diag[j]
+        inverse = u_inverse[j]
         for c in range(n_rhs):
-            work[j, c] /= pivot
+            work[j, c] *= inverse
     for j in range(n - 1, -1, -1):
         for p in range(l_indptr[j], l_indptr[j + 1]):
             i = l_indices[p]

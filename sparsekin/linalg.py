@@ -373,7 +373,7 @@ class RefactorSolver:
             kernel = _lu_kernels.solve_lu_many if transposed else _lu_kernels.solve_lu_transposed_many
         kernel(
             self._perm_r, self._perm_c, self._l_indptr, self._l_indices, self._l_values,
-            self._u_indptr, self._u_indices, self._u_values, self._u_diag, rhs, work, out, self._probe,
+            self._u_indptr, self._u_indices, self._u_values, self._u_inverse, rhs, work, out, self._probe,
         )  # fmt: skip
         self.n_solves += n_rhs
         if self._probe[0] != 0.0:
@@ -461,7 +461,7 @@ class RefactorSolver:
         )
         self._l_values = np.zeros(self._l_indices.size)
         self._u_values = np.zeros(self._u_indices.size)
-        self._u_diag = np.zeros(n)
+        self._u_inverse = np.zeros(n)
         self._work = np.zeros(n)
 
     def _numeric(self, values: np.ndarray, gather: np.ndarray) -> bool:
@@ -469,7 +469,7 @@ class RefactorSolver:
         stats = self._stats
         _lu_kernels.refactor_lu(
             values, gather, self._b_indptr, self._b_rows, self._l_indptr, self._l_indices, self._l_values,
-            self._u_indptr, self._u_indices, self._u_values, self._u_diag, self._work, stats,
+            self._u_indptr, self._u_indices, self._u_values, self._u_inverse, self._work, stats,
         )  # fmt: skip
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
