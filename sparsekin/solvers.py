@@ -422,9 +422,9 @@ class _Run:
 
     def _solve_rates(self, q, velocity, acceleration) -> None:
         """Velocities and accelerations at the converged `q`, with the factorization there."""
-        velocity[:] = self.linear_solver.solve(self.system.velocity_rhs)
+        self.linear_solver.solve(self.system.velocity_rhs, out=velocity)
         self.system.fill_acceleration_rhs(q, velocity)
-        acceleration[:] = self.linear_solver.solve(self.system.acceleration_rhs)
+        self.linear_solver.solve(self.system.acceleration_rhs, out=acceleration)
 
     def _first_sample(self) -> None:
         q = self.coordinates[0]
