@@ -10,10 +10,11 @@ with a given linear solver, and records where the time goes:
 
 The paths compared, measured in the same run:
 
-* ``sparsekin`` — what `solve_kinematics` runs above a few hundred coordinates: the CSR
+* ``sparsekin`` — what `solve_kinematics` runs above `COMPILED_MAX_COORDINATES`: the CSR
   pattern is fixed and refilled in place by the numba kernels, `RefactorSolver`
   refactors it numerically on the L and U patterns fixed by a first SuperLU
-  factorization, and chord Newton reuses the previous sample's factorization.
+  factorization, and chord Newton reuses the previous sample's factorization; when the
+  refactorization's fill-in is heavy (`MAX_REFACTOR_FILL`, meshes), SuperLU with chord.
 * ``superlu`` — the same with a fresh SuperLU factorization (COLAMD, through the CSC
   view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
@@ -45,6 +46,7 @@ from sparsekin.solvers import (
     DEFAULT_TOLERANCE,
     NEWTON_MAXITER,
     _Factorizer,
+    _fill_is_heavy,
     _jumped,
     _solve_positions,
 )
@@ -174,6 +176,14 @@ class Stepper:
         self.newton_iterations = 0
         self.time = 0.0
         self._solve_sample(0.0, self.coordinates)
+        if linear_solver == "sparsekin" and _fill_is_heavy(self.solver._target, pattern):
+            # as solve_kinematics(linear_solver="auto") does: SuperLU with chord Newton
+            self.assembler.fill_in_order(None)
+            self.solver = _Timed(SuperLUSolver(), self.seconds, self.solver._phase_of)
+            self.factorizer = _Factorizer(self.assembler, self.solver)
+            self.coordinates[:] = pattern.initial_coordinates
+            self._solve_sample(0.0, self.coordinates)
+        self.path = "superlu-chord" if isinstance(self.solver._target, SuperLUSolver) and self.chord else linear_solver
         self._start = (self.coordinates.copy(), self.velocities.copy(), self.accelerations.copy())
         self.reset()
 

@@ -76,6 +76,7 @@ def test_time_step(benchmark, family, bodies, solver):
         bodies=mechanism.n_bodies,
         coordinates=stepper.pattern.n_coordinates,
         solver=solver,
+        path=stepper.path,
         steps_per_round=n_steps,
         newton_iterations_per_step=stepper.newton_iterations / n_steps,
         **{f"{phase}_seconds_per_step": stepper.seconds[phase] / n_steps for phase in PHASES},

@@ -118,6 +118,14 @@ LINEAR_SOLVERS = ("auto", "superlu", "refactor", "dense")
 #: the refactorization path above: the crossover measured on the test set
 #: (benchmarks/RESULTS.md, "Crossover").
 COMPILED_MAX_COORDINATES = 120
+#: ``linear_solver="auto"`` keeps the refactorization while its L and U hold at most this
+#: many entries per entry of the Jacobian.  With more fill-in (meshes rather than chains)
+#: SuperLU's supernodal factorization beats the numba refactorization, and the run goes on
+#: with SuperLU (and chord Newton).  Measured: L + U / Jacobian entries 1.2, 1.6 and 6.4
+#: (four_bar_chain(10^4), task5_chain(10^4), lattice(22, 22)): refactorization 13 to 20
+#: times faster than SuperLU; 9.6 and 13.7 (lattice at 10^4 and 10^5 bodies): 1.2 and 2.1
+#: times slower.
+MAX_REFACTOR_FILL = 8.0
 
 
 class PointMotion(NamedTuple):
@@ -157,7 +165,8 @@ class KinematicsResult:
     linear_solver : str
         The path that solved the run: ``"compiled"`` (the compiled dense loop all the
         way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
-        ``"refactor"`` or ``"superlu"``.
+        ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
+        much fill-in after the first sample) or ``"superlu"``.
     """
 
     times: np.ndarray
@@ -237,7 +246,9 @@ def solve_kinematics(
     linear_solver : {"auto", "dense", "refactor", "superlu"}
         How the linear systems are solved (see the module docstring).  ``"auto"`` takes
         ``"dense"`` (the compiled loop) up to `COMPILED_MAX_COORDINATES` coordinates and
-        ``"refactor"`` above.  Every choice gives the same results to rounding.
+        ``"refactor"`` above, unless the refactorization's fill-in exceeds
+        `MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every choice gives the same
+        results to rounding.
 
     Returns
     -------
@@ -288,14 +299,15 @@ def solve_kinematics(
     pattern = build_pattern(mechanism)
     if pattern.n_equations == 0:  # nothing to solve, or nothing that holds the bodies
         return _without_equations(mechanism, pattern, times)
-    if linear_solver == "auto":
+    auto = linear_solver == "auto"
+    if auto:
         linear_solver = "dense" if pattern.n_coordinates <= COMPILED_MAX_COORDINATES else "refactor"
     solver = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}[linear_solver]()
     compiled = (
         linear_solver == "dense" and pattern.n_equations == pattern.n_coordinates and supports_compiled(mechanism)
     )
     run = _Run(mechanism, pattern, Assembler(mechanism, pattern), solver, times, tolerance, max_iterations,
-               chord=linear_solver != "superlu")  # fmt: skip
+               chord=linear_solver != "superlu", auto=auto)  # fmt: skip
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # non-finite values are checked
         return run.solve(compiled=compiled)
 
@@ -319,11 +331,12 @@ def _without_equations(mechanism: Mechanism, pattern: ConstraintPattern, times) 
 class _Run:
     """The state of one `solve_kinematics` run: arrays of results, the system solved, counters."""
 
-    def __init__(self, mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations, chord):
+    def __init__(self, mechanism, pattern, assembler, linear_solver, times, tolerance, max_iterations, chord, auto):
         self.mechanism, self.pattern, self.assembler = mechanism, pattern, assembler
         self.linear_solver, self.times = linear_solver, times
         self.tolerance, self.max_iterations = tolerance, max_iterations
-        self.chord = chord
+        self.chord, self.auto = chord, auto
+        self.retired = []  # linear solvers left during the run (their counts still count)
         self.factored = False  # whether the linear solver holds a factorization to chord with
         self.factorizer = None
         self.path = linear_solver.name
@@ -354,6 +367,8 @@ class _Run:
         if start == 0:
             self._first_sample()
             start = 1
+            if self.auto and _fill_is_heavy(self.linear_solver, self.pattern):
+                self._switch_to_superlu()
         for k in range(start, times.size):
             q = self.coordinates[k]  # Newton refines the predictor in place, in its row of the result
             h = times[k] - times[k - 1]
@@ -377,6 +392,15 @@ class _Run:
                 self._check_left_out(k)
         return self.result(times.size)
 
+    def _switch_to_superlu(self) -> None:
+        """Leave a refactorization whose fill-in makes it slower than SuperLU (`MAX_REFACTOR_FILL`)."""
+        self.retired.append(self.linear_solver)
+        self.linear_solver = SuperLUSolver()
+        self.assembler.fill_in_order(None)
+        self.factorizer = None
+        self.factored = False  # the next sample runs plain Newton, then chord again
+        self.path = "superlu-chord"
+
     def _solve_compiled(self) -> int:
         """Run the compiled loop; the number of samples it solved that pass the branch guard."""
         outcome = solve_compiled(
@@ -392,6 +416,7 @@ class _Run:
         return solved
 
     def result(self, n_solved: int) -> KinematicsResult:
+        solvers = [*self.retired, self.linear_solver]
         return KinematicsResult(
             times=self.times[:n_solved],
             coordinates=self.coordinates[:n_solved],
@@ -399,13 +424,13 @@ class _Run:
             accelerations=self.accelerations[:n_solved],
             body_names=self.mechanism.body_names,
             newton_iterations=self.iterations[:n_solved],
-            n_factorizations=self.linear_solver.n_factorizations + self.compiled_counts[0],
-            n_solves=self.linear_solver.n_solves + self.compiled_counts[1],
+            n_factorizations=sum(s.n_factorizations for s in solvers) + self.compiled_counts[0],
+            n_solves=sum(s.n_solves for s in solvers) + self.compiled_counts[1],
             complete=n_solved == self.times.size,
             point_map=build_point_map(self.mechanism),
             n_subdivisions=self.n_subdivisions,
             redundant_equations=tuple(self._label(row) for row in self.redundant_rows),
-            n_refactorizations=self.linear_solver.n_refactorizations,
+            n_refactorizations=sum(s.n_refactorizations for s in solvers),
             linear_solver=self.path,
         )
 
@@ -726,6 +751,11 @@ def _reason(failure: Exception) -> str:
 
 class _BranchJump(Exception):
     """The solved step breaks the corrected trapezoidal rule: perhaps a jump to another branch."""
+
+
+def _fill_is_heavy(linear_solver, pattern: ConstraintPattern) -> bool:
+    """Whether `linear_solver` is a refactorization with more fill-in than `MAX_REFACTOR_FILL`."""
+    return isinstance(linear_solver, RefactorSolver) and linear_solver.nnz_factors > MAX_REFACTOR_FILL * pattern.nnz
 
 
 class _Factorizer:

@@ -111,3 +111,24 @@ def test_models_the_compiled_loop_cannot_run_use_the_python_loop():
     result = solve_kinematics(mechanism, times, linear_solver="dense")
     assert result.linear_solver == "dense"
     assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 1.2)
+
+
+def test_auto_refactors_a_model_above_the_compiled_size():
+    mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)  # 306 coordinates
+    result = solve_kinematics(mechanism, times)
+    assert result.linear_solver == "refactor"
+    assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
+
+
+def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
+    """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on with
+    SuperLU (and chord Newton) after the first sample; the motion is the same."""
+    from sparsekin import solvers
+
+    monkeypatch.setattr(solvers, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
+    mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)
+    result = solve_kinematics(mechanism, times)
+    assert result.linear_solver == "superlu-chord"
+    # one SuperLU factorization per sample (chord), besides the refactorization's first
+    assert result.n_factorizations <= 1 + result.n_times + result.newton_iterations[:2].sum()
+    assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
