@@ -94,7 +94,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "residual, Jacobian and γ refills; factorization; solves) and the Newton iterations per",
         "step are those of the last round. Ratios are baseline time / sparsekin time in the same",
         "run. `sparsekin`: refactorization on a fixed pattern and chord Newton (what",
-        "`solve_kinematics` runs above `COMPILED_MAX_COORDINATES`); `superlu`: a SuperLU factorization per",
+        "`solve_kinematics` runs above `COMPILED_MAX_COORDINATES`; SuperLU with chord Newton where the",
+        "refactorization's fill-in exceeds `MAX_REFACTOR_FILL`, marked †); `superlu`: a SuperLU factorization per",
         "Newton iteration; `coo_spsolve`: Jacobian rebuilt COO → CSR and `spsolve` for every system; `dense`:",
         "dense Jacobian and `numpy.linalg.solve` for every system. Build: making the `Mechanism`;",
         "pattern: `build_pattern`; first sample: pattern, assembler and the first Newton solve;",
@@ -118,7 +119,7 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             mine = records.get(REFERENCE)
             row = [f"{bodies:,}"]
             if mine:
-                row += [_seconds(mine["seconds_per_step"])]
+                row += [_seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "superlu-chord" else "")]
                 row += [_seconds(mine[f"{phase}_seconds_per_step"]) for phase in ("assembly", "factorization", "solves")]
                 row += [f"{mine['newton_iterations_per_step']:.2f}"]
             else:

@@ -336,7 +336,8 @@ class _Run:
         self.linear_solver, self.times = linear_solver, times
         self.tolerance, self.max_iterations = tolerance, max_iterations
         self.chord, self.auto = chord, auto
-        self.retired = []  # linear solvers left during the run (their counts still count)
+        self.retired_counts = np.zeros(3, dtype=np.int64)  # factorizations, refactorizations, solves
+        # of linear solvers left during the run
         self.factored = False  # whether the linear solver holds a factorization to chord with
         self.factorizer = None
         self.path = linear_solver.name
@@ -394,8 +395,9 @@ class _Run:
 
     def _switch_to_superlu(self) -> None:
         """Leave a refactorization whose fill-in makes it slower than SuperLU (`MAX_REFACTOR_FILL`)."""
-        self.retired.append(self.linear_solver)
-        self.linear_solver = SuperLUSolver()
+        left = self.linear_solver
+        self.retired_counts += (left.n_factorizations, left.n_refactorizations, left.n_solves)
+        self.linear_solver = SuperLUSolver()  # and the refactorization's factors are freed
         self.assembler.fill_in_order(None)
         self.factorizer = None
         self.factored = False  # the next sample runs plain Newton, then chord again
@@ -416,7 +418,7 @@ class _Run:
         return solved
 
     def result(self, n_solved: int) -> KinematicsResult:
-        solvers = [*self.retired, self.linear_solver]
+        solver, retired = self.linear_solver, self.retired_counts
         return KinematicsResult(
             times=self.times[:n_solved],
             coordinates=self.coordinates[:n_solved],
@@ -424,13 +426,13 @@ class _Run:
             accelerations=self.accelerations[:n_solved],
             body_names=self.mechanism.body_names,
             newton_iterations=self.iterations[:n_solved],
-            n_factorizations=sum(s.n_factorizations for s in solvers) + self.compiled_counts[0],
-            n_solves=sum(s.n_solves for s in solvers) + self.compiled_counts[1],
+            n_factorizations=solver.n_factorizations + int(retired[0]) + self.compiled_counts[0],
+            n_solves=solver.n_solves + int(retired[2]) + self.compiled_counts[1],
             complete=n_solved == self.times.size,
             point_map=build_point_map(self.mechanism),
             n_subdivisions=self.n_subdivisions,
             redundant_equations=tuple(self._label(row) for row in self.redundant_rows),
-            n_refactorizations=sum(s.n_refactorizations for s in solvers),
+            n_refactorizations=solver.n_refactorizations + int(retired[1]),
             linear_solver=self.path,
         )
 
