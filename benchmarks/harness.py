@@ -157,8 +157,12 @@ class Stepper:
         self.assembler = _Timed(
             Assembler(mechanism, pattern),
             self.seconds,
-            {"set_time": "assembly", "fill_residual_jacobian": "assembly", "fill_acceleration_rhs": "assembly",
-             "fill_in_order": "factorization"},  # fmt: skip
+            {
+                "set_time": "assembly",
+                "fill_residual_jacobian": "assembly",
+                "fill_acceleration_rhs": "assembly",
+                "fill_in_order": "factorization",
+            },  # fmt: skip
         )
         self.solver = _Timed(
             LINEAR_SOLVERS[linear_solver](pattern),
@@ -183,7 +187,11 @@ class Stepper:
             self.factorizer = _Factorizer(self.assembler, self.solver)
             self.coordinates[:] = pattern.initial_coordinates
             self._solve_sample(0.0, self.coordinates)
-        self.path = "superlu-chord" if isinstance(self.solver._target, SuperLUSolver) and self.chord else linear_solver
+        self.path = (
+            "superlu-chord"
+            if isinstance(self.solver._target, SuperLUSolver) and self.chord
+            else linear_solver
+        )
         self._start = (self.coordinates.copy(), self.velocities.copy(), self.accelerations.copy())
         self.reset()
 
@@ -218,7 +226,13 @@ class Stepper:
         assembler, solver = self.assembler, self.solver
         assembler.set_time(t)
         self.newton_iterations += _solve_positions(
-            assembler, solver, q, self.weights, DEFAULT_TOLERANCE, NEWTON_MAXITER, self.chord and t > 0.0,
+            assembler,
+            solver,
+            q,
+            self.weights,
+            DEFAULT_TOLERANCE,
+            NEWTON_MAXITER,
+            self.chord and t > 0.0,
             self.factorizer,
         )
         self.velocities = solver.solve(assembler.velocity_rhs)

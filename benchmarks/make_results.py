@@ -119,12 +119,19 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             mine = records.get(REFERENCE)
             row = [f"{bodies:,}"]
             if mine:
-                row += [_seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "superlu-chord" else "")]
-                row += [_seconds(mine[f"{phase}_seconds_per_step"]) for phase in ("assembly", "factorization", "solves")]
+                row += [
+                    _seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "superlu-chord" else "")
+                ]
+                row += [
+                    _seconds(mine[f"{phase}_seconds_per_step"])
+                    for phase in ("assembly", "factorization", "solves")
+                ]
                 row += [f"{mine['newton_iterations_per_step']:.2f}"]
             else:
                 row += ["—"] * 5
-            row += [_seconds(records[name]["seconds_per_step"]) if name in records else "—" for name in solvers]
+            row += [
+                _seconds(records[name]["seconds_per_step"]) if name in records else "—" for name in solvers
+            ]
             for name in BASELINES:
                 if name in records and mine:
                     ratio = records[name]["seconds_per_step"] / mine["seconds_per_step"]
@@ -135,32 +142,59 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             if setup:
                 used = setup["peak_rss_bytes"] - setup["baseline_rss_bytes"]
                 row += [_seconds(setup["build_seconds"]), _seconds(setup["pattern_seconds"])]
-                row += [_seconds(setup["first_sample_seconds"]), f"{used / 2**20:,.0f} MB", f"{used / bodies:,.0f} B"]
+                row += [
+                    _seconds(setup["first_sample_seconds"]),
+                    f"{used / 2**20:,.0f} MB",
+                    f"{used / bodies:,.0f} B",
+                ]
             else:
                 row += ["—"] * 5
             lines.append("| " + " | ".join(row) + " |")
         for name in (REFERENCE, *BASELINES):
-            points = [(b, steps[(family, b)][name]["seconds_per_step"]) for b in sizes if name in steps[(family, b)]]
+            points = [
+                (b, steps[(family, b)][name]["seconds_per_step"]) for b in sizes if name in steps[(family, b)]
+            ]
             exponents[(family, name)] = scaling_exponent(points)
         lines.append("")
-    lines += ["## Scaling", "", f"Exponent of time per step against bodies, least squares over {FIT_RANGE[0]:,}–{FIT_RANGE[1]:,} bodies:", ""]
+    lines += [
+        "## Scaling",
+        "",
+        f"Exponent of time per step against bodies, least squares over {FIT_RANGE[0]:,}–{FIT_RANGE[1]:,} bodies:",
+        "",
+    ]
     for (family, name), exponent in exponents.items():
         if exponent is not None:
             lines.append(f"- {family}, {name}: {exponent:.3f}")
     if document["others"]:
         lines += [
-            "", "## Whole runs through `solve_kinematics`, and the phases of a Task 5 step", "",
+            "",
+            "## Whole runs through `solve_kinematics`, and the phases of a Task 5 step",
+            "",
             "`test_crossover`: the compiled dense loop against the refactorization path on small models",
-            "(`linear_solver=\"auto\"` switches at `COMPILED_MAX_COORDINATES`).", "",
-            "| benchmark | median | min | rounds | notes |", "|---|---|---|---|---|",
+            '(`linear_solver="auto"` switches at `COMPILED_MAX_COORDINATES`).',
+            "",
+            "| benchmark | median | min | rounds | notes |",
+            "|---|---|---|---|---|",
         ]
         for record in document["others"]:
             stats = record["stats"]
             if "samples" in record["extra_info"]:  # a whole run: its time per step
-                record["extra_info"]["time_per_step"] = _seconds(stats["median"] / (record["extra_info"]["samples"] - 1))
-            notes = ", ".join(f"{key} {value:.4g}" if isinstance(value, float) else f"{key} {value}" for key, value in record["extra_info"].items())
-            lines.append(f"| `{record['name']}` | {_seconds(stats['median'])} | {_seconds(stats['min'])} | {stats['rounds']} | {notes} |")
-    lines += ["", "Dense baseline: run up to 1,000 bodies only. At 10^4 bodies its matrix (3·10^4 squared) would take", "7.2 GB and each `numpy.linalg.solve` about 2/3·(3·10^4)^3 ≈ 1.8·10^13 flops, minutes per solve on this machine.", ""]
+                record["extra_info"]["time_per_step"] = _seconds(
+                    stats["median"] / (record["extra_info"]["samples"] - 1)
+                )
+            notes = ", ".join(
+                f"{key} {value:.4g}" if isinstance(value, float) else f"{key} {value}"
+                for key, value in record["extra_info"].items()
+            )
+            lines.append(
+                f"| `{record['name']}` | {_seconds(stats['median'])} | {_seconds(stats['min'])} | {stats['rounds']} | {notes} |"
+            )
+    lines += [
+        "",
+        "Dense baseline: run up to 1,000 bodies only. At 10^4 bodies its matrix (3·10^4 squared) would take",
+        "7.2 GB and each `numpy.linalg.solve` about 2/3·(3·10^4)^3 ≈ 1.8·10^13 flops, minutes per solve on this machine.",
+        "",
+    ]
     return "\n".join(lines)
 
 

@@ -29,7 +29,13 @@ def test_crossover(benchmark, model, linear_solver):
     mechanism = MODELS[model]()
     solve_kinematics(mechanism, TIMES[:3], linear_solver=linear_solver)  # compile outside the timing
     result = benchmark.pedantic(
-        solve_kinematics, args=(mechanism, TIMES), kwargs={"linear_solver": linear_solver}, rounds=5, iterations=1
+        solve_kinematics,
+        args=(mechanism, TIMES),
+        kwargs={"linear_solver": linear_solver},
+        rounds=5,
+        iterations=1,
     )
     assert result.complete
-    benchmark.extra_info.update(coordinates=3 * mechanism.n_bodies, path=result.linear_solver, samples=result.n_times)
+    benchmark.extra_info.update(
+        coordinates=3 * mechanism.n_bodies, path=result.linear_solver, samples=result.n_times
+    )

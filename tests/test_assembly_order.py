@@ -47,7 +47,9 @@ def test_refactor_from_values_in_order_solves_the_system(chain, rng):
     rhs = rng.standard_normal(pattern.n_coordinates)
     jacobian = assembler.jacobian
     x = solver.solve(rhs)
-    assert np.abs(jacobian @ x - rhs).max() <= 1e-13 * (abs(jacobian).max() * np.abs(x).max() + np.abs(rhs).max())
+    assert np.abs(jacobian @ x - rhs).max() <= 1e-13 * (
+        abs(jacobian).max() * np.abs(x).max() + np.abs(rhs).max()
+    )
 
 
 @pytest.mark.parametrize("mistake", ["too short", "duplicate", "out of range"])

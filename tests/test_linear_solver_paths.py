@@ -29,7 +29,9 @@ def assert_same_motion(result, reference, scale):
     assert result.complete and reference.complete
     weights = np.full(reference.coordinates.shape[1], 1.0 / scale)
     weights[2::3] = 1.0
-    np.testing.assert_allclose(result.coordinates * weights, reference.coordinates * weights, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(
+        result.coordinates * weights, reference.coordinates * weights, rtol=0, atol=1e-11
+    )
     for name in ("velocities", "accelerations"):
         mine, theirs = getattr(result, name), getattr(reference, name)
         np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-9 * np.abs(theirs).max())
@@ -73,7 +75,9 @@ def test_every_path_stops_at_the_same_lock_up(linear_solver):
     """Task 5 with 0.06 m strokes: the compiled loop hands the failing step to the Python
     loop, which subdivides it and diagnoses the dead centre, as the other paths do."""
     times = np.linspace(0.0, 1.0, 101)
-    with pytest.raises(SingularConfigurationError, match=r"singular configuration at t = 0\.755\d* s") as caught:
+    with pytest.raises(
+        SingularConfigurationError, match=r"singular configuration at t = 0\.755\d* s"
+    ) as caught:
         solve_kinematics(testset.task5(amplitude=0.06), times, linear_solver=linear_solver)
     assert caught.value.result.n_times == 76
     reference = solve_kinematics(testset.task5(amplitude=0.06), times[:76], linear_solver="superlu")
@@ -94,7 +98,9 @@ def test_hand_over_from_the_compiled_loop_keeps_solving():
 
 
 def test_unknown_linear_solver_is_refused():
-    with pytest.raises(ValueError, match="`linear_solver` must be one of 'auto', 'superlu', 'refactor', 'dense'"):
+    with pytest.raises(
+        ValueError, match="`linear_solver` must be one of 'auto', 'superlu', 'refactor', 'dense'"
+    ):
         solve_kinematics(testset.task5(), [0.0], linear_solver="umfpack")
 
 
