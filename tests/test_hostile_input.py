@@ -38,59 +38,18 @@ from sparsekin.diagnostics import analyse_jacobian, check_model
 from sparsekin.testset import task5
 
 ROOT = Path(__file__).resolve().parents[1]
-SLIDER_CRANK = """\
-name = "slider-crank"
-
-[points]
-O = [0.0, 0.0]
-A = [0.1, 0.0]
-B = [0.4, 0.0]
-
-[bodies.crank]
-origin = "O"
-points = ["O", "A"]
-
-[bodies.rod]
-origin = "A"
-points = ["A", "B"]
-
-[bodies.slider]
-origin = "B"
-points = ["B"]
-
-[[joints]]
-name = "pivot"
-type = "revolute"
-bodies = ["crank", "ground"]
-at = "O"
-
-[[joints]]
-type = "revolute"
-bodies = ["crank", "rod"]
-at = "A"
-
-[[joints]]
-type = "revolute"
-bodies = ["rod", "slider"]
-at = "B"
-
-[[joints]]
-name = "guide"
-type = "translational"
-bodies = ["ground", "slider"]
-at = "B"
-direction = [1.0, 0.0]
-
-[[drivers]]
-type = "rotational"
-bodies = ["crank", "ground"]
-law = { type = "spline", times = [0.0, 0.5, 1.0], values = [0.0, 0.6, 1.0] }
-
-[analysis]
-t_end = 1.0
-steps = 11
-points = ["A", "B"]
-"""
+#: tests/data/slider_crank.toml with the other form of translational joint (at + direction)
+#: and a spline law, so that the damage reaches both.
+SLIDER_CRANK = (
+    (ROOT / "tests" / "data" / "slider_crank.toml")
+    .read_text(encoding="utf-8")
+    .replace('axis = ["O", "B"]', 'at = "B"\ndirection = [1.0, 0.0]')
+    .replace(
+        'law = { type = "linear", rate = 6.283185307179586 }',
+        'law = { type = "spline", times = [0.0, 0.5, 1.0], values = [0.0, 0.6, 1.0] }',
+    )
+    .replace("t_end = 2.0\nsteps = 201", "t_end = 1.0\nsteps = 11")
+)
 MODELS = {
     "task5": (ROOT / "examples" / "task5.toml").read_text(encoding="utf-8"),
     "triple_parallelogram": (ROOT / "tests" / "data" / "triple_parallelogram.toml").read_text(encoding="utf-8"),

@@ -402,59 +402,8 @@ def test_any_mechanism_round_trips(mechanism: Mechanism, tmp_path_factory: pytes
 
 # ------------------------------------------------------------------ mistakes
 
-SLIDER_CRANK = """\
-name = "slider-crank"
-
-[points]
-O = [0.0, 0.0]
-A = [0.1, 0.0]
-B = [0.4, 0.0]
-
-[bodies.crank]
-origin = "O"
-angle = 0.0
-points = ["O", "A"]
-
-[bodies.rod]
-origin = "A"
-points = ["A", "B"]
-
-[bodies.slider]
-origin = "B"
-points = ["B"]
-
-[[joints]]
-name = "pivot"
-type = "revolute"
-bodies = ["crank", "ground"]
-at = "O"
-
-[[joints]]
-type = "revolute"
-bodies = ["crank", "rod"]
-at = "A"
-
-[[joints]]
-type = "revolute"
-bodies = ["rod", "slider"]
-at = "B"
-
-[[joints]]
-name = "guide"
-type = "translational"
-bodies = ["ground", "slider"]
-axis = ["O", "B"]
-
-[[drivers]]
-type = "rotational"
-bodies = ["crank", "ground"]
-law = { type = "linear", rate = 6.283185307179586 }
-
-[analysis]
-t_end = 2.0
-steps = 201
-points = ["A", "B"]
-"""
+#: A valid model that the mistakes below edit (also the base of tests/test_hostile_input.py).
+SLIDER_CRANK = (Path(__file__).resolve().parent / "data" / "slider_crank.toml").read_text(encoding="utf-8")
 
 GUIDE = 'axis = ["O", "B"]'
 LAW = 'law = { type = "linear", rate = 6.283185307179586 }'
