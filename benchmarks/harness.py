@@ -214,7 +214,7 @@ class Stepper:
             q += self.coordinates
             q += (0.5 * h * h) * self.accelerations
             predicted = q.copy()
-            self._solve_sample(self.time, q)
+            self._solve_sample(self.time, q, predicted)
             self.coordinates = q
             if _jumped(
                 h, *previous, q, self.velocities, self.accelerations, predicted, self.coordinate_weights,
@@ -222,7 +222,7 @@ class Stepper:
             ):  # fmt: skip
                 raise RuntimeError(f"the benchmark's step at t = {self.time:g} s jumped branch; shorten it")
 
-    def _solve_sample(self, t: float, q: np.ndarray) -> None:
+    def _solve_sample(self, t: float, q: np.ndarray, predicted: np.ndarray | None = None) -> None:
         assembler, solver = self.assembler, self.solver
         assembler.set_time(t)
         self.newton_iterations += _solve_positions(
@@ -234,6 +234,7 @@ class Stepper:
             NEWTON_MAXITER,
             self.chord and t > 0.0,
             self.factorizer,
+            predicted,
         )
         self.velocities = solver.solve(assembler.velocity_rhs)
         assembler.fill_acceleration_rhs(q, self.velocities)

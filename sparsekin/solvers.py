@@ -437,12 +437,13 @@ class _Run:
         )
 
     def _solve_positions(self, q) -> int:
+        """Newton from `q`, whose copy is in `self.predicted` whenever chord Newton may run."""
         chord, self.factored = self.chord and self.factored, False
         if self.factorizer is None or self.factorizer.system is not self.system:
             self.factorizer = _Factorizer(self.system, self.linear_solver)
         corrections = _solve_positions(
             self.system, self.linear_solver, q, self.system_weights, self.tolerance, self.max_iterations, chord,
-            self.factorizer,
+            self.factorizer, self.predicted,
         )  # fmt: skip
         self.factored = True
         return corrections
@@ -786,7 +787,9 @@ class _Factorizer:
             self._layout = solver.layout_version
 
 
-def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterations, chord=False, factor=None):
+def _solve_positions(
+    assembler, linear_solver, q, weights, tolerance, max_iterations, chord=False, factor=None, restart=None
+):
     """Newton–Raphson from `q`, which it refines in place; returns the number of corrections.
 
     With `chord`, first chord Newton: corrections solved with the factorization the
@@ -794,12 +797,13 @@ def _solve_positions(assembler, linear_solver, q, weights, tolerance, max_iterat
     ``1 / CHORD_CONTRACTION``; if that fails, plain Newton restarts from the original `q`.
     On return, `linear_solver` holds the factorization of the Jacobian at the converged q.
     `factor`, if given, factors the Jacobian just filled (a `_Factorizer`); by default
-    ``linear_solver.factor(assembler.jacobian)``.
+    ``linear_solver.factor(assembler.jacobian)``.  `restart`, if given, is a copy of the
+    original `q` that the caller keeps anyway (the predictor); by default one is made.
     """
     if factor is None:
         factor = lambda: linear_solver.factor(assembler.jacobian)  # noqa: E731
     if chord:
-        start = q.copy()
+        start = q.copy() if restart is None else restart
         corrections = _chord_newton(assembler, linear_solver, q, weights, tolerance, max_iterations, factor)
         if corrections is not None:
             return corrections
