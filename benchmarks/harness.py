@@ -1,6 +1,6 @@
 """What the benchmarks time: the full time step of sparsekin and of two baselines.
 
-A `Stepper` runs the time loop of `sparsekin.solve_kinematics` (Taylor predictor,
+A `Stepper` runs the time loop of `sparsekin.solve_kinematics` (`KinematicStepper`: Taylor predictor,
 Newton–Raphson on the positions, the velocity and acceleration solves, the branch guard)
 with a given linear solver, and records where the time goes:
 
@@ -39,17 +39,7 @@ from sparsekin.assembly import Assembler
 from sparsekin.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model import Mechanism
 from sparsekin.pattern import build_pattern
-from sparsekin.solvers import (
-    BRANCH_DEFECT_RATIO,
-    BRANCH_MIN_CORRECTION,
-    BRANCH_MIN_DEFECT,
-    DEFAULT_TOLERANCE,
-    NEWTON_MAXITER,
-    _Factorizer,
-    _fill_is_heavy,
-    _jumped,
-    _solve_positions,
-)
+from sparsekin.stepper import KinematicStepper, fill_is_heavy
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -64,6 +54,7 @@ class DenseBaseline:
 
     def __init__(self, pattern) -> None:
         self.n_factorizations = 0
+        self.n_refactorizations = 0
         self.n_solves = 0
         self._dense = np.zeros((pattern.n_equations, pattern.n_coordinates))
 
@@ -71,9 +62,13 @@ class DenseBaseline:
         self.n_factorizations += 1
         self._dense[...] = jacobian.toarray()
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         self.n_solves += 1
-        return np.linalg.solve(self._dense, rhs)
+        solution = np.linalg.solve(self._dense, rhs)
+        if out is None:
+            return solution
+        out[...] = solution
+        return out
 
 
 class RebuildBaseline:
@@ -83,6 +78,7 @@ class RebuildBaseline:
 
     def __init__(self, pattern) -> None:
         self.n_factorizations = 0
+        self.n_refactorizations = 0
         self.n_solves = 0
         self._rows = np.repeat(np.arange(pattern.n_equations), np.diff(pattern.indptr))
         self._columns = pattern.indices
@@ -94,9 +90,13 @@ class RebuildBaseline:
         triplets = (jacobian.data.copy(), (self._rows, self._columns))
         self._matrix = coo_array(triplets, shape=self._shape).tocsr()
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         self.n_solves += 1
-        return spsolve(self._matrix, rhs)
+        solution = spsolve(self._matrix, rhs)
+        if out is None:
+            return solution
+        out[...] = solution
+        return out
 
 
 #: Linear solvers by path name: each is built from the mechanism's pattern.
@@ -138,6 +138,11 @@ class _Timed:
 class Stepper:
     """The time loop of `solve_kinematics`, one step at a time, with phase timers.
 
+    A `sparsekin.stepper.KinematicStepper` whose assembler and linear solver are wrapped
+    in timers.  The ``sparsekin`` path follows ``linear_solver="auto"``'s rule above
+    `COMPILED_MAX_COORDINATES`: a refactorization, or SuperLU with chord Newton when its
+    fill-in is heavy.
+
     Parameters
     ----------
     mechanism : Mechanism
@@ -154,7 +159,7 @@ class Stepper:
         self.pattern = pattern = build_pattern(mechanism)
         self.step = step
         self.seconds = dict.fromkeys(PHASES, 0.0)
-        self.assembler = _Timed(
+        assembler = _Timed(
             Assembler(mechanism, pattern),
             self.seconds,
             {
@@ -164,78 +169,42 @@ class Stepper:
                 "fill_in_order": "factorization",
             },  # fmt: skip
         )
-        self.solver = _Timed(
-            LINEAR_SOLVERS[linear_solver](pattern),
-            self.seconds,
-            {"factor": "factorization", "factor_ordered": "factorization", "solve": "solves"},
-        )
-        self.factorizer = _Factorizer(self.assembler, self.solver)
-        self.chord = linear_solver in CHORD
-        self.weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
-        self.coordinate_weights = np.full(pattern.n_coordinates, 1.0 / pattern.length_scale)
-        self.coordinate_weights[2::3] = 1.0
-        self.coordinates = pattern.initial_coordinates.copy()
-        self.velocities = np.zeros(pattern.n_coordinates)
-        self.accelerations = np.zeros(pattern.n_coordinates)
-        self.newton_iterations = 0
-        self.time = 0.0
-        self._solve_sample(0.0, self.coordinates)
-        if linear_solver == "sparsekin" and _fill_is_heavy(self.solver._target, pattern):
-            # as solve_kinematics(linear_solver="auto") does: SuperLU with chord Newton
-            self.assembler.fill_in_order(None)
-            self.solver = _Timed(SuperLUSolver(), self.seconds, self.solver._phase_of)
-            self.factorizer = _Factorizer(self.assembler, self.solver)
-            self.coordinates[:] = pattern.initial_coordinates
-            self._solve_sample(0.0, self.coordinates)
-        self.path = (
-            "superlu-chord"
-            if isinstance(self.solver._target, SuperLUSolver) and self.chord
-            else linear_solver
-        )
-        self._start = (self.coordinates.copy(), self.velocities.copy(), self.accelerations.copy())
+        solver_phases = {"factor": "factorization", "factor_ordered": "factorization", "solve": "solves"}
+        solver = LINEAR_SOLVERS[linear_solver](pattern)
+        self.stepper = KinematicStepper(
+            mechanism, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
+            pattern=pattern, assembler=assembler,
+        )  # fmt: skip
+        self.stepper.start(0.0)
+        self.path = linear_solver
+        if linear_solver == "sparsekin" and fill_is_heavy(solver, pattern):
+            self.stepper.use_linear_solver(_Timed(SuperLUSolver(), self.seconds, solver_phases))
+            self.stepper.start(0.0)
+            self.path = "superlu-chord"
+        self._start = (
+            self.stepper.time, self.stepper.coordinates.copy(), self.stepper.velocities.copy(),
+            self.stepper.accelerations.copy(),
+        )  # fmt: skip
         self.reset()
+
+    @property
+    def coordinates(self):
+        return self.stepper.coordinates
 
     def reset(self) -> None:
         """Back to the solved first sample, with the timers and counters at zero."""
-        self.coordinates[:], self.velocities[:], self.accelerations[:] = self._start
-        self.time = 0.0
+        t, q, qd, qdd = self._start
+        self.stepper.resume(t, q, qd, qdd, first=(t, q))
+        self.time = t
         self.newton_iterations = 0
         for phase in PHASES:
             self.seconds[phase] = 0.0
 
     def run(self, n_steps: int) -> None:
-        """`n_steps` full time steps: positions, velocities and accelerations, each checked
-        by the branch guard of `solve_kinematics`."""
-        h = self.step
+        """`n_steps` full time steps: positions, velocities and accelerations, each checked by
+        the branch guard of the stepper (a step that jumps branch is halved, and counted)."""
         for _ in range(n_steps):
-            self.time += h
-            previous = (self.coordinates, self.velocities, self.accelerations)
-            q = np.multiply(self.velocities, h)  # the Taylor predictor, as solve_kinematics makes it
-            q += self.coordinates
-            q += (0.5 * h * h) * self.accelerations
-            predicted = q.copy()
-            self._solve_sample(self.time, q, predicted)
-            self.coordinates = q
-            if _jumped(
-                h, *previous, q, self.velocities, self.accelerations, predicted, self.coordinate_weights,
-                BRANCH_DEFECT_RATIO, BRANCH_MIN_DEFECT, BRANCH_MIN_CORRECTION,
-            ):  # fmt: skip
-                raise RuntimeError(f"the benchmark's step at t = {self.time:g} s jumped branch; shorten it")
-
-    def _solve_sample(self, t: float, q: np.ndarray, predicted: np.ndarray | None = None) -> None:
-        assembler, solver = self.assembler, self.solver
-        assembler.set_time(t)
-        self.newton_iterations += _solve_positions(
-            assembler,
-            solver,
-            q,
-            self.weights,
-            DEFAULT_TOLERANCE,
-            NEWTON_MAXITER,
-            self.chord and t > 0.0,
-            self.factorizer,
-            predicted,
-        )
-        self.velocities = solver.solve(assembler.velocity_rhs)
-        assembler.fill_acceleration_rhs(q, self.velocities)
-        self.accelerations = solver.solve(assembler.acceleration_rhs)
+            self.time += self.step
+            self.newton_iterations += self.stepper.advance(self.time)
+        if self.stepper.n_subdivisions:
+            raise RuntimeError(f"the benchmark's steps were halved {self.stepper.n_subdivisions} times; shorten them")

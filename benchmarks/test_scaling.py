@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from families import DENSE_MAX_BODIES, SIZES, SMOKE_MAX_BODIES, STEP, build, steps_per_round
 from harness import LINEAR_SOLVERS, PHASES, Stepper
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from examples_loader import load_example
+
 from sparsekin import solve_kinematics
 from sparsekin.assembly import Assembler
 from sparsekin.linalg import SuperLUSolver

@@ -8,19 +8,30 @@ accelerations (Phi_q qdd = gamma).
 The modules follow the data flow:
 
 =================  ===========================================================
-`model`            frozen description: `Mechanism`, `Body`, joints, drivers
-`laws`             motion laws of drivers: `Harmonic`, `Linear`, ...
+`laws`             motion laws of drivers: `Harmonic`, `Linear`, ... (and their kernels)
+`primitives`       the four primitive equations every element is made of
+`elements`         every kind of joint and driver, declared once (the registry)
+`model`            frozen description: `Mechanism`, `Body`
 `modelfile`        the TOML model file: `load_model`, `save_model`
-`pattern`          Mechanism -> constraint arrays, CSR pattern and slots (once)
+`pattern`          Mechanism -> packed equations, CSR pattern and slots (once)
 `_kernels`         numba kernels that refill residual, Jacobian and gamma
 `assembly`         `Assembler`: owns the arrays and calls the kernels
 `_lu_kernels`      numba LU: refactorization on fixed L/U patterns, solves, dense LU
 `linalg`           linear solvers behind one interface: SuperLU, refactorization, dense
+`rank`             numerical rank, null spaces and conditioning of a sparse Jacobian
+`newton`           Newton–Raphson: the rules (shared with the compiled loop), the loop
+`reduced`          square systems without redundant equations, or with coordinates held
+`describe`         words for messages: equations, coordinates, motions
+`failures`         what went wrong: model errors, lock-up and convergence errors
+`stepper`          `KinematicStepper`: the time loop, one sample at a time
 `_compiled`        the whole time loop of a small model in one numba call
-`solvers`          `solve_kinematics` -> `KinematicsResult`
-`diagnostics`      `check_model`, `analyse_jacobian`: rank, redundant equations, free motions
-`cli`              the ``sparsekin`` command
+`results`          `KinematicsResult`: points, joint and driver coordinates
+`solvers`          `solve_kinematics`: validate, run the loop, return the result
+`check`            `check_model`: degrees of freedom, rank, redundancy, free motions
+`cli`              the ``sparsekin`` command; `plotting` its figures
 =================  ===========================================================
+
+Imports point down this list (`geometry`, `errors` and `_validate` are below all).
 
 A slider-crank, from description to the motion of its slider:
 
@@ -48,9 +59,10 @@ A slider-crank, from description to the motion of its slider:
 True
 """
 
-from .diagnostics import JacobianAnalysis, ModelReport, analyse_jacobian, check_model
+from .check import ModelReport, check_model
 from .errors import (
     ConvergenceError,
+    LimitWarning,
     ModelError,
     RedundantConstraintWarning,
     SingularConfigurationError,
@@ -63,7 +75,12 @@ from .model import (
     AbsoluteDriver,
     Analysis,
     Body,
+    DistanceDriver,
+    Gear,
     Mechanism,
+    PathDriver,
+    PinInSlot,
+    RackPinion,
     Revolute,
     Rigid,
     RotationalDriver,
@@ -71,7 +88,10 @@ from .model import (
     TranslationalDriver,
 )
 from .modelfile import load_model, save_model
-from .solvers import KinematicsResult, PointMotion, solve_kinematics
+from .rank import JacobianAnalysis, analyse_jacobian
+from .results import CoordinateMotion, KinematicsResult, PointMotion
+from .solvers import solve_kinematics
+from .stepper import KinematicStepper
 
 __all__ = [
     "GROUND",
@@ -79,16 +99,24 @@ __all__ = [
     "Analysis",
     "Body",
     "ConvergenceError",
+    "CoordinateMotion",
+    "DistanceDriver",
+    "Gear",
     "Harmonic",
     "JacobianAnalysis",
+    "KinematicStepper",
     "KinematicsResult",
     "Law",
+    "LimitWarning",
     "Linear",
     "Mechanism",
     "ModelError",
     "ModelReport",
+    "PathDriver",
+    "PinInSlot",
     "PointMotion",
     "Polynomial",
+    "RackPinion",
     "RedundantConstraintWarning",
     "Revolute",
     "Rigid",

@@ -127,3 +127,40 @@ def is_sequence(value: object) -> bool:
 def _shown(value: object) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+class FileKeys:
+    """The keys a kind of element accepts in a model file.
+
+    Parameters
+    ----------
+    required, optional : tuple of str
+        Keys that must be given, and keys that may be given.
+    forms : tuple of tuple of str
+        Alternative groups of keys, exactly one of which must be given in full, e.g.
+        ``(("axis",), ("at", "direction"))``.
+    """
+
+    __slots__ = ("required", "optional", "forms")
+
+    def __init__(self, required: tuple[str, ...] = (), optional: tuple[str, ...] = (),
+                 forms: tuple[tuple[str, ...], ...] = ()) -> None:  # fmt: skip
+        self.required, self.optional, self.forms = tuple(required), tuple(optional), tuple(forms)
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """Every key, in the order they are listed and written."""
+        return (*self.required, *(key for form in self.forms for key in form), *self.optional)
+
+    def __repr__(self) -> str:
+        return f"FileKeys(required={self.required}, optional={self.optional}, forms={self.forms})"
+
+
+def limits(value: object, element: str) -> tuple[float, float]:
+    """`value` as ``(minimum, maximum)``, two finite numbers with minimum < maximum."""
+    if isinstance(value, (str, bytes)) or not is_sequence(value) or len(value) != 2:
+        raise ModelError(f"expected [min, max], got {_shown(value)}", element=element)
+    low, high = finite_float(value[0], f"{element}[0]"), finite_float(value[1], f"{element}[1]")
+    if not low < high:
+        raise ModelError(f"expected [min, max] with min < max, got [{low!r}, {high!r}]", element=element)
+    return low, high

@@ -1,14 +1,14 @@
 """The ``sparsekin`` command line.
 
 ``sparsekin run MODEL.toml`` reads a model file, runs the kinematic analysis and writes
-``points.csv`` and ``coordinates.npz`` (with ``--plot``, also PNG figures) as described in
-``MODEL_FORMAT.md``.  Exit status: 0 on success, 2 on a bad model or bad arguments (one
+``points.csv``, ``joints.csv`` and ``coordinates.npz`` (with ``--plot``, also PNG figures)
+as described in ``docs/model-format.md``.  Exit status: 0 on success, 2 on a bad model or bad arguments (one
 line on stderr, no traceback), 3 when the analysis stops (the samples solved so far are
 still written).
 
 ``sparsekin check MODEL.toml`` assembles the model and prints its degrees of freedom, the
 rank of its Jacobian, its redundant equations and its free motions
-(`sparsekin.diagnostics.check_model`).  Exit status: 0 for a sound model, 1 when it has
+(`sparsekin.check.check_model`).  Exit status: 0 for a sound model, 1 when it has
 a problem (redundant equations, free motions, or it cannot be assembled), 2 on a bad
 model file or bad arguments.
 
@@ -31,11 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate
-from .diagnostics import check_model
+from .check import check_model
 from .errors import ConvergenceError, ModelError
 from .model import Mechanism
 from .modelfile import load_model
-from .solvers import KinematicsResult, solve_kinematics
+from .results import KinematicsResult
+from .solvers import solve_kinematics
 
 __all__ = ["main", "build_parser"]
 
@@ -130,9 +131,9 @@ def add_run_command(subparsers) -> None:
     """Add ``run MODEL.toml [--t-end T] [--steps N] [--points A,J] [--out DIR] [--plot]``."""
     parser = subparsers.add_parser(
         "run",
-        help="analyse a model and write points.csv and coordinates.npz",
+        help="analyse a model and write points.csv, joints.csv and coordinates.npz",
         description="Solve positions, velocities and accelerations at steps times from 0 to t_end "
-        "and write points.csv, coordinates.npz and, with --plot, PNG figures.",
+        "and write points.csv, joints.csv, coordinates.npz and, with --plot, PNG figures.",
     )
     parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
@@ -297,7 +298,7 @@ def check_command(arguments: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------- output files
 def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings) -> list[Path]:
-    """Write ``points.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
+    """Write ``points.csv``, ``joints.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
 
     Parameters
     ----------
@@ -315,12 +316,14 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
     directory = settings.directory
     written = [
         write_points_csv(result, settings.point_names, directory / "points.csv"),
+        write_joints_csv(mechanism, result, directory / "joints.csv"),
         write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"),
     ]
     if settings.plot and _count_samples(result) > 0:
-        from .plotting import draw_mechanism, plot_point_motion
+        from .plotting import draw_mechanism, plot_actuators, plot_point_motion
 
         written += plot_point_motion(result, settings.point_names, directory)
+        written += plot_actuators(result, directory)
         written.append(draw_mechanism(mechanism, result, directory))
     return written
 
@@ -346,6 +349,35 @@ def point_table(result: KinematicsResult | None, point_names: Sequence[str]) -> 
     for name in point_names:
         columns.extend(result.point(name))  # position, velocity, acceleration: (n_times, 2) each
     return np.hstack(columns)
+
+
+def joint_columns(mechanism: Mechanism) -> list[tuple[int, str, tuple[str, ...]]]:
+    """The joints of ``joints.csv``, in model order: (index, label, column suffixes).
+
+    Every joint whose kind has an own coordinate; labelled by its name, else ``joints[i]``.
+    """
+    return [
+        (index, joint.name or f"joints[{index}]", type(joint).output_names)
+        for index, joint in enumerate(mechanism.joints)
+        if type(joint).output_names
+    ]
+
+
+def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path: Path) -> Path:
+    """Write time and each joint's own coordinate with its two derivatives, every float by `repr`.
+
+    The header is ``t,pivot.angle,pivot.rate,pivot.accel,guide.stroke,...``.
+    """
+    joints = joint_columns(mechanism)
+    header = ",".join(["t", *(f"{label}.{suffix}" for _, label, suffixes in joints for suffix in suffixes)])
+    if result is None:
+        table = np.empty((0, 1 + 3 * len(joints)))
+    else:
+        table = np.column_stack([result.times, *(array for index, _, _ in joints for array in result.joint(index))])
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(header + "\n")
+        file.writelines(",".join(map(repr, row)) + "\n" for row in table.tolist())
+    return path
 
 
 def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:

@@ -7,7 +7,8 @@ converge), or a `SingularConfigurationError` when the mechanism reached a singul
 configuration (a lock-up, a dead centre); both carry the time, the driver values and the
 samples solved before the failure (``result``), so nothing is lost.
 
-Warnings: `RedundantConstraintWarning` when the analysis leaves out redundant equations.
+Warnings: `RedundantConstraintWarning` when the analysis leaves out redundant equations;
+`LimitWarning` when a joint or an actuator leaves the range its `limits` allow.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ __all__ = [
     "SingularJacobianError",
     "SingularConfigurationError",
     "RedundantConstraintWarning",
+    "LimitWarning",
 ]
 
 
@@ -138,4 +140,12 @@ class RedundantConstraintWarning(UserWarning):
 
     Issued by `solve_kinematics` for a model with redundant but consistent joints (a
     parallelogram with a third parallel crank, say); the message names the equations.
+    """
+
+
+class LimitWarning(UserWarning):
+    """A joint's own coordinate or a distance driver left its ``limits`` during a run.
+
+    Issued once per element and run, naming the element, the first time outside and the
+    value then.
     """

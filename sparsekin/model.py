@@ -4,7 +4,9 @@ Elements refer to bodies and points by name.  Every body has absolute coordinate
 ``(x, y, angle)``: the position of its frame origin and the angle of its frame.  The body
 ``ground`` always exists, is fixed, and has no coordinates.  Points are given by their
 global coordinates in the initial (assembly) configuration; a point rides on a body when
-the body lists it, and a point that no body lists stays on the ground.
+the body lists it, and a point that no body lists stays on the ground.  The kinds of
+joints and drivers are declared in `sparsekin.elements`; `Mechanism` checks every
+element's references to bodies and points from those declarations.
 
 >>> from sparsekin import Linear
 >>> mechanism = Mechanism(
@@ -19,35 +21,54 @@ the body lists it, and a point that no body lists stays on the ground.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Union
 
 import numpy as np
 
 from . import _validate
+from ._validate import FileKeys
+from .elements import (
+    COORDINATE_NAMES,
+    DRIVER_KINDS,
+    GROUND,
+    JOINT_KINDS,
+    AbsoluteDriver,
+    DistanceDriver,
+    Driver,
+    Gear,
+    Joint,
+    PathDriver,
+    PinInSlot,
+    PointRef,
+    RackPinion,
+    Revolute,
+    Rigid,
+    RotationalDriver,
+    Translational,
+    TranslationalDriver,
+)
 from .errors import ModelError
-from .laws import Law
 
 __all__ = [
     "GROUND",
+    "COORDINATE_NAMES",
     "Body",
+    "Analysis",
+    "Mechanism",
+    # the element kinds, declared in sparsekin.elements
     "Revolute",
     "Translational",
     "Rigid",
+    "PinInSlot",
+    "Gear",
+    "RackPinion",
     "TranslationalDriver",
     "RotationalDriver",
     "AbsoluteDriver",
-    "Analysis",
-    "Mechanism",
+    "DistanceDriver",
+    "PathDriver",
 ]
-
-#: Name of the fixed body.
-GROUND = "ground"
-
-#: A point: the name of a point of the model, or its global coordinates (x, y) in m.
-PointRef = Union[str, tuple[float, float]]
 
 
 def _set(instance: object, field_name: str, value: object) -> None:
@@ -67,6 +88,8 @@ class Body:
     inertia: float | None = None
     com: PointRef | None = None
 
+    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com"))
+
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
         _set(self, "origin", _validate.point_reference(self.origin, "origin"))
@@ -80,170 +103,14 @@ class Body:
 
 
 @dataclass(frozen=True, slots=True)
-class Revolute:
-    """Bodies ``bodies[0]`` and ``bodies[1]`` share the point `at` (2 equations)."""
-
-    bodies: tuple[str, str]
-    at: PointRef
-    name: str | None = None
-
-    type_name = "revolute"
-    n_equations = 2
-
-    def __post_init__(self) -> None:
-        _joint_checks(self)
-        _set(self, "at", _validate.point_reference(self.at, "at"))
-
-    def describe(self) -> str:
-        return f"revolute {self.bodies[0]}–{self.bodies[1]} at {_shown_point(self.at)}"
-
-
-@dataclass(frozen=True, slots=True)
-class Translational:
-    """``bodies[1]`` slides along a line fixed in ``bodies[0]``; relative rotation locked.
-
-    Give either ``axis = (P, Q)``, P on the first body and Q on the second (the line
-    through P along P→Q), or ``at = P`` with a global initial ``direction = (dx, dy)``.
-    2 equations.
-    """
-
-    bodies: tuple[str, str]
-    axis: tuple[PointRef, PointRef] | None = None
-    at: PointRef | None = None
-    direction: tuple[float, float] | None = None
-    name: str | None = None
-
-    type_name = "translational"
-    n_equations = 2
-
-    def __post_init__(self) -> None:
-        _joint_checks(self)
-        if self.axis is not None:
-            if self.at is not None or self.direction is not None:
-                raise ModelError("give either `axis` or `at` with `direction`, not both", element="axis")
-            axis = self.axis
-            if isinstance(axis, str) or not _validate.is_sequence(axis) or len(axis) != 2:
-                raise ModelError(f"expected two points [P, Q], got {axis!r}", element="axis")
-            _set(
-                self,
-                "axis",
-                (_validate.point_reference(axis[0], "axis[0]"), _validate.point_reference(axis[1], "axis[1]")),
-            )
-            if self.axis[0] == self.axis[1]:
-                raise ModelError(
-                    f"zero-length axis: P and Q are the same point {_shown_point(self.axis[0])}; "
-                    "expected two distinct points",
-                    element="axis",
-                )
-        else:
-            if self.at is None or self.direction is None:
-                raise ModelError("expected `axis = [P, Q]`, or `at` with `direction`", element="axis")
-            _set(self, "at", _validate.point_reference(self.at, "at"))
-            direction = _validate.pair(self.direction, "direction")
-            if math.hypot(*direction) == 0.0:
-                raise ModelError("zero-length direction: expected a non-zero [dx, dy]", element="direction")
-            _set(self, "direction", direction)
-
-    def describe(self) -> str:
-        if self.axis is not None:
-            where = f"along {_shown_point(self.axis[0])}→{_shown_point(self.axis[1])}"
-        else:
-            where = f"at {_shown_point(self.at)} along {self.direction}"
-        return f"translational {self.bodies[0]}–{self.bodies[1]} {where}"
-
-
-@dataclass(frozen=True, slots=True)
-class Rigid:
-    """``bodies[0]`` and ``bodies[1]`` are welded together (3 equations)."""
-
-    bodies: tuple[str, str]
-    name: str | None = None
-
-    type_name = "rigid"
-    n_equations = 3
-
-    def __post_init__(self) -> None:
-        _joint_checks(self)
-
-    def describe(self) -> str:
-        return f"rigid {self.bodies[0]}–{self.bodies[1]}"
-
-
-@dataclass(frozen=True, slots=True)
-class TranslationalDriver:
-    """Drives the stroke of the translational joint named `joint`.
-
-    The stroke is the distance from P to Q measured along the axis (for the ``at`` /
-    ``direction`` form, the displacement of the second body's point from the first's
-    along the direction, 0 at the start).  Positive means the points move apart.
-    """
-
-    joint: str
-    law: Law
-    name: str | None = None
-
-    type_name = "translational"
-    n_equations = 1
-
-    def __post_init__(self) -> None:
-        _validate.name(self.joint, "joint")
-        _driver_checks(self)
-
-    def describe(self) -> str:
-        return f'stroke of joint "{self.joint}"'
-
-
-@dataclass(frozen=True, slots=True)
-class RotationalDriver:
-    """Drives the relative angle ``angle(bodies[0]) - angle(bodies[1])`` (rad)."""
-
-    bodies: tuple[str, str]
-    law: Law
-    name: str | None = None
-
-    type_name = "rotational"
-    n_equations = 1
-
-    def __post_init__(self) -> None:
-        _set(self, "bodies", _validate.two_names(self.bodies, "bodies"))
-        if self.bodies[0] == self.bodies[1]:
-            raise ModelError(f'expected two different bodies, got "{self.bodies[0]}" twice', element="bodies")
-        _driver_checks(self)
-
-    def describe(self) -> str:
-        return f"angle {self.bodies[0]} − {self.bodies[1]}"
-
-
-@dataclass(frozen=True, slots=True)
-class AbsoluteDriver:
-    """Drives one coordinate (``"x"``, ``"y"`` or ``"angle"``) of the frame of `body`."""
-
-    body: str
-    coordinate: str
-    law: Law
-    name: str | None = None
-
-    type_name = "absolute"
-    n_equations = 1
-
-    def __post_init__(self) -> None:
-        _validate.name(self.body, "body")
-        if self.body == GROUND:
-            raise ModelError('the ground cannot be driven: expected a moving body', element="body")
-        _validate.choice(self.coordinate, "coordinate", COORDINATE_NAMES)
-        _driver_checks(self)
-
-    def describe(self) -> str:
-        return f"{self.coordinate} of {self.body}"
-
-
-@dataclass(frozen=True, slots=True)
 class Analysis:
     """Defaults for ``sparsekin run``: end time (s), number of samples, output points."""
 
     t_end: float | None = None
     steps: int | None = None
     points: tuple[str, ...] | None = None
+
+    file_keys = FileKeys(optional=("t_end", "steps", "points"))
 
     def __post_init__(self) -> None:
         if self.t_end is not None:
@@ -254,13 +121,6 @@ class Analysis:
             _set(self, "steps", _validate.positive_int(self.steps, "steps"))
         if self.points is not None:
             _set(self, "points", _validate.names(self.points, "points"))
-
-
-#: The coordinates of a body frame, in the order they are stored.
-COORDINATE_NAMES = ("x", "y", "angle")
-
-Joint = Union[Revolute, Translational, Rigid]
-Driver = Union[TranslationalDriver, RotationalDriver, AbsoluteDriver]
 
 
 @dataclass(frozen=True)
@@ -275,7 +135,8 @@ class Mechanism:
         The moving bodies; their order is the order of the coordinates
         ``(x, y, angle)`` in every result.
     joints, drivers : sequences
-        Kinematic joints and driving constraints.
+        Kinematic joints and driving constraints: instances of the kinds registered in
+        `sparsekin.elements.JOINT_KINDS` and `~sparsekin.elements.DRIVER_KINDS`.
     name : str
         Name of the model (the default output folder of ``sparsekin run``).
     analysis : Analysis
@@ -296,9 +157,9 @@ class Mechanism:
         if not isinstance(self.points, Mapping):
             raise ModelError(f"expected a mapping of name to [x, y], got {type(self.points).__name__}", element="points")
         _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in self.points.items()})
-        _set(self, "bodies", _tuple_of(self.bodies, Body, "bodies"))
-        _set(self, "joints", _tuple_of(self.joints, (Revolute, Translational, Rigid), "joints"))
-        _set(self, "drivers", _tuple_of(self.drivers, (TranslationalDriver, RotationalDriver, AbsoluteDriver), "drivers"))
+        _set(self, "bodies", _tuple_of(self.bodies, (Body,), "bodies"))
+        _set(self, "joints", _tuple_of(self.joints, tuple(JOINT_KINDS.values()), "joints"))
+        _set(self, "drivers", _tuple_of(self.drivers, tuple(DRIVER_KINDS.values()), "drivers"))
         if not isinstance(self.analysis, Analysis):
             raise ModelError(f"expected an Analysis, got {type(self.analysis).__name__}", element="analysis")
         body_index: dict[str, int] = {}
@@ -314,8 +175,8 @@ class Mechanism:
             if body.com is not None:
                 self._check_point(body.com, "bodies[{}].com", index)
         _set(self, "_body_index", body_index)
-        self._check_joints()
-        self._check_drivers()
+        _set(self, "_joint_index", self._check_elements("joints", self.joints))
+        self._check_elements("drivers", self.drivers)
         if self.analysis.points is not None:
             for k, point in enumerate(self.analysis.points):
                 self._check_point(point, "analysis.points[{}]", k)
@@ -367,6 +228,13 @@ class Mechanism:
         x, y = self.position(b.origin)
         return (x, y, b.angle)
 
+    def frames(self) -> np.ndarray:
+        """Initial frames ``(x, y, angle)`` of every body, shape (n_bodies, 3)."""
+        frames = np.zeros((self.n_bodies, 3))
+        frames[:, :2] = self.positions([body.origin for body in self.bodies])
+        frames[:, 2] = [body.angle for body in self.bodies]
+        return frames
+
     def joint_named(self, name: str) -> Joint:
         """The joint called `name`; KeyError if there is none."""
         return self.joints[self._joint_index[name]]
@@ -392,59 +260,35 @@ class Mechanism:
             known = _validate.known_list([*self._body_index, GROUND])
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))
 
-    def _check_joints(self) -> None:
-        joint_names: dict[str, int] = {}
-        _set(self, "_joint_index", joint_names)
-        for index, joint in enumerate(self.joints):
-            for k, body in enumerate(joint.bodies):
-                self._check_body(body, "joints[{}].bodies[{}]", index, k)
-            if joint.name is not None:
-                if joint.name in joint_names:
-                    raise ModelError(f'duplicate joint name "{joint.name}"', element=f"joints[{index}].name")
-                joint_names[joint.name] = index
-            if isinstance(joint, Revolute):
-                self._check_point(joint.at, "joints[{}].at", index)
-            elif isinstance(joint, Translational):
-                if joint.axis is not None:
-                    self._check_point(joint.axis[0], "joints[{}].axis[0]", index)
-                    self._check_point(joint.axis[1], "joints[{}].axis[1]", index)
-                    p, q = self.position(joint.axis[0]), self.position(joint.axis[1])
-                    if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
-                        raise ModelError(
-                            f"zero-length axis: {_shown_point(joint.axis[0])} and "
-                            f"{_shown_point(joint.axis[1])} coincide; expected two distinct points",
-                            element=f"joints[{index}].axis",
-                        )
+    def _check_elements(self, kind: str, elements) -> dict[str, int]:
+        """Check the body and point references each element's kind declares, names unique,
+        then the kinds' own checks; returns the index of each name."""
+        names: dict[str, int] = {}
+        for index, element in enumerate(elements):
+            declaration = type(element)
+            for field_name in declaration.body_fields:
+                value = getattr(element, field_name)
+                if type(value) is str:
+                    self._check_body(value, "{}[{}].{}", kind, index, field_name)
                 else:
-                    self._check_point(joint.at, "joints[{}].at", index)
-
-    def _check_drivers(self) -> None:
-        driver_names: set[str] = set()
-        for index, driver in enumerate(self.drivers):
-            if driver.name is not None:
-                if driver.name in driver_names:
-                    raise ModelError(f'duplicate driver name "{driver.name}"', element=f"drivers[{index}].name")
-                driver_names.add(driver.name)
-            if isinstance(driver, TranslationalDriver):
-                try:
-                    joint = self.joint_named(driver.joint)
-                except KeyError:
-                    known = [j.name for j in self.joints if isinstance(j, Translational) and j.name]
-                    raise ModelError(
-                        f'unknown joint "{driver.joint}" (known translational joints: '
-                        f"{_validate.known_list(known) or 'none with a name'})",
-                        element=f"drivers[{index}].joint",
-                    ) from None
-                if not isinstance(joint, Translational):
-                    raise ModelError(
-                        f'joint "{driver.joint}" is {joint.type_name}; expected a translational joint',
-                        element=f"drivers[{index}].joint",
-                    )
-            elif isinstance(driver, RotationalDriver):
-                for k, body in enumerate(driver.bodies):
-                    self._check_body(body, "drivers[{}].bodies[{}]", index, k)
-            else:
-                self._check_body(driver.body, "drivers[{}].body", index)
+                    for k, body in enumerate(value):
+                        self._check_body(body, "{}[{}].{}[{}]", kind, index, field_name, k)
+            for field_name in declaration.point_fields:
+                value = getattr(element, field_name)
+                if type(value) is str:
+                    self._check_point(value, "{}[{}].{}", kind, index, field_name)
+                elif value is not None and type(value[0]) is not float:  # a list of references
+                    for k, reference in enumerate(value):
+                        self._check_point(reference, "{}[{}].{}[{}]", kind, index, field_name, k)
+            if element.name is not None:
+                if element.name in names:
+                    singular = kind[:-1]
+                    raise ModelError(f'duplicate {singular} name "{element.name}"', element=f"{kind}[{index}].name")
+                names[element.name] = index
+        for index, element in enumerate(elements):
+            if type(element).check is not Joint.check:
+                element.check(self, f"{kind}[{index}]")
+        return names
 
 
 def _point_pair(name: str, value: object) -> tuple[float, float]:
@@ -455,36 +299,11 @@ def _point_pair(name: str, value: object) -> tuple[float, float]:
     return _validate.pair(value, f"points.{name}")
 
 
-def _joint_checks(joint) -> None:
-    _set(joint, "bodies", _validate.two_names(joint.bodies, "bodies"))
-    if joint.bodies[0] == joint.bodies[1]:
-        raise ModelError(f'expected two different bodies, got "{joint.bodies[0]}" twice', element="bodies")
-    if joint.name is not None:
-        _validate.name(joint.name, "name")
-
-
-def _driver_checks(driver) -> None:
-    if driver.name is not None:
-        _validate.name(driver.name, "name")
-    if not callable(getattr(driver.law, "evaluate", None)):  # the `Law` protocol, without its slow isinstance
-        raise ModelError(
-            f"expected a law (an object with evaluate(t, initial)), got {type(driver.law).__name__}",
-            element="law",
-        )
-
-
-def _tuple_of(items, kinds, where: str) -> tuple:
+def _tuple_of(items, kinds: tuple[type, ...], where: str) -> tuple:
     if isinstance(items, (str, bytes, Mapping)) or not isinstance(items, Sequence):
         raise ModelError(f"expected a list, got {type(items).__name__}", element=where)
     for index, item in enumerate(items):
-        if not isinstance(item, kinds):
-            names = kinds.__name__ if isinstance(kinds, type) else " or ".join(k.__name__ for k in kinds)
+        if type(item) not in kinds and not isinstance(item, kinds):
+            names = " or ".join(k.__name__ for k in kinds)
             raise ModelError(f"expected {names}, got {type(item).__name__}", element=f"{where}[{index}]")
     return tuple(items)
-
-
-def _shown_point(reference: PointRef | None) -> str:
-    if isinstance(reference, str):
-        return reference
-    return f"({reference[0]:g}, {reference[1]:g})"
-

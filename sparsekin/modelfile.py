@@ -1,22 +1,22 @@
 """Reading and writing the TOML model file.
 
-`load_model` translates a model file (the format described in ``MODEL_FORMAT.md``) into a
-`Mechanism`; `save_model` writes a `Mechanism` back as such a file.  The reader only
+`load_model` translates a model file (the format described in ``docs/model-format.md``)
+into a `Mechanism`; `save_model` writes a `Mechanism` back as such a file.  The reader only
 translates: every element is built with the Python API (`Body`, `Revolute`, `Harmonic`,
 ...), which checks it.  Every mistake is reported as a one-line `ModelError`
 ``<file>: <element>: <what was expected>``, with the element spelt as in the file
 (``joints[3].bodies[1]``, ``bodies.c7.origin``, ``drivers[0].law.amplitude``); mistakes
 in the TOML syntax itself are located by line (``line 12, column 5``).
 
-Which keys each element accepts is described once, in the `_Spec` tables below: the reader
-checks the keys of every table against them and the writer writes the same keys.
+Which keys each element accepts is declared once, by its kind (``file_keys`` of the element
+kinds of `sparsekin.elements`, of the laws, of `Body` and `Analysis`): the reader checks
+the keys of every table against them and the writer writes the same keys.
 """
 
 from __future__ import annotations
 
 import ast
 import dataclasses
-import itertools
 import numbers
 import os
 import re
@@ -27,19 +27,10 @@ from pathlib import Path
 from typing import Any
 
 from . import _validate
+from .elements import DRIVER_KINDS, JOINT_KINDS
 from .errors import ModelError
-from .laws import Harmonic, Linear, Polynomial, Spline
-from .model import (
-    AbsoluteDriver,
-    Analysis,
-    Body,
-    Mechanism,
-    Revolute,
-    Rigid,
-    RotationalDriver,
-    Translational,
-    TranslationalDriver,
-)
+from .laws import BUILT_IN_LAWS, Spline
+from .model import Analysis, Body, Mechanism
 
 __all__ = ["load_model", "save_model"]
 
@@ -53,31 +44,36 @@ INITIAL = "initial"
 
 @dataclass(frozen=True)
 class _Spec:
-    """The keys of one kind of element and the Python class it becomes.
+    """The keys of one kind of element (its ``file_keys``) and how it is built.
 
     Attributes
     ----------
     kind : type
-        The class of the element in the Python model; its fields carry the keys' names.
-    required, optional : tuple of str
-        Keys that must be given, and keys that may be given.
-    forms : tuple of tuple of str
-        Alternative groups of keys, exactly one of which must be given in full, e.g.
-        ``(("axis",), ("at", "direction"))``.
+        The class of the element in the Python model; its fields carry the keys' names
+        and its ``file_keys`` says which it accepts.
     build : callable or None
         Makes the element from the converted keys; `kind` itself when None.
     """
 
     kind: type
-    required: tuple[str, ...] = ()
-    optional: tuple[str, ...] = ()
-    forms: tuple[tuple[str, ...], ...] = ()
     build: Callable[..., Any] | None = None
+
+    @property
+    def required(self) -> tuple[str, ...]:
+        return self.kind.file_keys.required
+
+    @property
+    def optional(self) -> tuple[str, ...]:
+        return self.kind.file_keys.optional
+
+    @property
+    def forms(self) -> tuple[tuple[str, ...], ...]:
+        return self.kind.file_keys.forms
 
     @property
     def keys(self) -> tuple[str, ...]:
         """Every key the element accepts, in the order they are listed and written."""
-        return (*self.required, *itertools.chain.from_iterable(self.forms), *self.optional)
+        return self.kind.file_keys.keys
 
 
 def _spline(file: Spline | None = None, **samples: Any) -> Spline:
@@ -86,31 +82,11 @@ def _spline(file: Spline | None = None, **samples: Any) -> Spline:
 
 
 _TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "analysis")
-
-_BODY = _Spec(Body, required=("origin",), optional=("angle", "points", "mass", "inertia", "com"))
-
-_JOINTS = {
-    "revolute": _Spec(Revolute, required=("bodies", "at"), optional=("name",)),
-    "translational": _Spec(
-        Translational, required=("bodies",), optional=("name",), forms=(("axis",), ("at", "direction"))
-    ),
-    "rigid": _Spec(Rigid, required=("bodies",), optional=("name",)),
-}
-
-_DRIVERS = {
-    "translational": _Spec(TranslationalDriver, required=("joint", "law"), optional=("name",)),
-    "rotational": _Spec(RotationalDriver, required=("bodies", "law"), optional=("name",)),
-    "absolute": _Spec(AbsoluteDriver, required=("body", "coordinate", "law"), optional=("name",)),
-}
-
-_LAWS = {
-    "harmonic": _Spec(Harmonic, required=("amplitude", "omega"), optional=("phase", "offset")),
-    "linear": _Spec(Linear, required=("rate",), optional=("start",)),
-    "polynomial": _Spec(Polynomial, required=("coefficients",)),
-    "spline": _Spec(Spline, forms=(("times", "values"), ("file",)), build=_spline),
-}
-
-_ANALYSIS = _Spec(Analysis, optional=("t_end", "steps", "points"))
+_BODY = _Spec(Body)
+_JOINTS = {type_name: _Spec(kind) for type_name, kind in JOINT_KINDS.items()}
+_DRIVERS = {type_name: _Spec(kind) for type_name, kind in DRIVER_KINDS.items()}
+_LAWS = {kind.type_name: _Spec(kind, _spline if kind is Spline else None) for kind in BUILT_IN_LAWS}
+_ANALYSIS = _Spec(Analysis)
 
 #: What the columns of a spline CSV file are called in the errors of `Spline`.
 _CSV_COLUMNS = {"times": 'column "t"', "values": 'column "value"'}
@@ -163,6 +139,8 @@ class _Reader:
         #: Keys whose TOML value is changed before it reaches the Python class.
         self.converters: dict[str, Callable[[Any, str], Any]] = {
             "law": self.law,
+            "law_x": self.law,
+            "law_y": self.law,
             "file": self.spline_file,
             "offset": _number_or_initial,
             "start": _number_or_initial,

@@ -14,10 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import GROUND, Mechanism, Revolute, Translational
-from .solvers import KinematicsResult
+from .geometry import to_global, to_local
+from .model import GROUND, Mechanism
+from .results import KinematicsResult
 
-__all__ = ["plot_point_motion", "draw_mechanism"]
+__all__ = ["plot_point_motion", "plot_actuators", "draw_mechanism", "Canvas"]
 
 #: Resolution of the PNG files, dots per inch.
 DPI = 120
@@ -32,6 +33,8 @@ MOTION_PANELS = (
     ("velocity", "velocity", "$v_y$ (m/s)"),
     ("acceleration", "acceleration", "$a_y$ (m/s²)"),
 )
+#: Panels of the actuator figure: the quantity and its unit.
+ACTUATOR_PANELS = (("stroke", "stroke (m)"), ("speed", "speed (m/s)"), ("acceleration", "acceleration (m/s²)"))
 
 
 def plot_point_motion(result: KinematicsResult, point_names, directory) -> list[Path]:
@@ -58,10 +61,11 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
     """Draw the mechanism at the first sample of `result` into ``<directory>/mechanism.png``.
 
     Each body is a closed polygon (or a segment) through the points it carries and is
-    labelled with its name (a body with one point is a short bar along its frame's x axis);
-    revolute joints are small circles, pivots on the ground carry a hatched triangle,
-    translational joints are a dashed line along their axis with a small square, and every
-    named point is labelled.
+    labelled with its name (a body with one point is a short bar along its frame's x
+    axis); each joint and driver draws itself as its kind declares (`Canvas`): revolute
+    joints are small circles, pivots on the ground carry a hatched triangle,
+    translational joints are a dashed line along their axis with a small square, and
+    so on.  Every named point is labelled.
 
     Parameters
     ----------
@@ -78,22 +82,14 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
         The file written.
     """
     positions = {name: result.point(name).position[0] for name in mechanism.points}
-    size = SYMBOL_SCALE * _extent(positions.values())
-    pivots = [
-        (_joint_position(mechanism, result, joint, joint.at), GROUND in joint.bodies)
-        for joint in mechanism.joints
-        if isinstance(joint, Revolute)
-    ]
-    ground_marks = [position - (0.0, 1.5 * size) for position, on_ground in pivots if on_ground]
-    obstacles = np.array([*positions.values(), *ground_marks]).reshape(-1, 2)
     figure, axes = _new_figure((8.0, 7.0))
+    canvas = Canvas(axes, mechanism, result.coordinates[0], SYMBOL_SCALE * _extent(positions.values()))
+    for element in (*mechanism.joints, *mechanism.drivers):
+        element.draw(canvas)
+    obstacles = np.array([*positions.values(), *canvas.ground_marks]).reshape(-1, 2)
     for index, body in enumerate(mechanism.bodies):
-        _draw_body(axes, body, positions, result.coordinates[0, 3 * index : 3 * index + 3], size, obstacles)
-    for position, on_ground in pivots:
-        _draw_revolute(axes, position, size, on_ground)
-    for joint in mechanism.joints:
-        if isinstance(joint, Translational):
-            _draw_translational(axes, _translational_axis(mechanism, result, joint, size), size)
+        frame = result.coordinates[0, 3 * index : 3 * index + 3]
+        _draw_body(axes, body, positions, frame, canvas.size, obstacles)
     for name, (x, y) in positions.items():
         axes.annotate(name, (x, y), xytext=(7, 6), textcoords="offset points", fontsize=10, color="tab:blue",
                       zorder=6)
@@ -104,6 +100,38 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
     axes.set_ylabel("y (m)")
     axes.set_title(f"{mechanism.name} at t = {result.times[0]:g} s")
     return _save(figure, Path(directory) / "mechanism.png")
+
+
+def plot_actuators(result: KinematicsResult, directory) -> list[Path]:
+    """Plot the stroke, speed and acceleration of every linear actuator against time.
+
+    The actuators are the drivers of a stroke (translational) or of a distance; the
+    figure ``actuators.png`` has one line per actuator in each of its three panels.
+    Nothing is written for a mechanism without one.
+
+    Returns
+    -------
+    list of Path
+        The file written, or an empty list.
+    """
+    actuators = [
+        (index, driver.name or getattr(driver, "joint", None) or f"drivers[{index}]")
+        for index, driver in enumerate(result.mechanism.drivers)
+        if driver.type_name in ("translational", "distance")
+    ]
+    if not actuators:
+        return []
+    figure, panels = _new_figure((7.0, 8.0), rows=3)
+    for index, label in actuators:
+        for axes, values in zip(panels, result.driver(index)):
+            axes.plot(result.times, values, linewidth=1.5, label=label)
+    for axes, (quantity, unit) in zip(panels, ACTUATOR_PANELS):
+        axes.set_title(f"Actuator {quantity}")
+        axes.set_ylabel(unit)
+        axes.grid(True, alpha=0.4)
+    panels[0].legend(loc="best", fontsize=9)
+    panels[-1].set_xlabel("time t (s)")
+    return [_save(figure, Path(directory) / "actuators.png")]
 
 
 # ---------------------------------------------------------------------- point motion
@@ -166,64 +194,6 @@ def _label_body(axes, name: str, position, direction) -> None:
                   fontsize=9, fontweight="bold", zorder=5, bbox=LABEL_BOX)
 
 
-def _draw_revolute(axes, position, size, on_ground: bool) -> None:
-    """A small circle; on the ground, also a hatched triangle below it."""
-    from matplotlib.patches import Circle, Polygon
-
-    x, y = position
-    if on_ground:
-        triangle = [(x, y), (x - 1.2 * size, y - 2.0 * size), (x + 1.2 * size, y - 2.0 * size)]
-        axes.add_patch(Polygon(triangle, closed=True, facecolor="lightgray", edgecolor="black", hatch="///",
-                               linewidth=1.0, zorder=3))
-    axes.add_patch(Circle((x, y), 0.6 * size, facecolor="white", edgecolor="black", linewidth=1.2, zorder=4))
-
-
-def _draw_translational(axes, ends, size) -> None:
-    """A dashed line along the axis with a small square at its middle, turned with it.
-
-    The square sits under the revolute circles, so a pin at the same place stays visible.
-    """
-    from matplotlib.patches import Rectangle
-
-    start, end = ends
-    axes.plot(*np.transpose([start, end]), linestyle="--", color="tab:green", linewidth=1.2, zorder=2)
-    middle = 0.5 * (start + end)
-    angle = math.degrees(math.atan2(end[1] - start[1], end[0] - start[0]))
-    axes.add_patch(Rectangle(middle - 0.9 * size, 1.8 * size, 1.8 * size, angle=angle,
-                             rotation_point="center", facecolor="white", edgecolor="tab:green",
-                             linewidth=1.5, zorder=3.5))
-
-
-def _joint_position(mechanism: Mechanism, result: KinematicsResult, joint, reference) -> np.ndarray:
-    """Global position at the first sample of a point reference of `joint` (on its first body)."""
-    if isinstance(reference, str):
-        return result.point(reference).position[0]
-    return _carried(mechanism, result, joint.bodies[0], np.asarray(reference, dtype=float))
-
-
-def _translational_axis(mechanism, result, joint: Translational, size) -> tuple[np.ndarray, np.ndarray]:
-    """The two ends of the line drawn for a translational joint."""
-    if joint.axis is not None:
-        return tuple(_joint_position(mechanism, result, joint, reference) for reference in joint.axis)
-    start = _joint_position(mechanism, result, joint, joint.at)
-    tip = _carried(mechanism, result, joint.bodies[0], np.add(mechanism.position(joint.at), joint.direction))
-    direction = (tip - start) / np.linalg.norm(tip - start)
-    return start - 8.0 * size * direction, start + 8.0 * size * direction
-
-
-def _carried(mechanism: Mechanism, result: KinematicsResult, body: str, initial: np.ndarray) -> np.ndarray:
-    """Where a point fixed on `body`, at `initial` in the initial configuration, is at sample 0."""
-    if body == GROUND:
-        return initial
-    x0, y0, angle0 = mechanism.frame(body)
-    index = mechanism.body_index(body)
-    x, y, angle = result.coordinates[0, 3 * index : 3 * index + 3]
-    turn = angle - angle0
-    offset = initial - (x0, y0)
-    cosine, sine = math.cos(turn), math.sin(turn)
-    return np.array([x + cosine * offset[0] - sine * offset[1], y + sine * offset[0] + cosine * offset[1]])
-
-
 def _around_centroid(corners: np.ndarray) -> np.ndarray:
     """The corners ordered by angle about their centroid: a polygon that does not cross itself."""
     relative = corners - corners.mean(axis=0)
@@ -235,6 +205,139 @@ def _extent(positions) -> float:
     array = np.array(list(positions), dtype=float).reshape(-1, 2)
     extent = float(np.ptp(array, axis=0).max()) if len(array) else 0.0
     return extent if extent > 0.0 else 1.0
+
+
+# ---------------------------------------------------------------------- the canvas of elements
+class Canvas:
+    """What an element kind draws with: positions at one configuration, and symbols.
+
+    Each kind of `sparsekin.elements` declares ``draw(self, canvas)`` in terms of these
+    methods, so that it never touches matplotlib.
+
+    Parameters
+    ----------
+    axes : matplotlib Axes
+    mechanism : Mechanism
+    coordinates : ndarray, shape (n_coordinates,)
+        The configuration drawn.
+    size : float
+        Size of symbols, m.
+
+    Attributes
+    ----------
+    size : float
+    ground_marks : list of ndarray
+        Where the hatched ground symbols are, for the bodies' labels to avoid.
+    """
+
+    def __init__(self, axes, mechanism: Mechanism, coordinates: np.ndarray, size: float) -> None:
+        self.axes, self.size = axes, size
+        self._mechanism = mechanism
+        self._drawn = mechanism.frames()
+        self._now = np.asarray(coordinates, dtype=float).reshape(-1, 3)
+        self.ground_marks: list[np.ndarray] = []
+
+    # ------------------------------------------------------------------ where things are
+    def point(self, body: str, reference) -> np.ndarray:
+        """Where the point of `body` that starts at `reference` (a name or (x, y)) is now."""
+        start = np.asarray(self._mechanism.position(reference), dtype=float)
+        if body == GROUND:
+            return start
+        index = self._mechanism.body_index(body)
+        local = to_local(self._drawn[index : index + 1], start[None])
+        return to_global(self._now[index : index + 1], local)[0]
+
+    def direction(self, body: str, vector) -> np.ndarray:
+        """The unit vector fixed in `body` that was `vector` in the drawing, now."""
+        vector = np.asarray(vector, dtype=float) / np.hypot(*vector)
+        if body == GROUND:
+            return vector
+        index = self._mechanism.body_index(body)
+        turn = self._now[index, 2] - self._drawn[index, 2]
+        cosine, sine = math.cos(turn), math.sin(turn)
+        return np.array([cosine * vector[0] - sine * vector[1], sine * vector[0] + cosine * vector[1]])
+
+    def origin(self, body: str) -> np.ndarray:
+        """The frame origin of `body` now."""
+        return np.zeros(2) if body == GROUND else self._now[self._mechanism.body_index(body), :2].copy()
+
+    def pivot(self, body: str, other: str) -> np.ndarray:
+        """Where a revolute joins `body` to `other` now; the frame origin of `body` if none does."""
+        for joint in self._mechanism.joints:
+            if joint.type_name == "revolute" and set(joint.bodies) == {body, other}:
+                return self.point(body, joint.at)
+        return self.origin(body)
+
+    # ------------------------------------------------------------------ symbols
+    def pin(self, position, grounded: bool) -> None:
+        """A small circle; on the ground, also a hatched triangle below it."""
+        from matplotlib.patches import Circle, Polygon
+
+        x, y = position
+        size = self.size
+        if grounded:
+            triangle = [(x, y), (x - 1.2 * size, y - 2.0 * size), (x + 1.2 * size, y - 2.0 * size)]
+            self.axes.add_patch(Polygon(triangle, closed=True, facecolor="lightgray", edgecolor="black",
+                                        hatch="///", linewidth=1.0, zorder=3))  # fmt: skip
+            self.ground_marks.append(np.array([x, y - 1.5 * size]))
+        self.axes.add_patch(Circle((x, y), 0.6 * size, facecolor="white", edgecolor="black", linewidth=1.2, zorder=4))
+
+    def slider(self, start, end) -> None:
+        """A dashed line along a sliding axis with a small square at its middle, turned with it.
+
+        The square sits under the revolute circles, so a pin at the same place stays visible.
+        """
+        from matplotlib.patches import Rectangle
+
+        self.axes.plot(*np.transpose([start, end]), linestyle="--", color="tab:green", linewidth=1.2, zorder=2)
+        middle = 0.5 * (np.asarray(start) + np.asarray(end))
+        angle = math.degrees(math.atan2(end[1] - start[1], end[0] - start[0]))
+        self.axes.add_patch(Rectangle(middle - 0.9 * self.size, 1.8 * self.size, 1.8 * self.size, angle=angle,
+                                      rotation_point="center", facecolor="white", edgecolor="tab:green",
+                                      linewidth=1.5, zorder=3.5))  # fmt: skip
+
+    def slot(self, centre, along, limits=None) -> None:
+        """A slot: two parallel lines along `along` about `centre`, over `limits` (m) if given."""
+        low, high = limits if limits is not None else (-6.0 * self.size, 6.0 * self.size)
+        across = 0.8 * self.size * np.array([-along[1], along[0]])
+        for side in (across, -across):
+            ends = np.array([centre + low * along + side, centre + high * along + side])
+            self.axes.plot(ends[:, 0], ends[:, 1], color="tab:green", linewidth=1.5, zorder=2)
+
+    def weld(self, position) -> None:
+        """A small filled square: two bodies welded together."""
+        from matplotlib.patches import Rectangle
+
+        self.axes.add_patch(Rectangle(np.asarray(position) - 0.5 * self.size, self.size, self.size,
+                                      facecolor="black", zorder=4))  # fmt: skip
+
+    def circle(self, centre, radius: float) -> None:
+        """A dash-dotted circle: a gear's or a pinion's pitch circle."""
+        from matplotlib.patches import Circle
+
+        self.axes.add_patch(Circle(tuple(centre), radius, fill=False, edgecolor="tab:purple", linestyle="-.",
+                                   linewidth=1.2, zorder=2))  # fmt: skip
+
+    def line(self, start, end) -> None:
+        """A dash-dotted line: a rack's pitch line."""
+        self.axes.plot(*np.transpose([start, end]), linestyle="-.", color="tab:purple", linewidth=1.2, zorder=2)
+
+    def actuator(self, start, end) -> None:
+        """A linear actuator between two points: a thick cylinder from `start`, a thin rod to `end`."""
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        middle = start + 0.55 * (end - start)
+        self.axes.plot(*np.transpose([start, middle]), color="dimgray", linewidth=6.0, solid_capstyle="butt", zorder=2)
+        self.axes.plot(*np.transpose([start, end]), color="black", linewidth=2.0, zorder=2.5)
+
+    def target(self, position) -> None:
+        """A cross in a circle: a point whose path is prescribed."""
+        from matplotlib.patches import Circle
+
+        x, y = position
+        size = self.size
+        self.axes.add_patch(Circle((x, y), 1.2 * size, fill=False, edgecolor="tab:red", linewidth=1.5, zorder=4))
+        self.axes.plot([x - 1.6 * size, x + 1.6 * size], [y, y], color="tab:red", linewidth=1.0, zorder=4)
+        self.axes.plot([x, x], [y - 1.6 * size, y + 1.6 * size], color="tab:red", linewidth=1.0, zorder=4)
 
 
 # ---------------------------------------------------------------------- files

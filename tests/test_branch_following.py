@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, solve_kinematics, solvers
+from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, solve_kinematics, stepper
 from sparsekin.testset import task5
 
 CRANK, COUPLER, ROCKER, GROUND = 0.1, 0.3, 0.202, 0.4  # m
@@ -113,7 +113,7 @@ def test_coarse_steps_stay_on_their_branch():
 
 def test_without_the_guard_the_same_steps_jump_to_the_other_branch(monkeypatch):
     """The guard is what keeps the branch: switched off, the step across 180° lands on the mirror image."""
-    monkeypatch.setattr(solvers, "BRANCH_DEFECT_RATIO", math.inf)
+    monkeypatch.setattr(stepper, "BRANCH_DEFECT_RATIO", math.inf)
     result = solve_kinematics(build_four_bar(), COARSE)
     assert result.complete and result.n_subdivisions == 0
     position = result.point("B").position
@@ -155,10 +155,10 @@ def test_the_guard_measures_the_corrected_trapezoidal_rule():
     weights = np.ones(1)
     smooth = [np.array([value]) for value in (angle[0], rate[0], acceleration[0], angle[1], rate[1], acceleration[1])]
     predicted = smooth[3] - 0.01  # Newton moved 0.01 rad from its predictor
-    arguments = (solvers.BRANCH_DEFECT_RATIO, solvers.BRANCH_MIN_DEFECT, solvers.BRANCH_MIN_CORRECTION)
-    assert not solvers._jumped(h, *smooth, predicted, weights, *arguments)
+    arguments = (stepper.BRANCH_DEFECT_RATIO, stepper.BRANCH_MIN_DEFECT, stepper.BRANCH_MIN_CORRECTION)
+    assert not stepper._jumped(h, *smooth, predicted, weights, *arguments)
     mirrored = smooth.copy()
     mirrored[4] = -smooth[4]  # the velocity of the other branch
-    assert solvers._jumped(h, *mirrored, predicted, weights, *arguments)
+    assert stepper._jumped(h, *mirrored, predicted, weights, *arguments)
     # ... unless Newton hardly moved from the predictor: then it cannot have left the branch
-    assert not solvers._jumped(h, *mirrored, smooth[3] - 1e-4, weights, *arguments)
+    assert not stepper._jumped(h, *mirrored, smooth[3] - 1e-4, weights, *arguments)

@@ -48,12 +48,11 @@ def run_compiled(mechanism, times, *, chord=True, tolerance=1e-12, max_iteration
     """`solve_compiled` with freshly allocated outputs (NaN-filled, to expose gaps)."""
     pattern = build_pattern(mechanism)
     times = np.asarray(times, dtype=float)
-    weights = np.where(pattern.row_is_angle, 1.0, 1.0 / pattern.length_scale)
     shape = (times.size, pattern.n_coordinates)
     coordinates, velocities, accelerations = (np.full(shape, np.nan) for _ in range(3))
     iterations = np.full(times.size, -1, dtype=np.int64)
     outcome = solve_compiled(
-        mechanism, pattern, times, tolerance, max_iterations, weights,
+        mechanism, pattern, times, tolerance, max_iterations,
         coordinates, velocities, accelerations, iterations, chord=chord,
     )  # fmt: skip
     return outcome, (coordinates, velocities, accelerations), iterations
@@ -229,16 +228,15 @@ def test_output_arrays_are_checked():
     mechanism = task5()
     pattern = build_pattern(mechanism)
     times = np.linspace(0.0, 1.0, 5)
-    weights = np.ones(30)
     good = [np.empty((5, 30)) for _ in range(3)]
     counts = np.empty(5, dtype=np.int64)
     expected = r"`velocities` must be a float64 array of shape \(5, 30\), got float64 \(5, 29\)"
     with pytest.raises(ValueError, match=expected):
         solve_compiled(
-            mechanism, pattern, times, 1e-12, 12, weights, good[0], np.empty((5, 29)), good[2], counts
+            mechanism, pattern, times, 1e-12, 12, good[0], np.empty((5, 29)), good[2], counts
         )
     with pytest.raises(ValueError, match=r"`iterations` must be a int64 array"):
-        solve_compiled(mechanism, pattern, times, 1e-12, 12, weights, *good, np.empty(5))
+        solve_compiled(mechanism, pattern, times, 1e-12, 12, *good, np.empty(5))
 
 
 # ---------------------------------------------------------------------- the failure contract

@@ -34,7 +34,8 @@ from scipy.sparse import csr_array
 
 from sparsekin import ModelError, SparsekinError, load_model, solve_kinematics
 from sparsekin.cli import main
-from sparsekin.diagnostics import analyse_jacobian, check_model
+from sparsekin.check import check_model
+from sparsekin.rank import analyse_jacobian
 from sparsekin.testset import task5
 
 ROOT = Path(__file__).resolve().parents[1]

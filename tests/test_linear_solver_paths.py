@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sparsekin import SingularConfigurationError, solve_kinematics, testset
-from sparsekin.solvers import COMPILED_MAX_COORDINATES
+from sparsekin.stepper import COMPILED_MAX_COORDINATES
 
 FAMILIES = {
     "task5": (testset.task5, np.linspace(0.0, 4.0, 401)),
@@ -129,9 +129,9 @@ def test_auto_refactors_a_model_above_the_compiled_size():
 def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
     """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on with
     SuperLU (and chord Newton) after the first sample; the motion is the same."""
-    from sparsekin import solvers
+    from sparsekin import stepper
 
-    monkeypatch.setattr(solvers, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
+    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)
     result = solve_kinematics(mechanism, times)
     assert result.linear_solver == "superlu-chord"

@@ -204,12 +204,7 @@ def test_fill_straight_into_factor_order(family, rng):
     solver = RefactorSolver()
     solver.factor(family.jacobian_at(0))
     positions = np.append(solver.value_positions, family.pattern.nnz)  # keep the discard slot
-    composed = replace(
-        family.pattern,
-        coincidence_slots=positions[family.pattern.coincidence_slots],
-        projection_slots=positions[family.pattern.projection_slots],
-        difference_slots=positions[family.pattern.difference_slots],
-    )
+    composed = replace(family.pattern, primitives=family.pattern.primitives.with_slots(positions))
     ordered = Assembler(family.mechanism, composed)
     by_gather = RefactorSolver()
     by_gather.factor(family.jacobian_at(0))

@@ -431,7 +431,7 @@ MISTAKES = {
     "unknown joint key": (
         ('at = "A"', 'att = "A"'),
         "joints[1]",
-        r'unknown key "att" \(expected one of: type, bodies, at, name\)',
+        r'unknown key "att" \(expected one of: type, bodies, at, name, limits\)',
     ),
     "unknown law key": (
         _harmonic("amplitud = 0.05, omega = 1.5"),
@@ -449,7 +449,7 @@ MISTAKES = {
     "missing joint type": (
         ('type = "revolute"\nbodies = ["rod", "slider"]', 'bodies = ["rod", "slider"]'),
         "joints[2]",
-        r'missing key "type" \(expected one of: revolute, translational, rigid\)',
+        r'missing key "type" \(expected one of: revolute, translational, rigid, pin_in_slot, gear, rack_pinion\)',
     ),
     "missing law": ((LAW, ""), "drivers[0]", r'missing key "law"$'),
     "missing law type": (
@@ -618,12 +618,12 @@ MISTAKES = {
     "unknown joint type": (
         ('type = "revolute"\nbodies = ["rod", "slider"]', 'type = "revolut"\nbodies = ["rod", "slider"]'),
         "joints[2].type",
-        r'expected one of "revolute", "translational", "rigid", got \'revolut\'',
+        r'expected one of "revolute", "translational", "rigid", "pin_in_slot", "gear", "rack_pinion", got \'revolut\'',
     ),
     "unknown driver type": (
         ('type = "rotational"', 'type = "rotary"'),
         "drivers[0].type",
-        r'expected one of "translational", "rotational", "absolute", got \'rotary\'',
+        r'expected one of "translational", "rotational", "absolute", "distance", "path", got \'rotary\'',
     ),
     "unknown law type": (
         (LAW, 'law = { type = "sine", amplitude = 0.05 }'),

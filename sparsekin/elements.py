@@ -1,0 +1,769 @@
+"""Joints and drivers: every kind declared once, in this module.
+
+A kind is a frozen dataclass whose fields are its keys in the model file, registered with
+`joint_kind` or `driver_kind`.  Its declaration says everything the rest of the package
+needs of it; the model checks, the pattern builder, the model-file reader and writer,
+the drawing, the joint outputs and the generated element reference all iterate over the
+registries `JOINT_KINDS` and `DRIVER_KINDS`:
+
+=====================  ==============================================================
+``type_name``          its ``type`` in the model file
+``file_keys``          the keys it accepts (`sparsekin._validate.FileKeys`)
+``equation_names``     one name per equation, in row order (their number is
+                       ``n_equations``)
+``equations``          classmethod: its equations as blocks of the primitives of
+                       `sparsekin.primitives`, for all elements of the kind at once
+``output_names``       its own coordinate and two derivatives (``joints.csv`` column
+                       suffixes), or ``()`` if it has none
+``outputs``            classmethod: the primitive that measures its own coordinate
+``body_fields``,       fields naming bodies and points, which the mechanism checks
+``point_fields``
+``check``              method: checks that need the whole mechanism (optional)
+``describe``           method: a few words for messages
+``draw``               method: its drawing, on a `sparsekin.plotting.Canvas`
+``law_fields``         drivers only: the field holding the law of each equation, in
+                       row order (default ``("law",)``)
+=====================  ==============================================================
+
+The guide ``docs/adding-an-element.md`` walks through adding a kind.
+
+Equation builders receive the elements of their kind, the first row of each (an int
+array) and a `DrawnModel`: the drawn positions of points, the stored index of each body
+(the ground is ``model.ground``), the drawn body frames, and joints by name.  Blocks are
+written in the global coordinates of the drawn configuration; joints hold the values
+their equations have there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, Union
+
+import numpy as np
+
+from . import _validate
+from ._validate import FileKeys
+from .errors import ModelError
+from .laws import Law
+from .primitives import Coincidence, Combination, Distance, Projection
+
+__all__ = [
+    "GROUND",
+    "COORDINATE_NAMES",
+    "JOINT_KINDS",
+    "DRIVER_KINDS",
+    "joint_kind",
+    "driver_kind",
+    "Revolute",
+    "Translational",
+    "Rigid",
+    "PinInSlot",
+    "Gear",
+    "RackPinion",
+    "TranslationalDriver",
+    "RotationalDriver",
+    "AbsoluteDriver",
+    "DistanceDriver",
+    "PathDriver",
+]
+
+#: Name of the fixed body.
+GROUND = "ground"
+#: The coordinates of a body frame, in the order they are stored.
+COORDINATE_NAMES = ("x", "y", "angle")
+
+#: A point: the name of a point of the model, or its global coordinates (x, y) in m.
+PointRef = Union[str, tuple[float, float]]
+
+#: The registries, by file ``type``, in the order kinds are declared.
+JOINT_KINDS: dict[str, type] = {}
+DRIVER_KINDS: dict[str, type] = {}
+
+#: What every kind must declare (see the module docstring).
+_DECLARATION = ("type_name", "file_keys", "equation_names", "equations", "describe", "draw")
+
+
+class DrawnModel(Protocol):
+    """What an equation builder may ask of the mechanism (built by `sparsekin.pattern`)."""
+
+    ground: int
+    frames: np.ndarray  # (n_bodies + 1, 3): drawn (x, y, angle) of each body, the ground last
+
+    def bodies(self, names) -> np.ndarray: ...  # stored index of each body name
+
+    def pairs(self, elements) -> tuple[np.ndarray, np.ndarray]: ...  # indices of each `bodies` pair
+
+    def points(self, references) -> np.ndarray: ...  # (k, 2) drawn positions
+
+    def joint(self, name: str): ...  # the joint with that name
+
+
+def _register(registry: dict[str, type], kind: type) -> type:
+    missing = [name for name in _DECLARATION if not hasattr(kind, name)]
+    if missing:
+        raise TypeError(f"{kind.__name__} does not declare {', '.join(missing)}")
+    if kind.type_name in registry:
+        raise TypeError(f'two kinds declare the type "{kind.type_name}"')
+    fields = set(getattr(kind, "__dataclass_fields__", ()))
+    unknown = [key for key in kind.file_keys.keys if key not in fields]
+    if unknown:
+        raise TypeError(f"{kind.__name__}.file_keys names {unknown}, which are not fields")
+    if kind.output_names and not hasattr(kind, "outputs"):
+        raise TypeError(f"{kind.__name__} declares output_names but no outputs")
+    kind.n_equations = len(kind.equation_names)
+    registry[kind.type_name] = kind
+    return kind
+
+
+def joint_kind(kind: type) -> type:
+    """Class decorator: check the declaration of a joint kind and register it."""
+    return _register(JOINT_KINDS, kind)
+
+
+def driver_kind(kind: type) -> type:
+    """Class decorator: check the declaration of a driver kind and register it."""
+    if len(kind.law_fields) != len(kind.equation_names):
+        raise TypeError(f"{kind.__name__} declares {len(kind.law_fields)} law fields for "
+                        f"{len(kind.equation_names)} equations")  # fmt: skip
+    return _register(DRIVER_KINDS, kind)
+
+
+class _Element:
+    """Defaults shared by joints and drivers."""
+
+    __slots__ = ()
+    output_names: tuple[str, ...] = ()
+    body_fields: tuple[str, ...] = ("bodies",)
+    point_fields: tuple[str, ...] = ()
+
+    def check(self, mechanism, where: str) -> None:
+        """Checks that need the mechanism (`where` is ``joints[3]``); none by default."""
+
+
+class Joint(_Element):
+    """Base of the joint kinds."""
+
+    __slots__ = ()
+
+
+class Driver(_Element):
+    """Base of the driver kinds: each equation follows the law in one field."""
+
+    __slots__ = ()
+    law_fields: tuple[str, ...] = ("law",)
+
+    def laws(self) -> tuple[Law, ...]:
+        """The law of each equation, in row order."""
+        return tuple(getattr(self, name) for name in self.law_fields)
+
+
+# ---------------------------------------------------------------------- joints
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class Revolute(Joint):
+    """Bodies ``bodies[0]`` and ``bodies[1]`` share the point `at` (2 equations).
+
+    Own coordinate: the relative angle ``angle(bodies[0]) - angle(bodies[1])`` of the two
+    body frames, rad, continuous in time.
+    """
+
+    bodies: tuple[str, str]
+    at: PointRef
+    name: str | None = None
+    limits: tuple[float, float] | None = None
+
+    type_name = "revolute"
+    file_keys = FileKeys(required=("bodies", "at"), optional=("name", "limits"))
+    equation_names = ("x", "y")
+    output_names = ("angle", "rate", "accel")
+    point_fields = ("at",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _set(self, "at", _validate.point_reference(self.at, "at"))
+
+    def describe(self) -> str:
+        return f"revolute {self.bodies[0]}–{self.bodies[1]} at {shown_point(self.at)}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        i, j = model.pairs(joints)
+        at = model.points([joint.at for joint in joints])
+        return [Coincidence(rows, i, j, at, at)]
+
+    @classmethod
+    def outputs(cls, joints, rows, model):
+        return [_angle_difference(rows, *model.pairs(joints))]
+
+    def draw(self, canvas) -> None:
+        canvas.pin(canvas.point(self.bodies[0], self.at), grounded=GROUND in self.bodies)
+
+
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class Translational(Joint):
+    """``bodies[1]`` slides along a line fixed in ``bodies[0]``; relative rotation locked.
+
+    Give either ``axis = (P, Q)``, P on the first body and Q on the second (the line
+    through P along P→Q), or ``at = P`` with a global initial ``direction = (dx, dy)``.
+    2 equations.  Own coordinate: the stroke, the distance from P to Q measured along the
+    axis (for the ``at`` form: the displacement of the second body's point from the
+    first's along the direction, 0 at the start), m.
+    """
+
+    bodies: tuple[str, str]
+    axis: tuple[PointRef, PointRef] | None = None
+    at: PointRef | None = None
+    direction: tuple[float, float] | None = None
+    name: str | None = None
+    limits: tuple[float, float] | None = None
+
+    type_name = "translational"
+    file_keys = FileKeys(required=("bodies",), optional=("name", "limits"), forms=(("axis",), ("at", "direction")))
+    equation_names = ("relative angle", "offset from the axis")
+    output_names = ("stroke", "speed", "accel")
+    point_fields = ("axis", "at")
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        if self.axis is not None:
+            if self.at is not None or self.direction is not None:
+                raise ModelError("give either `axis` or `at` with `direction`, not both", element="axis")
+            axis = self.axis
+            if isinstance(axis, str) or not _validate.is_sequence(axis) or len(axis) != 2:
+                raise ModelError(f"expected two points [P, Q], got {axis!r}", element="axis")
+            _set(self, "axis", (_validate.point_reference(axis[0], "axis[0]"),
+                                _validate.point_reference(axis[1], "axis[1]")))  # fmt: skip
+            if self.axis[0] == self.axis[1]:
+                raise ModelError(
+                    f"zero-length axis: P and Q are the same point {shown_point(self.axis[0])}; "
+                    "expected two distinct points",
+                    element="axis",
+                )
+        else:
+            if self.at is None or self.direction is None:
+                raise ModelError("expected `axis = [P, Q]`, or `at` with `direction`", element="axis")
+            _set(self, "at", _validate.point_reference(self.at, "at"))
+            _set(self, "direction", _direction(self.direction))
+
+    def check(self, mechanism, where: str) -> None:
+        if self.axis is not None:
+            p, q = mechanism.position(self.axis[0]), mechanism.position(self.axis[1])
+            if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
+                raise ModelError(
+                    f"zero-length axis: {shown_point(self.axis[0])} and {shown_point(self.axis[1])} "
+                    "coincide; expected two distinct points",
+                    element=f"{where}.axis",
+                )
+
+    def describe(self) -> str:
+        if self.axis is not None:
+            where = f"along {shown_point(self.axis[0])}→{shown_point(self.axis[1])}"
+        else:
+            where = f"at {shown_point(self.at)} along {self.direction}"
+        return f"translational {self.bodies[0]}–{self.bodies[1]} {where}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        i, j = model.pairs(joints)
+        start, end, axis = cls.geometry(joints, model)
+        return [_angle_difference(rows, i, j), Projection(rows + 1, i, j, start, end, _normal(axis), _zeros(rows))]
+
+    @classmethod
+    def outputs(cls, joints, rows, model):
+        return [cls.stroke(joints, rows, model)]
+
+    @classmethod
+    def stroke(cls, joints, rows, model) -> Projection:
+        """The stroke of each joint, as a projection on its axis (also what drives it)."""
+        start, end, axis = cls.geometry(joints, model)
+        return Projection(rows, *model.pairs(joints), start, end, axis, _zeros(rows))
+
+    @classmethod
+    def geometry(cls, joints, model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Start points, end points and unit axes, drawn, global, each shape (k, 2).
+
+        For the ``at`` / ``direction`` form the start and the end are both ``at``.
+        """
+        references = [p for joint in joints for p in (joint.axis if joint.axis is not None else (joint.at, joint.at))]
+        ends = model.points(references).reshape(-1, 4)
+        start, end = ends[:, :2], ends[:, 2:]
+        axis = end - start
+        at_form = np.array([joint.axis is None for joint in joints], dtype=bool)
+        if at_form.any():
+            axis[at_form] = [joint.direction for joint in joints if joint.axis is None]
+        return start, end, _unit(axis)
+
+    def draw(self, canvas) -> None:
+        if self.axis is not None:
+            canvas.slider(canvas.point(self.bodies[0], self.axis[0]), canvas.point(self.bodies[1], self.axis[1]))
+        else:
+            at = canvas.point(self.bodies[0], self.at)
+            along = canvas.direction(self.bodies[0], self.direction)
+            canvas.slider(at - 8.0 * canvas.size * along, at + 8.0 * canvas.size * along)
+
+
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class Rigid(Joint):
+    """``bodies[0]`` and ``bodies[1]`` are welded together (3 equations)."""
+
+    bodies: tuple[str, str]
+    name: str | None = None
+
+    type_name = "rigid"
+    file_keys = FileKeys(required=("bodies",), optional=("name",))
+    equation_names = ("x", "y", "relative angle")
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+
+    def describe(self) -> str:
+        return f"rigid {self.bodies[0]}–{self.bodies[1]}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        i, j = model.pairs(joints)
+        origin = model.frames[j, :2]  # the frame origin of bodies[1], welded to bodies[0]
+        return [Coincidence(rows, i, j, origin, origin), _angle_difference(rows + 2, i, j)]
+
+    def draw(self, canvas) -> None:
+        canvas.weld(canvas.origin(self.bodies[1]))
+
+
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class PinInSlot(Joint):
+    """The point `at` of ``bodies[1]`` stays on the line of ``bodies[0]`` through `at` along
+    `direction` (global, initial); rotation is free.  1 equation.
+
+    Own coordinate: the slide, the position of the pin along the slot from its initial
+    place, m.
+    """
+
+    bodies: tuple[str, str]
+    at: PointRef
+    direction: tuple[float, float]
+    name: str | None = None
+    limits: tuple[float, float] | None = None
+
+    type_name = "pin_in_slot"
+    file_keys = FileKeys(required=("bodies", "at", "direction"), optional=("name", "limits"))
+    equation_names = ("offset from the slot",)
+    output_names = ("slide", "speed", "accel")
+    point_fields = ("at",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _set(self, "at", _validate.point_reference(self.at, "at"))
+        _set(self, "direction", _direction(self.direction))
+
+    def describe(self) -> str:
+        return f"pin in slot {self.bodies[0]}–{self.bodies[1]} at {shown_point(self.at)} along {self.direction}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        return [cls._along(joints, rows, model, normal=True)]
+
+    @classmethod
+    def outputs(cls, joints, rows, model):
+        return [cls._along(joints, rows, model, normal=False)]
+
+    @classmethod
+    def _along(cls, joints, rows, model, normal: bool) -> Projection:
+        at = model.points([joint.at for joint in joints])
+        along = _unit(np.array([joint.direction for joint in joints], dtype=float).reshape(-1, 2))
+        return Projection(rows, *model.pairs(joints), at, at, _normal(along) if normal else along, _zeros(rows))
+
+    def draw(self, canvas) -> None:
+        centre = canvas.point(self.bodies[0], self.at)
+        along = canvas.direction(self.bodies[0], self.direction)
+        canvas.slot(centre, along, self.limits)
+        canvas.pin(canvas.point(self.bodies[1], self.at), grounded=False)
+
+
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class Gear(Joint):
+    """Two gears on a carrier: ``angle(i) - angle(k) = -ratio · (angle(j) - angle(k))`` from
+    the initial configuration, with ``bodies = (i, j)`` and ``carrier = k``.
+
+    For external gears of pitch radii R_i and R_j the ratio is ``R_j / R_i``; an internal
+    gear (j a ring around i) has a negative ratio, ``-R_j / R_i``.  The gears' pivots on
+    the carrier are separate revolute joints.  1 equation.
+    """
+
+    bodies: tuple[str, str]
+    ratio: float
+    carrier: str = GROUND
+    name: str | None = None
+
+    type_name = "gear"
+    file_keys = FileKeys(required=("bodies", "ratio"), optional=("carrier", "name"))
+    equation_names = ("gear ratio",)
+    body_fields = ("bodies", "carrier")
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _set(self, "ratio", _validate.finite_float(self.ratio, "ratio"))
+        if self.ratio == 0.0:
+            raise ModelError("expected a non-zero ratio (R_j / R_i; negative for an internal gear)", element="ratio")
+        _validate.name(self.carrier, "carrier")
+        if self.carrier in self.bodies:
+            raise ModelError(f'the carrier "{self.carrier}" is one of the gears; expected a third body '
+                             f'(default "{GROUND}")', element="carrier")  # fmt: skip
+
+    def describe(self) -> str:
+        carrier = "" if self.carrier == GROUND else f" on {self.carrier}"
+        return f"gear {self.bodies[0]}–{self.bodies[1]}{carrier}, ratio {self.ratio:g}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        i, j = model.pairs(joints)
+        k = model.bodies([joint.carrier for joint in joints])
+        ratio = np.array([joint.ratio for joint in joints], dtype=float)
+        return [Combination(
+            rows, np.stack([i, j, k], axis=1), np.full((rows.size, 3), 2),
+            np.stack([np.ones_like(ratio), ratio, -1.0 - ratio], axis=1),
+        )]  # fmt: skip
+
+    def draw(self, canvas) -> None:
+        first, second = (canvas.pivot(body, self.carrier) for body in self.bodies)
+        distance = float(np.hypot(*(second - first)))
+        # pitch radii from the centre distance: R_i + R_j (external) or R_j - R_i (internal)
+        denominator = 1.0 + self.ratio if self.ratio > 0.0 else -self.ratio - 1.0
+        if distance > 0.0 and denominator > 0.0:
+            radius = distance / denominator
+            canvas.circle(first, radius)
+            canvas.circle(second, abs(self.ratio) * radius)
+
+
+@joint_kind
+@dataclass(frozen=True, slots=True)
+class RackPinion(Joint):
+    """A pinion rolling on a rack: ``bodies = (rack, pinion)``, `at` the pinion's centre,
+    `direction` the rack's line, `radius` the pinion's pitch radius.
+
+    The travel of the centre along the rack (relative to the rack, from its initial
+    place) and the pinion's rotation relative to the rack are tied:
+    ``travel = -radius · rotation`` (the rack's pitch line lies on the right of
+    `direction`).  The centre is guided separately, e.g. by a pin_in_slot.  1 equation.
+    """
+
+    bodies: tuple[str, str]
+    at: PointRef
+    direction: tuple[float, float]
+    radius: float
+    name: str | None = None
+
+    type_name = "rack_pinion"
+    file_keys = FileKeys(required=("bodies", "at", "direction", "radius"), optional=("name",))
+    equation_names = ("rolling",)
+    point_fields = ("at",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _set(self, "at", _validate.point_reference(self.at, "at"))
+        _set(self, "direction", _direction(self.direction))
+        _set(self, "radius", _validate.finite_float(self.radius, "radius"))
+        if not self.radius > 0.0:
+            raise ModelError(f"expected a pitch radius > 0 (m), got {self.radius!r}", element="radius")
+
+    def describe(self) -> str:
+        return f"rack {self.bodies[0]} and pinion {self.bodies[1]} at {shown_point(self.at)}, radius {self.radius:g}"
+
+    @classmethod
+    def equations(cls, joints, rows, model):
+        at = model.points([joint.at for joint in joints])
+        along = _unit(np.array([joint.direction for joint in joints], dtype=float).reshape(-1, 2))
+        radius = np.array([joint.radius for joint in joints], dtype=float)
+        return [Projection(rows, *model.pairs(joints), at, at, along, radius)]
+
+    def draw(self, canvas) -> None:
+        centre = canvas.point(self.bodies[1], self.at)
+        along = canvas.direction(self.bodies[0], self.direction)
+        pitch = canvas.point(self.bodies[0], self.at) + self.radius * np.array([along[1], -along[0]])
+        canvas.circle(centre, self.radius)
+        canvas.line(pitch - 3.0 * self.radius * along, pitch + 3.0 * self.radius * along)
+
+
+# ---------------------------------------------------------------------- drivers
+@driver_kind
+@dataclass(frozen=True, slots=True)
+class TranslationalDriver(Driver):
+    """Drives the stroke of the translational joint named `joint` (m).
+
+    The stroke is the distance from P to Q measured along the axis (for the ``at`` /
+    ``direction`` form, the displacement of the second body's point from the first's
+    along the direction, 0 at the start).  Positive means the points move apart.
+    """
+
+    joint: str
+    law: Law
+    name: str | None = None
+
+    type_name = "translational"
+    file_keys = FileKeys(required=("joint", "law"), optional=("name",))
+    equation_names = ("driven value",)
+    output_names = ("value", "rate", "accel")
+    body_fields = ()
+
+    def __post_init__(self) -> None:
+        _validate.name(self.joint, "joint")
+        _driver_checks(self)
+
+    def check(self, mechanism, where: str) -> None:
+        try:
+            joint = mechanism.joint_named(self.joint)
+        except KeyError:
+            known = [j.name for j in mechanism.joints if isinstance(j, Translational) and j.name]
+            raise ModelError(
+                f'unknown joint "{self.joint}" (known translational joints: '
+                f"{_validate.known_list(known) or 'none with a name'})",
+                element=f"{where}.joint",
+            ) from None
+        if not isinstance(joint, Translational):
+            raise ModelError(
+                f'joint "{self.joint}" is {joint.type_name}; expected a translational joint', element=f"{where}.joint"
+            )
+
+    def describe(self) -> str:
+        return f'stroke of joint "{self.joint}"'
+
+
+    @classmethod
+    def equations(cls, drivers, rows, model):
+        return [Translational.stroke([model.joint(driver.joint) for driver in drivers], rows, model)]
+
+    outputs = equations
+
+    def draw(self, canvas) -> None:
+        """Drawn by its joint."""
+
+
+@driver_kind
+@dataclass(frozen=True, slots=True)
+class RotationalDriver(Driver):
+    """Drives the relative angle ``angle(bodies[0]) - angle(bodies[1])`` (rad)."""
+
+    bodies: tuple[str, str]
+    law: Law
+    name: str | None = None
+
+    type_name = "rotational"
+    file_keys = FileKeys(required=("bodies", "law"), optional=("name",))
+    equation_names = ("driven value",)
+    output_names = ("value", "rate", "accel")
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _driver_checks(self)
+
+    def describe(self) -> str:
+        return f"angle {self.bodies[0]} − {self.bodies[1]}"
+
+
+    @classmethod
+    def equations(cls, drivers, rows, model):
+        return [_angle_difference(rows, *model.pairs(drivers))]
+
+    outputs = equations
+
+    def draw(self, canvas) -> None:
+        """Nothing to draw: its bodies are joined by a revolute."""
+
+
+@driver_kind
+@dataclass(frozen=True, slots=True)
+class AbsoluteDriver(Driver):
+    """Drives one coordinate (``"x"``, ``"y"`` or ``"angle"``) of the frame of `body`."""
+
+    body: str
+    coordinate: str
+    law: Law
+    name: str | None = None
+
+    type_name = "absolute"
+    file_keys = FileKeys(required=("body", "coordinate", "law"), optional=("name",))
+    equation_names = ("driven value",)
+    output_names = ("value", "rate", "accel")
+    body_fields = ("body",)
+
+    def __post_init__(self) -> None:
+        _validate.name(self.body, "body")
+        if self.body == GROUND:
+            raise ModelError("the ground cannot be driven: expected a moving body", element="body")
+        _validate.choice(self.coordinate, "coordinate", COORDINATE_NAMES)
+        _driver_checks(self)
+
+    def describe(self) -> str:
+        return f"{self.coordinate} of {self.body}"
+
+
+    @classmethod
+    def equations(cls, drivers, rows, model):
+        body = model.bodies([driver.body for driver in drivers])[:, None]
+        coordinate = np.array([COORDINATE_NAMES.index(driver.coordinate) for driver in drivers], dtype=np.int64)
+        return [Combination(rows, body, coordinate[:, None], np.ones((rows.size, 1)))]
+
+    outputs = equations
+
+    def draw(self, canvas) -> None:
+        """Nothing to draw."""
+
+
+@driver_kind
+@dataclass(frozen=True, slots=True)
+class DistanceDriver(Driver):
+    """Drives the distance between point ``points[0]`` of ``bodies[0]`` and point
+    ``points[1]`` of ``bodies[1]`` (m): an actuator without cylinder and rod bodies."""
+
+    points: tuple[PointRef, PointRef]
+    bodies: tuple[str, str]
+    law: Law
+    name: str | None = None
+    limits: tuple[float, float] | None = None
+
+    type_name = "distance"
+    file_keys = FileKeys(required=("points", "bodies", "law"), optional=("name", "limits"))
+    equation_names = ("driven value",)
+    output_names = ("value", "rate", "accel")
+    point_fields = ("points",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        points = self.points
+        if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
+            raise ModelError(f"expected two points [P, Q], got {points!r}", element="points")
+        _set(self, "points", (_validate.point_reference(points[0], "points[0]"),
+                              _validate.point_reference(points[1], "points[1]")))  # fmt: skip
+        _driver_checks(self)
+
+    def check(self, mechanism, where: str) -> None:
+        p, q = mechanism.position(self.points[0]), mechanism.position(self.points[1])
+        if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
+            raise ModelError(
+                f"{shown_point(self.points[0])} and {shown_point(self.points[1])} coincide in the drawing; "
+                "expected two distinct points (the distance has no direction at zero length)",
+                element=f"{where}.points",
+            )
+
+    def describe(self) -> str:
+        return f"distance {self.bodies[0]}.{shown_point(self.points[0])}–{self.bodies[1]}.{shown_point(self.points[1])}"
+
+
+    @classmethod
+    def equations(cls, drivers, rows, model):
+        ends = model.points([p for driver in drivers for p in driver.points]).reshape(-1, 4)
+        return [Distance(rows, *model.pairs(drivers), ends[:, :2], ends[:, 2:])]
+
+    outputs = equations
+
+    def draw(self, canvas) -> None:
+        canvas.actuator(canvas.point(self.bodies[0], self.points[0]), canvas.point(self.bodies[1], self.points[1]))
+
+
+@driver_kind
+@dataclass(frozen=True, slots=True)
+class PathDriver(Driver):
+    """The global x and y of the point `point` of `body` follow `law_x` and `law_y` (m).
+
+    Prescribing a point's path instead of the actuators: inverse kinematics.
+    """
+
+    body: str
+    point: PointRef
+    law_x: Law
+    law_y: Law
+    name: str | None = None
+
+    type_name = "path"
+    file_keys = FileKeys(required=("body", "point", "law_x", "law_y"), optional=("name",))
+    equation_names = ("x", "y")
+    law_fields = ("law_x", "law_y")
+    body_fields = ("body",)
+    point_fields = ("point",)
+
+    def __post_init__(self) -> None:
+        _validate.name(self.body, "body")
+        if self.body == GROUND:
+            raise ModelError("a point of the ground cannot follow a path: expected a moving body", element="body")
+        _set(self, "point", _validate.point_reference(self.point, "point"))
+        _driver_checks(self)
+
+    def describe(self) -> str:
+        return f"path of {shown_point(self.point)} on {self.body}"
+
+
+    @classmethod
+    def equations(cls, drivers, rows, model):
+        body = model.bodies([driver.body for driver in drivers])
+        point = model.points([driver.point for driver in drivers])
+        ground = np.full_like(body, model.ground)
+        return [Coincidence(rows, body, ground, point, np.zeros_like(point))]  # minus the ground's origin
+
+    def draw(self, canvas) -> None:
+        canvas.target(canvas.point(self.body, self.point))
+
+
+# ---------------------------------------------------------------------- helpers
+def shown_point(reference: PointRef | None) -> str:
+    """A point reference in words: its name, or ``(x, y)``."""
+    if isinstance(reference, str):
+        return reference
+    return f"({reference[0]:g}, {reference[1]:g})"
+
+
+def _angle_difference(rows: np.ndarray, i: np.ndarray, j: np.ndarray) -> Combination:
+    """``angle_i - angle_j`` on each row."""
+    ones = np.ones(rows.size)
+    return Combination(rows, np.stack([i, j], axis=1), np.full((rows.size, 2), 2), np.stack([ones, -ones], axis=1))
+
+
+def _unit(vectors: np.ndarray) -> np.ndarray:
+    return vectors / np.hypot(vectors[:, 0], vectors[:, 1])[:, None]
+
+
+def _normal(unit: np.ndarray) -> np.ndarray:
+    """Each unit vector turned by +90°."""
+    return np.stack([-unit[:, 1], unit[:, 0]], axis=1)
+
+
+def _zeros(rows: np.ndarray) -> np.ndarray:
+    return np.zeros(rows.size)
+
+
+def _direction(value: object) -> tuple[float, float]:
+    direction = _validate.pair(value, "direction")
+    if math.hypot(*direction) == 0.0:
+        raise ModelError("zero-length direction: expected a non-zero [dx, dy]", element="direction")
+    return direction
+
+
+def _set(instance: object, field_name: str, value: object) -> None:
+    """Store the canonical form of a field (tuples for sequences, floats for numbers)."""
+    object.__setattr__(instance, field_name, value)
+
+
+def _pair_checks(element) -> None:
+    """``bodies``, two different names; ``name`` and ``limits`` when given."""
+    _set(element, "bodies", _validate.two_names(element.bodies, "bodies"))
+    if element.bodies[0] == element.bodies[1]:
+        raise ModelError(f'expected two different bodies, got "{element.bodies[0]}" twice', element="bodies")
+    if element.name is not None:
+        _validate.name(element.name, "name")
+    if getattr(element, "limits", None) is not None:
+        _set(element, "limits", _validate.limits(element.limits, "limits"))
+
+
+def _driver_checks(driver) -> None:
+    if driver.name is not None:
+        _validate.name(driver.name, "name")
+    for field_name in driver.law_fields:
+        law = getattr(driver, field_name)
+        if not callable(getattr(law, "evaluate", None)):  # the `Law` protocol, without its slow isinstance
+            raise ModelError(
+                f"expected a law (an object with evaluate(t, initial)), got {type(law).__name__}",
+                element=field_name,
+            )

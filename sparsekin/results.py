@@ -1,0 +1,266 @@
+"""What a kinematic analysis returns: `KinematicsResult`, and the motions derived from it.
+
+The result holds the coordinates of every body at every sample and their first two time
+derivatives.  From them it derives, on request:
+
+* `KinematicsResult.point`: the position, velocity and acceleration of a named point
+  (`sparsekin.geometry.carried_motion`);
+* `KinematicsResult.joint` and `~KinematicsResult.driver`: an element's own coordinate (a
+  revolute's relative angle, a cylinder's stroke, a pin's slide) and its two derivatives,
+  evaluated with the kernels of the constraint equations on the elements' output
+  equations (`sparsekin.pattern.build_output_pattern`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import NamedTuple
+
+import numpy as np
+
+from . import _kernels
+from .geometry import carried_motion
+from .model import Mechanism
+from .pattern import OutputPattern, PointMap, build_output_pattern
+
+__all__ = ["KinematicsResult", "PointMotion", "CoordinateMotion", "LimitState", "element_index", "own_coordinates",
+           "limit_states"]
+
+
+class PointMotion(NamedTuple):
+    """Motion of a named point: each array has shape (n_times, 2), global x and y."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+
+class CoordinateMotion(NamedTuple):
+    """An element's own coordinate (m or rad) and its time derivatives, each (n_times,)."""
+
+    value: np.ndarray
+    rate: np.ndarray
+    acceleration: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicsResult:
+    """Positions, velocities and accelerations of every body at every time.
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_times,)
+        Sample times, s.
+    coordinates, velocities, accelerations : ndarray, shape (n_times, 3 * n_bodies)
+        ``(x, y, angle)`` of each body frame, body order as in the model (m, rad), and
+        their first and second time derivatives.
+    body_names : tuple of str
+    newton_iterations : ndarray of int, shape (n_times,)
+        Newton corrections at each time (over all its sub-steps when the step to it was
+        subdivided).
+    n_factorizations, n_solves : int
+        Factorizations of the Jacobian and linear solves in the whole run.
+    complete : bool
+        False when the analysis stopped early: then only the samples solved are here.
+    mechanism : Mechanism
+        The mechanism analysed.
+    n_subdivisions : int
+        How many times a step was halved (a Newton failure, or a suspected jump to
+        another assembly branch); 0 on a well-sampled run.
+    redundant_equations : tuple of str
+        The equations left out as redundant (empty for most models).
+    n_refactorizations : int
+        Numeric refactorizations on a fixed pattern (``linear_solver="refactor"``).
+    linear_solver : str
+        The path that solved the run: ``"compiled"`` (the compiled dense loop all the
+        way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
+        ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
+        much fill-in after the first sample) or ``"superlu"``.
+    """
+
+    times: np.ndarray
+    coordinates: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    body_names: tuple[str, ...]
+    newton_iterations: np.ndarray
+    n_factorizations: int
+    n_solves: int
+    complete: bool
+    point_map: PointMap = field(repr=False)
+    mechanism: Mechanism = field(repr=False)
+    n_subdivisions: int = 0
+    redundant_equations: tuple[str, ...] = ()
+    n_refactorizations: int = 0
+    linear_solver: str = "superlu"
+
+    @property
+    def n_times(self) -> int:
+        return self.times.size
+
+    @property
+    def point_names(self) -> tuple[str, ...]:
+        return self.point_map.names
+
+    def point(self, name: str) -> PointMotion:
+        """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`."""
+        try:
+            k = self.point_map.index(name)
+        except KeyError:
+            raise KeyError(f'unknown point "{name}"; the model has {", ".join(self.point_map.names)}') from None
+        local = self.point_map.local[k]
+        body = int(self.point_map.body[k])
+        if body < 0:
+            position = np.tile(local, (self.n_times, 1))
+            return PointMotion(position, np.zeros_like(position), np.zeros_like(position))
+        columns = slice(3 * body, 3 * body + 3)
+        return PointMotion(
+            *carried_motion(self.coordinates[:, columns], self.velocities[:, columns], self.accelerations[:, columns], local)
+        )
+
+    def joint(self, name: str | int) -> CoordinateMotion:
+        """The own coordinate of joint `name` (its name, ``"joints[i]"`` or the index i) and
+        its time derivatives.
+
+        A revolute's relative angle ``angle(bodies[0]) - angle(bodies[1])`` (rad, not
+        wrapped), a translational joint's stroke (m), a pin-in-slot's slide (m).
+
+        Raises
+        ------
+        KeyError
+            No such joint, or its kind has no own coordinate (a rigid joint, a gear).
+        """
+        return self._own_coordinate("joints", name)
+
+    def driver(self, name: str | int) -> CoordinateMotion:
+        """The quantity driver `name` (its name, ``"drivers[i]"`` or the index i) drives, as solved.
+
+        A stroke or a distance (m), an angle (rad), a coordinate; it follows the driver's
+        law to the solver's tolerance.
+        """
+        return self._own_coordinate("drivers", name)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Labels of the joints that have an own coordinate: the name, else ``joints[i]``."""
+        outputs = self._outputs_pattern
+        return tuple(
+            joint.name or f"joints[{index}]"
+            for index, joint in enumerate(self.mechanism.joints)
+            if outputs.row_of_joint[index] >= 0
+        )
+
+    def _own_coordinate(self, kind: str, name: str) -> CoordinateMotion:
+        index = element_index(self.mechanism, kind, name)
+        rows = self._outputs_pattern.row_of_joint if kind == "joints" else self._outputs_pattern.row_of_driver
+        row = int(rows[index])
+        if row < 0:
+            element = getattr(self.mechanism, kind)[index]
+            raise KeyError(f"{kind}[{index}] is {element.type_name}, which has no coordinate of its own")
+        value, rate, acceleration = self._outputs
+        return CoordinateMotion(value[:, row], rate[:, row], acceleration[:, row])
+
+    @cached_property
+    def _outputs_pattern(self) -> OutputPattern:
+        return build_output_pattern(self.mechanism)
+
+    @cached_property
+    def _outputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every element's own coordinate at every sample, shape (n_times, n_rows) each."""
+        return own_coordinates(self._outputs_pattern, self.coordinates, self.velocities, self.accelerations)
+
+    def limit_crossings(self) -> list[LimitState]:
+        """The elements whose own coordinate leaves its ``limits``, each at its first sample outside."""
+        crossings = []
+        for state in limit_states(self.mechanism, self._outputs_pattern, self._outputs[0], self.times):
+            if not state.within:
+                crossings.append(state)
+        return crossings
+
+
+class LimitState(NamedTuple):
+    """An element with ``limits`` and its own coordinate: at a time, or the first time outside.
+
+    ``label`` names the element (``joints[3] "boom" (translational …)``), ``quantity`` its
+    coordinate (``stroke``), ``unit`` "m" or "rad".
+    """
+
+    label: str
+    quantity: str
+    unit: str
+    value: float
+    limits: tuple[float, float]
+    time: float
+    within: bool
+
+    def __str__(self) -> str:
+        low, high = self.limits
+        where = "within" if self.within else "outside"
+        return (f"{self.label}: {self.quantity} {self.value:.6g} {self.unit} at t = {self.time:.6g} s, {where} its "
+                f"limits [{low:g}, {high:g}]")  # fmt: skip
+
+
+def own_coordinates(outputs: OutputPattern, coordinates, velocities, accelerations):
+    """The own coordinates of `outputs` at every sample, and their rates and accelerations.
+
+    Parameters
+    ----------
+    outputs : OutputPattern
+    coordinates, velocities, accelerations : ndarray, shape (n_times, n_coordinates)
+
+    Returns
+    -------
+    value, rate, acceleration : ndarray, shape (n_times, outputs.n_rows)
+    """
+    shape = (coordinates.shape[0], outputs.n_rows)
+    value, rate, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)
+    if outputs.n_rows and shape[0]:
+        _kernels.fill_outputs(
+            outputs.primitives, outputs.indptr.astype(np.int64), outputs.indices.astype(np.int64),
+            np.ascontiguousarray(coordinates, dtype=float), np.ascontiguousarray(velocities, dtype=float),
+            np.ascontiguousarray(accelerations, dtype=float), value, rate, acceleration,
+        )  # fmt: skip
+    return value, rate, acceleration
+
+
+def limit_states(mechanism: Mechanism, outputs: OutputPattern, values: np.ndarray, times) -> list[LimitState]:
+    """Each element with ``limits``: its coordinate at the first sample outside them, or at
+    the last sample if it stays within.  `values` are the own coordinates (n_times, n_rows)."""
+    states = []
+    for kind, rows in (("joints", outputs.row_of_joint), ("drivers", outputs.row_of_driver)):
+        for index, element in enumerate(getattr(mechanism, kind)):
+            limits = getattr(element, "limits", None)
+            if limits is None or rows[index] < 0:
+                continue
+            row = int(rows[index])
+            column = values[:, row]
+            outside = np.flatnonzero((column < limits[0]) | (column > limits[1]))
+            sample = int(outside[0]) if outside.size else column.size - 1
+            quantity = type(element).output_names[0] if kind == "joints" else element.type_name
+            states.append(LimitState(
+                mechanism.element_label(kind, index), quantity, "rad" if outputs.row_is_angle[row] else "m",
+                float(column[sample]), limits, float(times[sample]), not outside.size,
+            ))  # fmt: skip
+    return states
+
+
+def element_index(mechanism: Mechanism, kind: str, name: str | int) -> int:
+    """The index of the joint or driver (`kind`) called `name`, labelled ``kind[i]``, or i."""
+    elements = getattr(mechanism, kind)
+    if isinstance(name, (int, np.integer)) and not isinstance(name, bool):
+        if 0 <= name < len(elements):
+            return int(name)
+        raise KeyError(f"{kind}[{name}] does not exist: the model has {len(elements)} {kind}")
+    for index, element in enumerate(elements):
+        if element.name == name:
+            return index
+    if name.startswith(f"{kind}[") and name.endswith("]") and name[len(kind) + 1 : -1].isdigit():
+        index = int(name[len(kind) + 1 : -1])
+        if index < len(elements):
+            return index
+    named = [element.name for element in elements if element.name]
+    raise KeyError(
+        f'unknown {kind[:-1]} "{name}": expected a name ({", ".join(named) or "none given"}) or '
+        f"{kind}[i] with i < {len(elements)}"
+    )
