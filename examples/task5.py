@@ -1,6 +1,6 @@
 """The Task 5 ten-body linkage through the Python API.
 
-The same mechanism as ``examples/task5.toml`` (see shared/reference/task5.md): ten bodies,
+The same mechanism as ``examples/task5.toml`` (see docs/task5.md): ten bodies,
 twelve revolute joints, two hydraulic actuators (translational joints) whose strokes follow
 ``L0 + 0.05 sin(1.5 t)`` m.  Run it as a script to print the motion of the tool point K, or
 import `build_task5` to get the `Mechanism`.

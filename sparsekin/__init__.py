@@ -70,14 +70,10 @@ from .errors import (
     SparsekinError,
 )
 from .laws import Harmonic, Law, Linear, Polynomial, Spline
-from .model import (
-    GROUND,
+from .elements import (
     AbsoluteDriver,
-    Analysis,
-    Body,
     DistanceDriver,
     Gear,
-    Mechanism,
     PathDriver,
     PinInSlot,
     RackPinion,
@@ -87,6 +83,7 @@ from .model import (
     Translational,
     TranslationalDriver,
 )
+from .model import GROUND, Analysis, Body, Mechanism
 from .modelfile import load_model, save_model
 from .rank import JacobianAnalysis, analyse_jacobian
 from .results import CoordinateMotion, KinematicsResult, PointMotion

@@ -14,8 +14,7 @@ tries chord Newton first and restarts from the predictor with plain Newton if th
 gives up (or anything else goes wrong), so a sample fails here exactly when it fails in
 the Python path.  (Velocities and accelerations could instead reuse the old
 factorization with iterative refinement, saving the factorization at the converged
-position; measured on Task 5 at 1 ms steps, refinement to full accuracy cost about 14
-extra solves and residuals per sample and made the loop 2.7 times slower.)
+position: measured slower, docs/design-notes.md, "Chord Newton".)
 
 Contract with the caller: the loop stops at the first sample it cannot solve and returns
 its index as ``n_solved``; rows ``0 .. n_solved - 1`` of the output arrays are filled and

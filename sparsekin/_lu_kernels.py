@@ -15,8 +15,7 @@ Symbols (for these kernels only):
   by them, a division per column being on their critical path.
 * ``perm_r``, ``perm_c`` — row ``i`` of ``A`` is row ``perm_r[i]`` of ``B``, column ``c``
   of ``A`` is column ``perm_c[c]`` of ``B``.
-* Right-hand sides and solutions have shape (n,), or (n, n_rhs) C-contiguous for the
-  ``*_many`` kernels (one row holds every right-hand side's entry for one unknown).
+* Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
   which the solves are bound by), int64 otherwise; ``*_indptr`` are always int64.
 
@@ -35,9 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
-#: The one set of jit options for every kernel here: cached, released GIL, no fastmath
-#: (so that the finiteness checks work), numpy's error model (division by zero gives inf).
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
+from ._jit import JIT as _JIT
 
 #: Layout of the `stats` array filled by `refactor_lu`.
 #: (`sparsekin.linalg` unpacks it in this order.)
@@ -254,76 +251,6 @@ def solve_lu_transposed(
         x_i = work[perm_r[i]]
         out[i] = x_i
         total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
-    probe[0] = total
-
-
-@njit(**_JIT)
-def solve_lu_many(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
-    rhs, work, out, probe,
-):  # fmt: skip
-    """`solve_lu` for several right-hand sides in one pass: arrays of shape (n, n_rhs)."""
-    n, n_rhs = rhs.shape
-    for i in range(n):
-        row = perm_r[i]
-        for c in range(n_rhs):
-            work[row, c] = rhs[i, c]
-    for j in range(n):
-        for p in range(l_indptr[j], l_indptr[j + 1]):
-            i = l_indices[p]
-            factor = l_values[p]
-            for c in range(n_rhs):
-                work[i, c] -= factor * work[j, c]
-    for j in range(n - 1, -1, -1):
-        inverse = u_inverse[j]
-        for c in range(n_rhs):
-            work[j, c] *= inverse
-        for p in range(u_indptr[j], u_indptr[j + 1]):
-            k = u_indices[p]
-            factor = u_values[p]
-            for c in range(n_rhs):
-                work[k, c] -= factor * work[j, c]
-    total = 0.0
-    for i in range(n):
-        row = perm_c[i]
-        for c in range(n_rhs):
-            out[i, c] = work[row, c]
-            total += 0.0 * work[row, c]
-    probe[0] = total
-
-
-@njit(**_JIT)
-def solve_lu_transposed_many(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
-    rhs, work, out, probe,
-):  # fmt: skip
-    """`solve_lu_transposed` for several right-hand sides in one pass: shape (n, n_rhs)."""
-    n, n_rhs = rhs.shape
-    for i in range(n):
-        row = perm_c[i]
-        for c in range(n_rhs):
-            work[row, c] = rhs[i, c]
-    for j in range(n):
-        for p in range(u_indptr[j], u_indptr[j + 1]):
-            k = u_indices[p]
-            factor = u_values[p]
-            for c in range(n_rhs):
-                work[j, c] -= factor * work[k, c]
-        inverse = u_inverse[j]
-        for c in range(n_rhs):
-            work[j, c] *= inverse
-    for j in range(n - 1, -1, -1):
-        for p in range(l_indptr[j], l_indptr[j + 1]):
-            i = l_indices[p]
-            factor = l_values[p]
-            for c in range(n_rhs):
-                work[j, c] -= factor * work[i, c]
-    total = 0.0
-    for i in range(n):
-        row = perm_r[i]
-        for c in range(n_rhs):
-            out[i, c] = work[row, c]
-            total += 0.0 * work[row, c]
     probe[0] = total
 
 

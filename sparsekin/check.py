@@ -27,9 +27,10 @@ from .describe import (
 from .linalg import SingularMatrix, SuperLUSolver
 from .model import Mechanism
 from .newton import NoConvergence, solve_positions
-from .pattern import build_pattern
+from .pattern import build_output_pattern, build_pattern
 from .rank import JacobianAnalysis, analyse_jacobian
 from .reduced import CONSISTENCY_TOLERANCE, ReducedSystem
+from .results import LimitState, limit_states, own_coordinates
 
 __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "format_report"]
 
@@ -113,6 +114,9 @@ class ModelReport:
         The details of that rank analysis.
     redundant : tuple of RedundantEquation
     free_motions : tuple of FreeMotion
+    limits : tuple of LimitState
+        Each element with ``limits``: its own coordinate at the assembled configuration
+        and whether it is within them.
     """
 
     name: str
@@ -129,6 +133,7 @@ class ModelReport:
     redundant: tuple[RedundantEquation, ...]
     free_motions: tuple[FreeMotion, ...]
     analysis: JacobianAnalysis
+    limits: tuple[LimitState, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -170,6 +175,9 @@ class ModelReport:
             problems.append(text)
         if self.free_motions:
             problems.append(f"{len(self.free_motions)} free motion{'s' * (len(self.free_motions) != 1)}")
+        outside = sum(not state.within for state in self.limits)
+        if outside:
+            problems.append(f"{outside} element{'s' * (outside != 1)} outside {'their' if outside != 1 else 'its'} limits")
         return tuple(problems)
 
     @property
@@ -266,7 +274,15 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         )
         for k, column in enumerate(analysis.free_coordinates)
     )
+    limited = [element for element in (*mechanism.joints, *mechanism.drivers) if getattr(element, "limits", None)]
+    limits = ()
+    if limited:
+        outputs = build_output_pattern(mechanism)
+        rest = np.zeros((1, pattern.n_coordinates))
+        values = own_coordinates(outputs, coordinates[None], rest, rest)[0]
+        limits = tuple(limit_states(mechanism, outputs, values, [float(time)]))
     return ModelReport(
+        limits=limits,
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -359,6 +375,9 @@ def format_report(report: ModelReport) -> str:
             lines.append(f"      moves {motion.coordinates}")
     else:
         lines.append("free motions: none")
+    if report.limits:
+        lines.append(f"limits: {len(report.limits)} element{'s' * (len(report.limits) != 1)}")
+        lines += [f"  {state}" for state in report.limits]
     lines.append("verdict: " + ("sound" if report.sound else "; ".join(report.problems)))
     return "\n".join(lines)
 

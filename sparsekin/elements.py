@@ -661,7 +661,10 @@ class DistanceDriver(Driver):
     outputs = equations
 
     def draw(self, canvas) -> None:
-        canvas.actuator(canvas.point(self.bodies[0], self.points[0]), canvas.point(self.bodies[1], self.points[1]))
+        ends = [canvas.point(body, point) for body, point in zip(self.bodies, self.points)]
+        canvas.actuator(*ends)
+        for body, end in zip(self.bodies, ends):
+            canvas.pin(end, grounded=body == GROUND)
 
 
 @driver_kind

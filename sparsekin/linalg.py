@@ -10,9 +10,9 @@ of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocat
   sequence; every later `factor` is a numeric refactorization on the fixed structural
   patterns of L and U (numba kernels in `sparsekin._lu_kernels`), guarded: when the fixed
   pivots turn bad it falls back to a fresh SuperLU factorization with new pivoting.
-* `DenseSolver` — LAPACK's LU with partial pivoting on a dense copy, for small models.
-  (Called from Python, `RefactorSolver` measured faster at every size tried, from
-  n = 30; see the dense kernels of `sparsekin._lu_kernels` for compiled loops.)
+* `DenseSolver` — LAPACK's LU with partial pivoting on a dense copy, for small models
+  that the compiled loop cannot run (see the dense kernels of `sparsekin._lu_kernels` for
+  compiled loops; docs/design-notes.md compares the paths).
 
 All three factor ``A = jacobian.T`` — for a CSR Jacobian that is the CSC array sharing its
 memory, which SuperLU takes without a copy — and solve ``jacobian @ x = rhs`` as the
@@ -44,12 +44,12 @@ __all__ = [
 ]
 
 #: Guard of `RefactorSolver`: the smallest accepted ratio of a pivot to the largest
-#: candidate of its column (equivalently, max |L| <= 1 / MIN_PIVOT_RATIO).  KLU's default
-#: pivot tolerance; refactorizations of linkage Jacobians along a motion measured >= 0.07
-#: (shared/notes/sparse-lu-measurements.md), 70 times above it.
+#: candidate of its column (equivalently, max |L| <= 1 / MIN_PIVOT_RATIO): KLU's default
+#: pivot tolerance, far below what linkage Jacobians reach along their motions
+#: (docs/design-notes.md, "Sparse LU", pitfall 5).
 MIN_PIVOT_RATIO = 1e-3
-#: Guard of `RefactorSolver`: the largest accepted growth max |U| / max |A|.  Measured
-#: <= 6.3 along motions (150 times below); a static pivot order gone bad reached 1e110.
+#: Guard of `RefactorSolver`: the largest accepted growth max |U| / max |A|, far above
+#: what motions reach and far below what a static pivot order gone bad does (same note).
 #: The rounding errors of LU scale with the growth: at 1e3 they stay below about
 #: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
 MAX_GROWTH = 1e3
@@ -259,7 +259,6 @@ class RefactorSolver:
         self._factored = False
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
-        self._solve_work: dict[tuple[int, ...], np.ndarray] = {}  # by shape of `rhs`
 
     # ------------------------------------------------------------------ public
     @property
@@ -344,7 +343,7 @@ class RefactorSolver:
         Parameters
         ----------
         rhs : ndarray, shape (n,) or (n, n_rhs)
-            One right-hand side, or one per column: several are solved in one pass.
+            One right-hand side, or one per column (solved column by column).
         out : ndarray, optional
             C-contiguous float64 array of the shape of `rhs` to receive the solution; may
             be `rhs` itself.
@@ -362,21 +361,22 @@ class RefactorSolver:
         if not self._factored:
             raise RuntimeError(_NOT_FACTORED)
         rhs, out = _checked_rhs(rhs, self._n, out)
-        n_rhs = 1 if rhs.ndim == 1 else rhs.shape[1]
-        work = self._solve_work.get(rhs.shape)
-        if work is None:
-            work = self._solve_work[rhs.shape] = np.empty(rhs.shape)
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
+        kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
+        factors = (self._perm_r, self._perm_c, self._l_indptr, self._l_indices, self._l_values,
+                   self._u_indptr, self._u_indices, self._u_values, self._u_inverse)  # fmt: skip
         if rhs.ndim == 1:
-            kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
-        else:
-            kernel = _lu_kernels.solve_lu_many if transposed else _lu_kernels.solve_lu_transposed_many
-        kernel(
-            self._perm_r, self._perm_c, self._l_indptr, self._l_indices, self._l_values,
-            self._u_indptr, self._u_indices, self._u_values, self._u_inverse, rhs, work, out, self._probe,
-        )  # fmt: skip
-        self.n_solves += n_rhs
-        if self._probe[0] != 0.0:
+            kernel(*factors, rhs, self._solve_work, out, self._probe)
+            finite = self._probe[0] == 0.0
+        else:  # column by column
+            column = np.empty(self._n)
+            finite = True
+            for c in range(rhs.shape[1]):
+                kernel(*factors, np.ascontiguousarray(rhs[:, c]), self._solve_work, column, self._probe)
+                out[:, c] = column
+                finite &= self._probe[0] == 0.0
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        if not finite:
             raise SingularMatrix("the solution is not finite")
         return out
 
@@ -405,7 +405,6 @@ class RefactorSolver:
         self._indptr, self._indices = matrix.indptr, matrix.indices
         self._n, self._nnz = matrix.shape[0], matrix.nnz
         self._perm_c = None
-        self._solve_work = {}
         try:
             self._fresh_factor(matrix)
         except BaseException:
@@ -462,7 +461,8 @@ class RefactorSolver:
         self._l_values = np.zeros(self._l_indices.size)
         self._u_values = np.zeros(self._u_indices.size)
         self._u_inverse = np.zeros(n)
-        self._work = np.zeros(n)
+        self._work = np.zeros(n)  # the refactorization's accumulator: zero between columns
+        self._solve_work = np.zeros(n)
 
     def _numeric(self, values: np.ndarray, gather: np.ndarray) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""

@@ -8,7 +8,7 @@ the body lists it, and a point that no body lists stays on the ground.  The kind
 joints and drivers are declared in `sparsekin.elements`; `Mechanism` checks every
 element's references to bodies and points from those declarations.
 
->>> from sparsekin import Linear
+>>> from sparsekin import Linear, Revolute, RotationalDriver
 >>> mechanism = Mechanism(
 ...     points={"O": (0.0, 0.0), "A": (0.1, 0.0)},
 ...     bodies=[Body("crank", origin="O", points=("O", "A"))],
@@ -28,47 +28,10 @@ import numpy as np
 
 from . import _validate
 from ._validate import FileKeys
-from .elements import (
-    COORDINATE_NAMES,
-    DRIVER_KINDS,
-    GROUND,
-    JOINT_KINDS,
-    AbsoluteDriver,
-    DistanceDriver,
-    Driver,
-    Gear,
-    Joint,
-    PathDriver,
-    PinInSlot,
-    PointRef,
-    RackPinion,
-    Revolute,
-    Rigid,
-    RotationalDriver,
-    Translational,
-    TranslationalDriver,
-)
+from .elements import COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, Driver, Joint, PointRef
 from .errors import ModelError
 
-__all__ = [
-    "GROUND",
-    "COORDINATE_NAMES",
-    "Body",
-    "Analysis",
-    "Mechanism",
-    # the element kinds, declared in sparsekin.elements
-    "Revolute",
-    "Translational",
-    "Rigid",
-    "PinInSlot",
-    "Gear",
-    "RackPinion",
-    "TranslationalDriver",
-    "RotationalDriver",
-    "AbsoluteDriver",
-    "DistanceDriver",
-    "PathDriver",
-]
+__all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
 
 
 def _set(instance: object, field_name: str, value: object) -> None:

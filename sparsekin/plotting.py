@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .geometry import to_global, to_local
+from .geometry import rotate, to_global, to_local
 from .model import GROUND, Mechanism
 from .results import KinematicsResult
 
@@ -253,9 +253,7 @@ class Canvas:
         if body == GROUND:
             return vector
         index = self._mechanism.body_index(body)
-        turn = self._now[index, 2] - self._drawn[index, 2]
-        cosine, sine = math.cos(turn), math.sin(turn)
-        return np.array([cosine * vector[0] - sine * vector[1], sine * vector[0] + cosine * vector[1]])
+        return rotate(vector, self._now[index, 2] - self._drawn[index, 2])
 
     def origin(self, body: str) -> np.ndarray:
         """The frame origin of `body` now."""

@@ -86,10 +86,7 @@ COMPILED_MAX_COORDINATES = 120
 #: ``linear_solver="auto"`` keeps the refactorization while its L and U hold at most this
 #: many entries per entry of the Jacobian.  With more fill-in (meshes rather than chains)
 #: SuperLU's supernodal factorization beats the numba refactorization, and the run goes on
-#: with SuperLU (and chord Newton).  Measured: L + U / Jacobian entries 1.2, 1.6 and 6.4
-#: (four_bar_chain(10^4), task5_chain(10^4), lattice(22, 22)): refactorization 13 to 20
-#: times faster than SuperLU; 9.6 and 13.7 (lattice at 10^4 and 10^5 bodies): 1.2 and 2.1
-#: times slower.
+#: with SuperLU (and chord Newton); docs/design-notes.md gives the measured fill ratios.
 MAX_REFACTOR_FILL = 8.0
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}

@@ -22,11 +22,12 @@ from contextlib import contextmanager
 import numpy as np
 
 from .laws import Harmonic, Linear
-from .model import Body, Mechanism, Revolute, RotationalDriver, Translational, TranslationalDriver
+from .elements import Revolute, RotationalDriver, Translational, TranslationalDriver
+from .model import Body, Mechanism
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "four_bar_chain", "lattice", "task5_unit_phases"]
 
-#: Task 5 points in the drawn configuration, m (shared/reference/task5.md).
+#: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
     "A": (-1.0, 0.2), "B": (-0.7, 0.8), "D": (-0.2, 0.5), "E": (0.1, 0.8), "F": (0.9, 0.7),
     "G": (0.3, 0.6), "H": (0.7, -0.4), "I": (0.7, 0.3), "J": (0.0, 0.9), "K": (-1.2, 0.6),

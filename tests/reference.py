@@ -11,7 +11,12 @@ import numpy as np
 
 from sparsekin import (
     AbsoluteDriver,
+    DistanceDriver,
+    Gear,
     Mechanism,
+    PathDriver,
+    PinInSlot,
+    RackPinion,
     Revolute,
     Rigid,
     RotationalDriver,
@@ -61,8 +66,22 @@ def relative_angle(mechanism, q, body_i, body_j) -> float:
     return frame(mechanism, q, body_i)[1] - frame(mechanism, q, body_j)[1]
 
 
+def unit(vector) -> np.ndarray:
+    vector = np.asarray(vector, dtype=float)
+    return vector / np.linalg.norm(vector)
+
+
+def left_normal(vector) -> np.ndarray:
+    return np.array([-vector[1], vector[0]])
+
+
+def drawn_relative_angle(mechanism, body_i, body_j) -> float:
+    return mechanism.frame(body_i)[2] - mechanism.frame(body_j)[2]
+
+
 def constraint_residual(mechanism: Mechanism, q: np.ndarray, driver_values=None) -> np.ndarray:
-    """All equations, joints then drivers; `driver_values` default to the initial values."""
+    """All equations, joints then drivers; `driver_values` (one per driver equation) default
+    to the initial values."""
     equations: list[float] = []
     for joint in mechanism.joints:
         i, j = joint.bodies
@@ -78,7 +97,21 @@ def constraint_residual(mechanism: Mechanism, q: np.ndarray, driver_values=None)
             origin_j = mechanism.frame(j)[:2]
             equations += list(position(mechanism, q, i, origin_j) - position(mechanism, q, j, origin_j))
             equations.append(relative_angle(mechanism, q, i, j) - (mechanism.frame(i)[2] - mechanism.frame(j)[2]))
-    for k, driver in enumerate(mechanism.drivers):
+        elif isinstance(joint, PinInSlot):
+            # the pin (on j) seen from the slot's point (on i), across the slot's line
+            offset = position(mechanism, q, j, joint.at) - position(mechanism, q, i, joint.at)
+            equations.append(float(turned(mechanism, q, i, left_normal(unit(joint.direction))) @ offset))
+        elif isinstance(joint, Gear):
+            k_body = joint.carrier
+            turn = [relative_angle(mechanism, q, b, k_body) - drawn_relative_angle(mechanism, b, k_body) for b in (i, j)]
+            equations.append(turn[0] + joint.ratio * turn[1])
+        elif isinstance(joint, RackPinion):
+            travel = float(turned(mechanism, q, i, unit(joint.direction))
+                           @ (position(mechanism, q, j, joint.at) - position(mechanism, q, i, joint.at)))
+            rotation = relative_angle(mechanism, q, j, i) - drawn_relative_angle(mechanism, j, i)
+            equations.append(travel + joint.radius * rotation)
+    n_joint_rows = len(equations)
+    for driver in mechanism.drivers:
         if isinstance(driver, TranslationalDriver):
             joint = mechanism.joint_named(driver.joint)
             start, end, axis = axis_of(mechanism, joint)
@@ -94,6 +127,17 @@ def constraint_residual(mechanism: Mechanism, q: np.ndarray, driver_values=None)
             k_body = mechanism.body_index(driver.body)
             value = q[3 * k_body + coordinate]
             initial = mechanism.frame(driver.body)[coordinate]
-        target = initial if driver_values is None else driver_values[k]
+        elif isinstance(driver, DistanceDriver):
+            (i, j), (p, r) = driver.bodies, driver.points
+            value = float(np.linalg.norm(position(mechanism, q, j, r) - position(mechanism, q, i, p)))
+            initial = float(np.linalg.norm(np.subtract(mechanism.position(r), mechanism.position(p))))
+        elif isinstance(driver, PathDriver):
+            # two equations: the point's x and y; `driver_values` gives one value per equation
+            where = position(mechanism, q, driver.body, driver.point)
+            drawn = np.asarray(mechanism.position(driver.point), dtype=float)
+            targets = drawn if driver_values is None else driver_values[len(equations) - n_joint_rows :][:2]
+            equations += list(where - targets)
+            continue
+        target = initial if driver_values is None else driver_values[len(equations) - n_joint_rows]
         equations.append(value - target)
     return np.array(equations)

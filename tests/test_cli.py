@@ -221,3 +221,19 @@ def test_plot_writes_the_figures(tmp_path, capsys):
     for name in ("point_A.png", "point_K.png", "mechanism.png"):
         assert (out / name).read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
         assert str(out / name) in printed
+
+
+def test_joints_csv_holds_each_joint_coordinate(task5_run):
+    """Revolutes by label (no name: joints[i]), then the two actuators' strokes."""
+    _, out, _ = task5_run
+    header, rows = read_csv(out / "joints.csv")
+    columns = header.split(",")
+    assert columns[:4] == ["t", "joints[0].angle", "joints[0].rate", "joints[0].accel"]
+    assert columns[-6:] == [
+        "actuator1.stroke", "actuator1.speed", "actuator1.accel", "actuator2.stroke", "actuator2.speed",
+        "actuator2.accel",
+    ]  # fmt: skip
+    assert len(columns) == 1 + 3 * 14
+    result = solve_kinematics(load_model(TASK5), np.linspace(0.0, 1.0, 11))
+    assert np.array_equal(rows[:, -6:-3], np.column_stack(result.joint("actuator1")))  # repr: bit for bit
+    assert np.array_equal(rows[:, 1:4], np.column_stack(result.joint(0)))

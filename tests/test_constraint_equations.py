@@ -19,8 +19,13 @@ from reference import constraint_residual
 from sparsekin import (
     AbsoluteDriver,
     Body,
+    DistanceDriver,
+    Gear,
     Linear,
     Mechanism,
+    PathDriver,
+    PinInSlot,
+    RackPinion,
     Revolute,
     Rigid,
     RotationalDriver,
@@ -34,11 +39,13 @@ POINTS = {"P": (0.3, -0.2), "Q": (1.1, 0.4), "R": (-0.6, 0.9)}
 LAW = Linear(rate=0.0)
 
 
-def two_bodies(*joints, drivers=()) -> Mechanism:
+def two_bodies(*joints, drivers=(), third=False) -> Mechanism:
     bodies = [
         Body("b1", origin=(0.1, 0.2), angle=0.4, points=("P", "Q")),
         Body("b2", origin="Q", angle=-1.1, points=("Q", "R")),
     ]
+    if third:  # a carrier
+        bodies.append(Body("b3", origin=(-0.4, 0.7), angle=0.9, points=("R",)))
     return Mechanism(points=POINTS, bodies=bodies, joints=list(joints), drivers=list(drivers))
 
 
@@ -64,10 +71,24 @@ ELEMENTS = {
         drivers=[AbsoluteDriver("b1", c, law=LAW) for c in ("x", "y", "angle")]
         + [AbsoluteDriver("b2", "angle", law=LAW)]
     ),
+    "pin in slot": two_bodies(PinInSlot(("b1", "b2"), at="R", direction=(0.6, -0.8))),
+    "pin in a ground slot": two_bodies(PinInSlot(("ground", "b2"), at="P", direction=(1.0, 0.2))),
+    "gear on the ground": two_bodies(Gear(("b1", "b2"), ratio=2.5)),
+    "internal gear on a carrier": two_bodies(Gear(("b2", "b1"), ratio=-3.0, carrier="b3"), third=True),
+    "rack and pinion": two_bodies(RackPinion(("b1", "b2"), at="Q", direction=(0.3, 1.0), radius=0.25)),
+    "pinion on a ground rack": two_bodies(RackPinion(("ground", "b2"), at="R", direction=(1.0, 0.0), radius=0.4)),
+    "distance driver": two_bodies(drivers=[DistanceDriver(("P", "R"), ("b1", "b2"), law=LAW)]),
+    "distance driver to the ground": two_bodies(drivers=[DistanceDriver(("Q", (2.0, -1.0)), ("b2", "ground"), law=LAW)]),
+    "path driver": two_bodies(drivers=[PathDriver("b2", "R", law_x=LAW, law_y=LAW)]),
 }
 
-coordinates = arrays(np.float64, 6, elements=st.floats(-3.0, 3.0))
-velocities = arrays(np.float64, 6, elements=st.floats(-4.0, 4.0))
+#: Coordinates of two bodies (three for a carrier), drawn for each test.
+coordinates = arrays(np.float64, 9, elements=st.floats(-3.0, 3.0))
+velocities = arrays(np.float64, 9, elements=st.floats(-4.0, 4.0))
+
+
+def sized(mechanism, vector):
+    return vector[: mechanism.n_coordinates]
 
 
 def assembled(mechanism):
@@ -86,6 +107,7 @@ def residual(assembler, q):
 @given(q=coordinates)
 def test_residual_matches_reference(element, q):
     mechanism = ELEMENTS[element]
+    q = sized(mechanism, q)
     np.testing.assert_allclose(residual(assembled(mechanism), q), constraint_residual(mechanism, q), atol=1e-13)
 
 
@@ -100,6 +122,7 @@ def test_residual_vanishes_in_initial_configuration(element):
 @settings(max_examples=40, deadline=None)
 @given(q=coordinates)
 def test_jacobian_matches_central_differences(element, q):
+    q = sized(ELEMENTS[element], q)
     assembler = assembled(ELEMENTS[element])
     assembler.fill_residual_jacobian(q)
     jacobian = assembler.jacobian.toarray()
@@ -116,6 +139,7 @@ def test_jacobian_matches_central_differences(element, q):
 @settings(max_examples=40, deadline=None)
 @given(q=coordinates, qd=velocities)
 def test_gamma_is_minus_second_directional_derivative(element, q, qd):
+    q, qd = sized(ELEMENTS[element], q), sized(ELEMENTS[element], qd)
     assembler = assembled(ELEMENTS[element])
     assembler.fill_acceleration_rhs(q, qd)
     gamma = assembler.acceleration_rhs.copy()

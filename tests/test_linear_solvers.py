@@ -160,7 +160,8 @@ def test_input_is_validated(solver_name):
 
 # ---------------------------------------------------------------------- RefactorSolver
 def test_permutation_convention():
-    """shared/notes pitfall 2, for the matrix the solvers factor, ``A = jacobian.T``."""
+    """The permutation convention of docs/design-notes.md ("Sparse LU"), for the matrix the solvers
+    factor, ``A = jacobian.T``."""
     family = Family("task5")
     a = family.jacobian_at(1).T
     lu = splu(a, permc_spec="COLAMD")

@@ -15,17 +15,20 @@ from hypothesis import strategies as st
 
 from sparsekin.errors import ModelError
 from sparsekin.laws import Harmonic, Linear, Polynomial, Spline
-from sparsekin.model import (
+from sparsekin.elements import (
     AbsoluteDriver,
-    Analysis,
-    Body,
-    Mechanism,
+    DistanceDriver,
+    Gear,
+    PathDriver,
+    PinInSlot,
+    RackPinion,
     Revolute,
     Rigid,
     RotationalDriver,
     Translational,
     TranslationalDriver,
 )
+from sparsekin.model import Analysis, Body, Mechanism
 from sparsekin.modelfile import load_model, save_model
 
 TASK5 = Path(__file__).resolve().parents[1] / "examples" / "task5.toml"
@@ -95,6 +98,39 @@ name = "weld"
 type = "rigid"
 bodies = ["arm", "tool tip"]
 
+[[joints]]
+name = "slot"
+type = "pin_in_slot"
+bodies = ["rod", "arm"]
+at = "C"
+direction = [1.0, 0.5]
+limits = [-0.1, 0.2]
+
+[[joints]]
+type = "gear"
+bodies = ["crank", "rod"]
+ratio = -2.5
+carrier = "slider"
+
+[[joints]]
+type = "gear"
+bodies = ["crank", "arm"]
+ratio = 3
+
+[[joints]]
+name = "rack"
+type = "rack_pinion"
+bodies = ["slider", "crank"]
+at = "A"
+direction = [1.0, 0.0]
+radius = 0.05
+
+[[joints]]
+type = "revolute"
+bodies = ["arm", "ground"]
+at = "C"
+limits = [-1.5, 1.5]
+
 [[drivers]]
 name = "stroke"
 type = "translational"
@@ -140,6 +176,21 @@ body = "slider"
 coordinate = "angle"
 law = { type = "spline", times = [0.0, 1.0, 2.0], values = [0.0, 0.5, 0.0] }
 
+[[drivers]]
+name = "cylinder"
+type = "distance"
+points = ["O", "D 1"]
+bodies = ["ground", "tool tip"]
+law = { type = "linear", rate = 0.01 }
+limits = [0.5, 0.8]
+
+[[drivers]]
+type = "path"
+body = "rod"
+point = "B"
+law_x = { type = "linear", rate = 0.1 }
+law_y = { type = "harmonic", amplitude = 0.02, omega = 3.0, offset = 0.0 }
+
 [analysis]
 t_end = 2.0
 steps = 201
@@ -167,6 +218,11 @@ def every_element_mechanism() -> Mechanism:
             Translational(("ground", "slider"), axis=("O", "B"), name="guide"),
             Translational(("slider", "arm"), at="C", direction=(0.0, 1.0), name="rail"),
             Rigid(("arm", "tool tip"), name="weld"),
+            PinInSlot(("rod", "arm"), at="C", direction=(1.0, 0.5), name="slot", limits=(-0.1, 0.2)),
+            Gear(("crank", "rod"), ratio=-2.5, carrier="slider"),
+            Gear(("crank", "arm"), ratio=3.0),
+            RackPinion(("slider", "crank"), at="A", direction=(1.0, 0.0), radius=0.05, name="rack"),
+            Revolute(("arm", "ground"), at="C", limits=(-1.5, 1.5)),
         ],
         drivers=[
             TranslationalDriver(
@@ -179,6 +235,8 @@ def every_element_mechanism() -> Mechanism:
             AbsoluteDriver("tool tip", "y", Polynomial((0.2, 0.0, 1e-3))),
             AbsoluteDriver("arm", "angle", Spline((0.0, 0.5, 1.0, 2.0), (0.0, 0.1, 0.3, 0.2))),
             AbsoluteDriver("slider", "angle", Spline((0.0, 1.0, 2.0), (0.0, 0.5, 0.0))),
+            DistanceDriver(("O", "D 1"), ("ground", "tool tip"), Linear(rate=0.01), name="cylinder", limits=(0.5, 0.8)),
+            PathDriver("rod", "B", law_x=Linear(rate=0.1), law_y=Harmonic(amplitude=0.02, omega=3.0, offset=0.0)),
         ],
         analysis=Analysis(t_end=2.0, steps=201, points=("A", "B", "D 1")),
     )
@@ -353,11 +411,27 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
     body_pairs = _two_different([*body_names, "ground"])
     two_points = _two_different(point_names)
     nonzero_direction = st.tuples(_FINITE, _FINITE).filter(lambda direction: math.hypot(*direction) > 0.0)
+    limits = st.tuples(_FINITE, _FINITE).filter(lambda pair: pair[0] < pair[1]) | st.none()
+    positive = _FINITE.filter(lambda value: value > 0)
+    nonzero = _FINITE.filter(lambda value: value != 0)
+
+    def gears(name):
+        return body_pairs.flatmap(lambda pair: st.builds(
+            Gear, st.just(pair), nonzero, carrier=st.sampled_from([b for b in [*body_names, "ground"] if b not in pair]),
+            name=st.just(name),
+        ))  # fmt: skip
+
     joint_kinds = [
-        lambda name: st.builds(Revolute, body_pairs, point_references, name=st.just(name)),
-        lambda name: st.builds(Translational, body_pairs, axis=two_points, name=st.just(name)),
+        lambda name: st.builds(Revolute, body_pairs, point_references, name=st.just(name), limits=limits),
         lambda name: st.builds(
-            Translational, body_pairs, at=point_references, direction=nonzero_direction, name=st.just(name)
+            PinInSlot, body_pairs, point_references, nonzero_direction, name=st.just(name), limits=limits
+        ),
+        gears,
+        lambda name: st.builds(RackPinion, body_pairs, point_references, nonzero_direction, positive, name=st.just(name)),
+        lambda name: st.builds(Translational, body_pairs, axis=two_points, name=st.just(name), limits=limits),
+        lambda name: st.builds(
+            Translational, body_pairs, at=point_references, direction=nonzero_direction, name=st.just(name),
+            limits=limits,
         ),
         lambda name: st.builds(Rigid, body_pairs, name=st.just(name)),
     ]
@@ -368,6 +442,8 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
     named_sliders = [joint.name for joint in joints if isinstance(joint, Translational) and joint.name]
     driver_kinds = [
         st.builds(RotationalDriver, body_pairs, _laws(), name=st.none() | _NAMES),
+        st.builds(DistanceDriver, two_points, body_pairs, _laws(), name=st.none() | _NAMES, limits=limits),
+        st.builds(PathDriver, st.sampled_from(body_names), point_references, _laws(), _laws()),
         st.builds(AbsoluteDriver, st.sampled_from(body_names), st.sampled_from(["x", "y", "angle"]), _laws()),
     ]
     if named_sliders:

@@ -86,3 +86,35 @@ def plot_point_motion_of(result, names, directory):
     for path in paths:
         assert path.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
     return paths
+
+
+@pytest.mark.parametrize("example", ["task5_distance", "planetary_gear"])
+def test_examples_with_every_element_kind_are_drawn(tmp_path, matplotlib_image, example):
+    from sparsekin.plotting import draw_mechanism, plot_actuators
+
+    mechanism = load_model(TASK5.with_name(f"{example}.toml"))
+    result = solve_kinematics(mechanism, np.linspace(0.0, 1.0, 11))
+    pixels = matplotlib_image.imread(draw_mechanism(mechanism, result, tmp_path))
+    assert pixels[..., :3].std() > 0.05
+    assert plot_actuators(result, tmp_path) == ([tmp_path / "actuators.png"] if example == "task5_distance" else [])
+
+
+def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
+    """Each registered kind's `draw` runs on a model that has one of each."""
+    from test_model_file import every_element_mechanism
+
+    from sparsekin import elements
+    from sparsekin.pattern import build_point_map
+    from sparsekin.plotting import draw_mechanism
+    from sparsekin.results import KinematicsResult
+
+    mechanism = every_element_mechanism()  # drawn as given: it need not move
+    kinds = {type(element) for element in (*mechanism.joints, *mechanism.drivers)}
+    assert kinds == {*elements.JOINT_KINDS.values(), *elements.DRIVER_KINDS.values()}
+    coordinates = mechanism.frames().ravel()[None]
+    drawn = KinematicsResult(
+        times=np.zeros(1), coordinates=coordinates, velocities=0 * coordinates, accelerations=0 * coordinates,
+        body_names=mechanism.body_names, newton_iterations=np.zeros(1, dtype=int), n_factorizations=0,
+        n_solves=0, complete=True, point_map=build_point_map(mechanism), mechanism=mechanism,
+    )  # fmt: skip
+    assert draw_mechanism(mechanism, drawn, tmp_path).is_file()

@@ -12,7 +12,7 @@ from sparsekin import ConvergenceError, solve_kinematics
 from sparsekin.assembly import Assembler
 from sparsekin.pattern import build_pattern
 
-#: A copy of shared/reference/adams_point_A.csv (its header names the source).
+#: The MSC ADAMS export of point A (its header names the source; docs/task5.md).
 ADAMS_POINT_A = Path(__file__).resolve().parent / "data" / "adams_point_A.csv"
 PERIOD = 4 * math.pi / 3  # both strokes are L0 + 0.05 sin(1.5 t)
 

@@ -1,0 +1,92 @@
+"""Write docs/elements.md, the reference of every joint, driver and law kind, from their declarations.
+
+    python3 docs/make_element_reference.py          # rewrites docs/elements.md
+    python3 docs/make_element_reference.py --check  # exit 1 if docs/elements.md is stale
+
+The page is generated, never edited by hand: each kind's class docstring, file keys,
+equations and own coordinate come from `sparsekin.elements` and `sparsekin.laws`.
+tests/test_docs.py runs the check.
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+from pathlib import Path
+
+from sparsekin.elements import DRIVER_KINDS, JOINT_KINDS
+from sparsekin.laws import BUILT_IN_LAWS
+
+PAGE = Path(__file__).resolve().parent / "elements.md"
+
+
+def _keys(kind) -> str:
+    keys = kind.file_keys
+    parts = []
+    if keys.required:
+        parts.append("required " + ", ".join(f"`{key}`" for key in keys.required))
+    if keys.forms:
+        parts.append("either " + " or ".join(" + ".join(f"`{key}`" for key in form) for form in keys.forms))
+    if keys.optional:
+        parts.append("optional " + ", ".join(f"`{key}`" for key in keys.optional))
+    return "; ".join(parts)
+
+
+def _description(kind) -> str:
+    return " ".join(line.strip() for line in inspect.getdoc(kind).splitlines())
+
+
+def _element(kind, section: str) -> list[str]:
+    lines = [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", _description(kind), ""]
+    lines.append(f"- keys: {_keys(kind)}")
+    equations = ", ".join(kind.equation_names)
+    lines.append(f"- equations ({kind.n_equations}): {equations}")
+    if section == "drivers":
+        lines.append(f"- laws: {', '.join(f'`{name}`' for name in kind.law_fields)} (one per equation)")
+    if kind.output_names:
+        columns = ", ".join(f"`J.{suffix}`" for suffix in kind.output_names)
+        where = f"in `joints.csv` as {columns}" if section == "joints" else "in Python only"
+        lines.append(f"- own coordinate: yes, {where} (`result.{section[:-1]}(name)`)")
+    else:
+        lines.append("- own coordinate: none")
+    if "limits" in kind.file_keys.keys:
+        lines.append("- `limits = [min, max]` on its own coordinate: checked by `check`, warned during a run")
+    return [*lines, ""]
+
+
+def reference() -> str:
+    lines = [
+        "# Element reference",
+        "",
+        "Generated from the element declarations by `docs/make_element_reference.py`; do not edit.",
+        "The model-file contract is [model-format.md](model-format.md); adding a kind is",
+        "[adding-an-element.md](adding-an-element.md).",
+        "",
+        "## Joints (`[[joints]]`)",
+        "",
+    ]
+    for kind in JOINT_KINDS.values():
+        lines += _element(kind, "joints")
+    lines += ["## Drivers (`[[drivers]]`)", ""]
+    for kind in DRIVER_KINDS.values():
+        lines += _element(kind, "drivers")
+    lines += ["## Laws (`law = { type = ... }`)", ""]
+    for kind in BUILT_IN_LAWS:
+        lines += [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", _description(kind), "",
+                  f"- keys: {_keys(kind)}", ""]  # fmt: skip
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def main(argv: list[str]) -> int:
+    text = reference()
+    if "--check" in argv:
+        if not PAGE.exists() or PAGE.read_text(encoding="utf-8") != text:
+            print(f"{PAGE} is stale: run python3 docs/make_element_reference.py", file=sys.stderr)
+            return 1
+        return 0
+    PAGE.write_text(text, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
