@@ -35,7 +35,8 @@ from numba import njit
 from ._jit import JIT
 from ._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
 from ._lu_kernels import dense_lu_factor, dense_lu_solve
-from .laws import BUILT_IN_LAWS, evaluate_laws, pack_laws
+from .assembly import DriverLaws
+from .laws import BUILT_IN_LAWS, evaluate_laws
 from .model import Mechanism
 from .newton import (
     CHORD_REJECTED,
@@ -99,7 +100,7 @@ def supports_compiled(mechanism: Mechanism) -> bool:
 
     Subclasses and other law objects are refused: their `evaluate` may differ.
     """
-    return all(type(law) in BUILT_IN_LAWS for driver in mechanism.drivers for law in driver.laws())
+    return all(type(law) in BUILT_IN_LAWS for driver in mechanism.declared("drivers") for law in driver.laws())
 
 
 @njit(inline="always", **JIT)
@@ -326,7 +327,7 @@ def solve_compiled(
     for name, array in outputs.items():
         _check_array(array, name, (n_times, n_coordinates), np.float64)
     _check_array(iterations, "iterations", (n_times,), np.int64)
-    laws, _ = pack_laws([law for driver in mechanism.drivers for law in driver.laws()], pattern.driven_initial)
+    laws = DriverLaws(mechanism, pattern.driven_initial).table
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
         pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
         pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws, times,

@@ -13,13 +13,14 @@ derivatives.  From them it derives, on request:
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
-from . import _kernels
+from . import _kernels, _validate
 from .geometry import carried_motion
 from .model import Mechanism
 from .pattern import OutputPattern, PointMap, build_output_pattern
@@ -106,11 +107,10 @@ class KinematicsResult:
     def point(self, name: str) -> PointMotion:
         """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`."""
         try:
-            k = self.point_map.index(name)
+            body, local = self.point_map.locate(name)
         except KeyError:
-            raise KeyError(f'unknown point "{name}"; the model has {", ".join(self.point_map.names)}') from None
-        local = self.point_map.local[k]
-        body = int(self.point_map.body[k])
+            known = _validate.known_list(list(itertools.islice(self.point_map.names, 40)), limit=8)
+            raise KeyError(f'unknown point "{name}"; the model has {known}') from None
         if body < 0:
             position = np.tile(local, (self.n_times, 1))
             return PointMotion(position, np.zeros_like(position), np.zeros_like(position))

@@ -162,7 +162,8 @@ def solve_kinematics(
 def _warn_of_limits(result: KinematicsResult) -> None:
     """A `LimitWarning` for each element that left its ``limits`` during the run."""
     mechanism = result.mechanism
-    if any(getattr(element, "limits", None) is not None for element in (*mechanism.joints, *mechanism.drivers)):
+    if any(getattr(element, "limits", None) is not None for kind in ("joints", "drivers")
+           for element in mechanism.declared(kind)):  # fmt: skip
         for state in result.limit_crossings():
             warnings.warn(f"{state.label} left its limits: {state.quantity} {state.value:.6g} {state.unit} at "
                           f"t = {state.time:.6g} s, outside [{state.limits[0]:g}, {state.limits[1]:g}]",
@@ -255,14 +256,14 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
         raise ValueError("`times` must be finite.")
     if np.any(np.diff(array) <= 0.0):
         raise ValueError("`times` must be strictly increasing.")
-    for k, driver in enumerate(mechanism.drivers):
+    for driver in mechanism.declared("drivers"):
         for field_name in driver.law_fields:
             law = getattr(driver, field_name)
             if isinstance(law, Spline):
                 first, last = law.time_range
                 if array[0] < first or array[-1] > last:
                     raise ValueError(
-                        f"`times` span [{array[0]:g}, {array[-1]:g}] s but drivers[{k}].{field_name}, a spline, "
-                        f"is defined on [{first:g}, {last:g}] s."
+                        f"`times` span [{array[0]:g}, {array[-1]:g}] s but the {field_name} of driver "
+                        f"{driver.describe()!r}, a spline, is defined on [{first:g}, {last:g}] s."
                     )
     return array
