@@ -16,13 +16,15 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, sys.argv[1])
+if __name__ == "__main__":
+    sys.path.insert(0, sys.argv[1])
 
 import sparsekin as sk  # noqa: E402
 from sparsekin import testset  # noqa: E402
 
 MODELS = {"small": lambda: testset.task5_chain(3), "chain": lambda: testset.task5_chain(300)}
 
-mechanism = MODELS[sys.argv[2]]()
-n_steps = int(sys.argv[3])
-sk.solve_kinematics(mechanism, np.arange(n_steps + 1) * 0.01, linear_solver="refactor")
+if __name__ == "__main__":
+    mechanism = MODELS[sys.argv[2]]()
+    n_steps = int(sys.argv[3])
+    sk.solve_kinematics(mechanism, np.arange(n_steps + 1) * 0.01, linear_solver="refactor")

@@ -169,10 +169,11 @@ def _solve_positions(
 
 @njit(**JIT)
 def _run_time_loop(
-    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times,
+    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times, start,
     tolerance, max_iterations, chord, coordinates, velocities, accelerations, iterations,
 ):  # fmt: skip
-    """Every sample in turn; returns (n_solved, status, n_factorizations, n_solves, n_restarts)."""
+    """Samples `start` … in turn (rows before `start` are solved already); returns
+    (n_solved, status, n_factorizations, n_solves, n_restarts)."""
     n = initial_coordinates.size
     n_driven = driven_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
@@ -193,7 +194,7 @@ def _run_time_loop(
     acceleration = np.empty(n_driven)
     counts = np.zeros(2, dtype=np.int64)  # factorizations, solves
     n_restarts = 0
-    for k in range(times.size):
+    for k in range(start, times.size):
         t = times[k]
         if k == 0:
             for c in range(n):
@@ -213,10 +214,10 @@ def _run_time_loop(
         # Chord Newton first (not at the first sample: no factorization yet), and on any
         # failure plain Newton from the predictor again.
         corrections, status = 0, CHORD_REJECTED
-        for attempt in range(1 if k == 0 or not chord else 2):
+        for attempt in range(1 if k == start or not chord else 2):
             for c in range(n):
                 q[c] = predictor[c]
-            use_chord = attempt == 0 and chord and k > 0
+            use_chord = attempt == 0 and chord and k > start
             corrections, status = _solve_positions(
                 primitives, indptr, indices, weights, q, turns, target, tolerance, max_iterations, use_chord,
                 residual, jac_data, lu, pivots, counts,
@@ -262,6 +263,7 @@ def solve_compiled(
     iterations: np.ndarray,
     *,
     chord: bool = True,
+    start: int = 0,
 ) -> CompiledOutcome:
     """Positions, velocities and accelerations at every time, in one compiled loop.
 
@@ -290,6 +292,10 @@ def solve_compiled(
     chord : bool
         Try chord Newton first; False runs plain Newton at every sample, with the Python
         path's iterates and counts.
+    start : int
+        The first sample to solve; rows ``0 .. start - 1`` of the outputs hold samples
+        solved before (the loop predicts sample `start` from row ``start - 1``).  A chunk
+        of a long run starts at 1 with the last sample of the chunk before in row 0.
 
     Returns
     -------
@@ -331,7 +337,8 @@ def solve_compiled(
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
         pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
         pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws, times,
-        float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations, iterations,
+        int(start), float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations,
+        iterations,
     )  # fmt: skip
     return CompiledOutcome(int(n_solved), LoopStatus(status), int(n_factorizations), int(n_solves), int(n_restarts))
 

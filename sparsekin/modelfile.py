@@ -568,10 +568,9 @@ def _model_text(mechanism: Mechanism) -> str:
             pairs.append(("offset", _value(repeat.offset, "repeat.offset")))
         if repeat.first:
             pairs.append(("first", "{ " + ", ".join(f"{_key(k)} = {_string(v)}" for k, v in repeat.first.items()) + " }"))
-        if repeat.vary:
-            pairs.append(("vary", "{ " + ", ".join(f"{_key(path)} = {_variation_text(v)}"
-                                                   for path, v in repeat.vary.items()) + " }"))  # fmt: skip
         blocks.append(_block("[[repeat]]", pairs))
+        if repeat.vary:  # a sub-table of this entry, one variation a line (long cycles: one value a line)
+            blocks.append("\n".join(["[repeat.vary]", *(_variation_line(path, v) for path, v in repeat.vary.items())]))
     return "\n\n".join(blocks) + "\n"
 
 
@@ -590,10 +589,14 @@ def _parts_text(points, bodies, joints, drivers, prefix: str) -> list[str]:
     return blocks
 
 
-def _variation_text(variation: Step | Cycle) -> str:
+def _variation_line(path: str, variation: Step | Cycle) -> str:
+    """``"points.M".step = [0.1, 0]`` or a cycle, its values one a line when there are many."""
     if isinstance(variation, Step):
-        return f"{{ step = {_value(variation.value, 'step')} }}"
-    return f"{{ cycle = {_value(list(variation.values), 'cycle')} }}"
+        return f"{_key(path)}.step = {_value(variation.value, 'step')}"
+    values = [_value(value, "cycle") for value in variation.values]
+    if len(values) <= 4:
+        return f"{_key(path)}.cycle = [{', '.join(values)}]"
+    return f"{_key(path)}.cycle = [\n" + "".join(f"    {value},\n" for value in values) + "]"
 
 
 def _block(header: str, pairs: list[tuple[str, str]]) -> str:

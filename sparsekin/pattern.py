@@ -216,8 +216,11 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     )
 
 
-def build_output_pattern(mechanism: Mechanism) -> OutputPattern:
-    """The own coordinate of every joint and driver whose kind declares one."""
+def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> OutputPattern:
+    """The own coordinate of every joint and driver whose kind declares one, or of the
+    joints and drivers of the given indices only (`joints`, `drivers`), in that order."""
+    if joints is not None or drivers is not None:
+        return _selected_outputs(mechanism, joints or (), drivers or ())
     resolver = Resolver(mechanism)
     has_output = np.concatenate([
         _per_element(mechanism, kind, lambda element: bool(type(element).output_names)) for kind in ("joints", "drivers")
@@ -233,6 +236,27 @@ def build_output_pattern(mechanism: Mechanism) -> OutputPattern:
     return OutputPattern(
         n_rows, packed.primitives, packed.indptr, packed.indices, row_of_joint, row_of_driver, packed.row_is_angle
     )
+
+
+def _selected_outputs(mechanism: Mechanism, joints, drivers) -> OutputPattern:
+    """Output rows for a few chosen elements, built from them as objects."""
+    resolver = Resolver(mechanism)
+    rows = {"joints": np.full(mechanism.n_joints, -1, dtype=np.int64),
+            "drivers": np.full(mechanism.n_drivers, -1, dtype=np.int64)}  # fmt: skip
+    blocks, n_rows = [], 0
+    for kind, indices in (("joints", joints), ("drivers", drivers)):
+        elements = [getattr(mechanism, kind)[k] for k in indices]
+        for k, element in zip(indices, elements):
+            if not type(element).output_names:
+                raise ValueError(f"{kind}[{k}] is {element.type_name}, which has no coordinate of its own")
+            rows[kind][k] = n_rows
+            n_rows += 1
+        for element_kind, group in _by_kind(elements).items():
+            selected_rows = rows[kind][[indices[g] for g in group]]
+            blocks += element_kind.outputs(ObjectColumns([elements[g] for g in group], selected_rows, resolver))
+    packed = pack(blocks, n_rows, resolver.frames)
+    return OutputPattern(n_rows, packed.primitives, packed.indptr, packed.indices, rows["joints"], rows["drivers"],
+                         packed.row_is_angle)  # fmt: skip
 
 
 class PointMap:

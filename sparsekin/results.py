@@ -53,10 +53,11 @@ class KinematicsResult:
     ----------
     times : ndarray, shape (n_times,)
         Sample times, s.
-    coordinates, velocities, accelerations : ndarray, shape (n_times, 3 * n_bodies)
+    coordinates, velocities, accelerations : array, shape (n_times, 3 * n_bodies), or None
         ``(x, y, angle)`` of each body frame, body order as in the model (m, rad), and
-        their first and second time derivatives.
-    body_names : tuple of str
+        their first and second time derivatives; None when the run did not keep them
+        (``coordinates=False``).  Zarr arrays, read when sliced, for a run streamed to a
+        store.
     newton_iterations : ndarray of int, shape (n_times,)
         Newton corrections at each time (over all its sub-steps when the step to it was
         subdivided).
@@ -78,13 +79,22 @@ class KinematicsResult:
         way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
         ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
         much fill-in after the first sample) or ``"superlu"``.
+    recorded_points : tuple of str
+        Points whose motion the run recorded (`point_tracks`).
+    point_tracks : array, shape (n_times, n_recorded_points, 6), or None
+        x, y, vx, vy, ax, ay of each recorded point.
+    recorded_joints : tuple of int
+        Indices of the joints whose own coordinate the run recorded (`joint_tracks`).
+    joint_tracks : array, shape (n_times, n_recorded_joints, 3), or None
+        Value, rate and acceleration of each recorded joint's own coordinate.
+    store : str or None
+        The Zarr store the run was streamed to.
     """
 
     times: np.ndarray
-    coordinates: np.ndarray
-    velocities: np.ndarray
-    accelerations: np.ndarray
-    body_names: tuple[str, ...]
+    coordinates: np.ndarray | None
+    velocities: np.ndarray | None
+    accelerations: np.ndarray | None
     newton_iterations: np.ndarray
     n_factorizations: int
     n_solves: int
@@ -95,17 +105,36 @@ class KinematicsResult:
     redundant_equations: tuple[str, ...] = ()
     n_refactorizations: int = 0
     linear_solver: str = "superlu"
+    recorded_points: tuple[str, ...] = ()
+    point_tracks: np.ndarray | None = None
+    recorded_joints: tuple[int, ...] = ()
+    joint_tracks: np.ndarray | None = None
+    store: str | None = None
 
     @property
     def n_times(self) -> int:
-        return self.times.size
+        return len(self.times)
+
+    @property
+    def body_names(self):
+        """The name of every body, in coordinate order."""
+        return self.mechanism.body_names
 
     @property
     def point_names(self) -> tuple[str, ...]:
         return self.point_map.names
 
     def point(self, name: str) -> PointMotion:
-        """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`."""
+        """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`.
+
+        A recorded point, or any point when the coordinates were kept.
+        """
+        if name in self.recorded_points:
+            tracks = np.asarray(self.point_tracks[:, self.recorded_points.index(name), :])
+            return PointMotion(tracks[:, 0:2], tracks[:, 2:4], tracks[:, 4:6])
+        if self.coordinates is None:
+            raise KeyError(f'point "{name}" was not recorded: the run kept '
+                           f"{', '.join(self.recorded_points) or 'no point'} and not the coordinates")  # fmt: skip
         try:
             body, local = self.point_map.locate(name)
         except KeyError:
@@ -153,6 +182,11 @@ class KinematicsResult:
 
     def _own_coordinate(self, kind: str, name: str) -> CoordinateMotion:
         index = element_index(self.mechanism, kind, name)
+        if kind == "joints" and index in self.recorded_joints:
+            tracks = np.asarray(self.joint_tracks[:, self.recorded_joints.index(index), :])
+            return CoordinateMotion(tracks[:, 0], tracks[:, 1], tracks[:, 2])
+        if self.coordinates is None:
+            raise KeyError(f"{kind}[{index}] was not recorded, and the run did not keep the coordinates")
         rows = self._outputs_pattern.row_of_joint if kind == "joints" else self._outputs_pattern.row_of_driver
         row = int(rows[index])
         if row < 0:
@@ -170,13 +204,32 @@ class KinematicsResult:
         """Every element's own coordinate at every sample, shape (n_times, n_rows) each."""
         return own_coordinates(self._outputs_pattern, self.coordinates, self.velocities, self.accelerations)
 
-    def limit_crossings(self) -> list[LimitState]:
-        """The elements whose own coordinate leaves its ``limits``, each at its first sample outside."""
-        crossings = []
-        for state in limit_states(self.mechanism, self._outputs_pattern, self._outputs[0], self.times):
-            if not state.within:
-                crossings.append(state)
-        return crossings
+    def to_xarray(self):
+        """The results as an `xarray.Dataset` (the layout of `sparsekin.recording`).
+
+        A run streamed to a store opens it lazily; an in-memory run is copied.
+        """
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError('to_xarray needs xarray: pip install "sparsekin[zarr]"') from None
+        if self.store is not None:
+            return xr.open_zarr(self.store)
+        from .recording import JOINT_DERIVATIVES, POINT_COMPONENTS
+
+        variables, coords = {}, {"t": ("time", np.asarray(self.times))}
+        if self.coordinates is not None:
+            coords["coordinate"] = [f"{b}.{c}" for b in self.body_names for c in ("x", "y", "angle")]
+            for key, array in (("q", self.coordinates), ("qd", self.velocities), ("qdd", self.accelerations)):
+                variables[key] = (("time", "coordinate"), np.asarray(array))
+        if self.recorded_points:
+            coords |= {"point": list(self.recorded_points), "component": list(POINT_COMPONENTS)}
+            variables["points"] = (("time", "point", "component"), np.asarray(self.point_tracks))
+        if self.recorded_joints:
+            labels = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
+            coords |= {"joint": labels, "derivative": list(JOINT_DERIVATIVES)}
+            variables["joints"] = (("time", "joint", "derivative"), np.asarray(self.joint_tracks))
+        return xr.Dataset(variables, coords=coords)
 
 
 class LimitState(NamedTuple):

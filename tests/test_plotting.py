@@ -114,7 +114,7 @@ def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
     coordinates = mechanism.frames().ravel()[None]
     drawn = KinematicsResult(
         times=np.zeros(1), coordinates=coordinates, velocities=0 * coordinates, accelerations=0 * coordinates,
-        body_names=mechanism.body_names, newton_iterations=np.zeros(1, dtype=int), n_factorizations=0,
+        newton_iterations=np.zeros(1, dtype=int), n_factorizations=0,
         n_solves=0, complete=True, point_map=build_point_map(mechanism), mechanism=mechanism,
     )  # fmt: skip
     assert draw_mechanism(mechanism, drawn, tmp_path).is_file()
