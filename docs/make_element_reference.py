@@ -1,4 +1,4 @@
-"""Write docs/elements.md, the reference of every joint, driver and law kind, from their declarations.
+"""Write docs/elements.md, the reference of every joint, driver, load and law kind, from their declarations.
 
     python3 docs/make_element_reference.py          # rewrites docs/elements.md
     python3 docs/make_element_reference.py --check  # exit 1 if docs/elements.md is stale
@@ -14,7 +14,7 @@ import inspect
 import sys
 from pathlib import Path
 
-from sparsekin.elements import DRIVER_KINDS, JOINT_KINDS
+from sparsekin.elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from sparsekin.laws import BUILT_IN_LAWS
 
 PAGE = Path(__file__).resolve().parent / "elements.md"
@@ -51,6 +51,13 @@ def _element(kind, section: str) -> list[str]:
         lines.append("- own coordinate: none")
     if "limits" in kind.file_keys.keys:
         lines.append("- `limits = [min, max]` on its own coordinate: checked by `check`, warned during a run")
+    if section == "joints":
+        columns = ("fx", "fy", "torque") if kind.reaction_torque else ("fx", "fy")
+        lines.append(f"- forces: {', '.join(f'`J.{name}`' for name in columns)} in `forces.csv` (`result.reaction(name)`)")
+    else:
+        columns = (*kind.force_names, "power")
+        lines.append(f"- forces: {', '.join(f'`D.{name}`' for name in columns)} in `forces.csv` "
+                     "(`result.driver_force(name)`)")  # fmt: skip
     return [*lines, ""]
 
 
@@ -70,6 +77,13 @@ def reference() -> str:
     lines += ["## Drivers (`[[drivers]]`)", ""]
     for kind in DRIVER_KINDS.values():
         lines += _element(kind, "drivers")
+    lines += ["## Loads (`[[loads]]`)", ""]
+    for kind in LOAD_KINDS.values():
+        lines += [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", _description(kind), "",
+                  f"- keys: {_keys(kind)}"]  # fmt: skip
+        if kind.n_laws:
+            lines.append(f"- `value`: {kind.n_laws} component{'s' * (kind.n_laws > 1)}, each a number or a law table")
+        lines.append("")
     lines += ["## Laws (`law = { type = ... }`)", ""]
     for kind in BUILT_IN_LAWS:
         lines += [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", _description(kind), "",

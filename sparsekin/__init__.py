@@ -10,7 +10,8 @@ The modules follow the data flow:
 =================  ===========================================================
 `laws`             motion laws of drivers: `Harmonic`, `Linear`, ... (and their kernels)
 `primitives`       the four primitive equations every element is made of
-`elements`         every kind of joint and driver, declared once (the registry)
+`loads`            the three primitive loads, and the bodies' masses, packed
+`elements`         every kind of joint, driver and load, declared once (the registry)
 `units`            units repeated into chains: `Unit`, `Repeat`, resolved by arithmetic
 `model`            frozen description: `Mechanism`, `Body`
 `modelfile`        the TOML model file: `load_model`, `save_model`
@@ -18,6 +19,8 @@ The modules follow the data flow:
 `pattern`          Mechanism -> packed equations, CSR pattern and slots (once)
 `_kernels`         numba kernels that refill residual, Jacobian and gamma
 `assembly`         `Assembler`: owns the arrays and calls the kernels
+`_force_kernels`   numba kernels of the applied and inertial forces and the element forces
+`dynamics`         forces that hold the motion: multipliers, driver forces, reactions
 `_lu_kernels`      numba LU: refactorization on fixed L/U patterns, solves, dense LU
 `linalg`           linear solvers behind one interface: SuperLU, refactorization, dense
 `rank`             numerical rank, null spaces and conditioning of a sparse Jacobian
@@ -28,7 +31,7 @@ The modules follow the data flow:
 `ordering`         a long chain's first pivot order, tiled from a short chain
 `stepper`          `KinematicStepper`: the time loop, one sample at a time
 `_compiled`        the whole time loop of a small model in one numba call
-`results`          `KinematicsResult`: points, joint and driver coordinates
+`results`          `KinematicsResult`: points, joint and driver coordinates, forces
 `recording`        what a run keeps, in chunks, in memory or in a Zarr store
 `solvers`          `solve_kinematics`: validate, run the loop, return the result
 `check`            `check_model`: degrees of freedom, rank, redundancy, free motions
@@ -78,6 +81,7 @@ from .laws import Harmonic, Law, Linear, Polynomial, Spline
 from .elements import (
     AbsoluteDriver,
     DistanceDriver,
+    Force,
     Gear,
     PathDriver,
     PinInSlot,
@@ -85,13 +89,15 @@ from .elements import (
     Revolute,
     Rigid,
     RotationalDriver,
+    Spring,
+    Torque,
     Translational,
     TranslationalDriver,
 )
 from .model import GROUND, Analysis, Body, Mechanism
 from .modelfile import load_model, save_model
 from .rank import JacobianAnalysis, analyse_jacobian
-from .results import CoordinateMotion, KinematicsResult, PointMotion
+from .results import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
 from .solvers import solve_kinematics
 from .stepper import KinematicStepper
 from .units import Cycle, Repeat, Step, Unit
@@ -106,6 +112,8 @@ __all__ = [
     "CoordinateMotion",
     "Cycle",
     "DistanceDriver",
+    "DriverForce",
+    "Force",
     "Gear",
     "Harmonic",
     "JacobianAnalysis",
@@ -122,6 +130,7 @@ __all__ = [
     "PointMotion",
     "Polynomial",
     "RackPinion",
+    "Reaction",
     "RedundantConstraintWarning",
     "Repeat",
     "Revolute",
@@ -131,7 +140,9 @@ __all__ = [
     "SingularJacobianError",
     "SparsekinError",
     "Spline",
+    "Spring",
     "Step",
+    "Torque",
     "Translational",
     "TranslationalDriver",
     "Unit",

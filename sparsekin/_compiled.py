@@ -33,9 +33,12 @@ import numpy as np
 from numba import njit
 
 from ._jit import JIT
+from ._force_kernels import fill_applied_forces, fill_force_outputs
 from ._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
-from ._lu_kernels import dense_lu_factor, dense_lu_solve
+from ._lu_kernels import dense_lu_factor, dense_lu_solve, dense_lu_solve_transposed
 from .assembly import DriverLaws
+from .dynamics import ForceOutputArrays, no_forces
+from .loads import LoadArrays
 from .laws import BUILT_IN_LAWS, evaluate_laws
 from .model import Mechanism
 from .newton import (
@@ -51,7 +54,7 @@ from .newton import (
 )
 from .pattern import ConstraintPattern
 
-__all__ = ["CompiledOutcome", "LoopStatus", "solve_compiled", "supports_compiled"]
+__all__ = ["CompiledOutcome", "CompiledForces", "LoopStatus", "solve_compiled", "supports_compiled"]
 
 
 class LoopStatus(IntEnum):
@@ -95,12 +98,38 @@ class CompiledOutcome(NamedTuple):
         return self.status == LoopStatus.SOLVED
 
 
+class CompiledForces(NamedTuple):
+    """The forces the compiled loop records at each sample (`sparsekin.dynamics`).
+
+    Attributes
+    ----------
+    loads : LoadArrays
+    laws : LawTable
+        The loads' laws, all built in.
+    n_laws : int
+    outputs : ForceOutputArrays
+        For Jacobian values in CSR order.
+    inertial : bool
+        False for quasi-static forces.
+    rows : ndarray, shape (n_times, n_columns)
+        Filled with the force columns of each sample solved.
+    """
+
+    loads: LoadArrays
+    laws: object
+    n_laws: int
+    outputs: ForceOutputArrays
+    inertial: bool
+    rows: np.ndarray
+
+
 def supports_compiled(mechanism: Mechanism) -> bool:
     """Whether every law is one the compiled loop evaluates (`sparsekin.laws.BUILT_IN_LAWS`).
 
     Subclasses and other law objects are refused: their `evaluate` may differ.
     """
-    return all(type(law) in BUILT_IN_LAWS for driver in mechanism.declared("drivers") for law in driver.laws())
+    return all(type(law) in BUILT_IN_LAWS for kind in ("drivers", "loads")
+               for element in mechanism.declared(kind) for law in element.laws())  # fmt: skip
 
 
 @njit(inline="always", **JIT)
@@ -171,13 +200,21 @@ def _solve_positions(
 def _run_time_loop(
     primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times, start,
     tolerance, max_iterations, chord, coordinates, velocities, accelerations, iterations,
+    loads, load_laws, n_load_laws, force_outputs, inertial, with_forces, forces,
 ):  # fmt: skip
     """Samples `start` … in turn (rows before `start` are solved already); returns
-    (n_solved, status, n_factorizations, n_solves, n_restarts)."""
+    (n_solved, status, n_factorizations, n_solves, n_restarts).  With `with_forces`, row k
+    of `forces` receives the force columns of sample k (`sparsekin.dynamics`)."""
     n = initial_coordinates.size
     n_driven = driven_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
     qd = np.zeros(n + 3)
+    qdd = np.zeros(n + 3)
+    applied = np.zeros(n + 3)
+    load_value = np.zeros(n_load_laws)
+    load_rate = np.zeros(n_load_laws)
+    load_acceleration = np.zeros(n_load_laws)
+    reaction_work = np.zeros((force_outputs.joint_side.size, 3))
     turns = np.zeros((n // 3 + 1, 2))  # cos and sin of each body's angle, the ground last
     predictor = np.empty(n)
     residual = np.empty(n)
@@ -248,6 +285,20 @@ def _run_time_loop(
             velocities[k, c] = qd[c]
             accelerations[k, c] = rhs[c]
         iterations[k] = corrections
+
+        if with_forces:  # Phi_q^T lam = Q - M qdd - h, with the same factorization
+            for c in range(n):
+                qdd[c] = accelerations[k, c]
+            evaluate_laws(load_laws, t, load_value, load_rate, load_acceleration)
+            fill_applied_forces(loads, q, qd, qdd, turns, load_value, inertial, applied)
+            for c in range(n):
+                rhs[c] = applied[c]
+            dense_lu_solve_transposed(lu, pivots, rhs)
+            counts[1] += 1
+            for multiplier in rhs:
+                if not math.isfinite(multiplier):
+                    return k, SINGULAR, counts[0], counts[1], n_restarts
+            fill_force_outputs(force_outputs, jac_data, rhs, q, turns, velocity_rhs, reaction_work, forces[k])
     return times.size, CONVERGED, counts[0], counts[1], n_restarts
 
 
@@ -264,6 +315,7 @@ def solve_compiled(
     *,
     chord: bool = True,
     start: int = 0,
+    forces: CompiledForces | None = None,
 ) -> CompiledOutcome:
     """Positions, velocities and accelerations at every time, in one compiled loop.
 
@@ -296,6 +348,8 @@ def solve_compiled(
         The first sample to solve; rows ``0 .. start - 1`` of the outputs hold samples
         solved before (the loop predicts sample `start` from row ``start - 1``).  A chunk
         of a long run starts at 1 with the last sample of the chunk before in row 0.
+    forces : CompiledForces, optional
+        Also the forces at each sample solved, into ``forces.rows``.
 
     Returns
     -------
@@ -334,11 +388,18 @@ def solve_compiled(
         _check_array(array, name, (n_times, n_coordinates), np.float64)
     _check_array(iterations, "iterations", (n_times,), np.int64)
     laws = DriverLaws(mechanism, pattern.driven_initial).table
+    if forces is None:
+        loads, load_laws, outputs = no_forces()
+        force_arguments = (loads, load_laws, 0, outputs, True, False, np.zeros((n_times, 0)))
+    else:
+        _check_array(forces.rows, "forces.rows", (n_times, forces.rows.shape[1]), np.float64)
+        force_arguments = (forces.loads, forces.laws, int(forces.n_laws), forces.outputs, bool(forces.inertial), True,
+                           forces.rows)  # fmt: skip
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
         pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
         pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws, times,
         int(start), float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations,
-        iterations,
+        iterations, *force_arguments,
     )  # fmt: skip
     return CompiledOutcome(int(n_solved), LoopStatus(status), int(n_factorizations), int(n_solves), int(n_restarts))
 

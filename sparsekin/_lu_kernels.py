@@ -340,3 +340,28 @@ def dense_lu_solve(a, pivots, b):
         if x_j != 0.0:
             for i in range(j):
                 b[i] -= a[i, j] * x_j
+
+
+@njit(**_JIT)
+def dense_lu_solve_transposed(a, pivots, b):
+    """Solve ``matrix.T @ x = b`` in place in `b` from `dense_lu_factor`'s output.
+
+    ``P matrix = L U`` (P the row interchanges), so ``matrix.T = U.T L.T P``: forward
+    substitution with U.T, back substitution with the unit L.T, then the interchanges
+    undone in reverse order.
+    """
+    n = a.shape[0]
+    for j in range(n):
+        total = b[j]
+        for i in range(j):
+            total -= a[i, j] * b[i]
+        b[j] = total / a[j, j]
+    for j in range(n - 1, -1, -1):
+        total = b[j]
+        for i in range(j + 1, n):
+            total -= a[i, j] * b[i]
+        b[j] = total
+    for k in range(n - 1, -1, -1):
+        swap = pivots[k]
+        if swap != k:
+            b[k], b[swap] = b[swap], b[k]

@@ -127,6 +127,11 @@ class Assembler:
         return csr_array((self.values[self._csr_position], self.pattern.indices, self.pattern.indptr),
                          shape=self._csr.shape)  # fmt: skip
 
+    @property
+    def csr_positions(self) -> np.ndarray | None:
+        """Where the k-th CSR value of the Jacobian is in `values` (None: `values` is in CSR order)."""
+        return self._csr_position
+
     def fill_in_order(self, positions: np.ndarray | None) -> None:
         """Write the k-th CSR value of the Jacobian to ``values[positions[k]]`` from now on.
 

@@ -38,6 +38,8 @@ __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "for
 ASSEMBLY_MAXITER = 20
 #: Convergence tolerance of the assembly: lengths relative to the model size, angles in rad.
 ASSEMBLY_TOLERANCE = 1e-12
+#: Most names of massless bodies in a report.
+LISTED_MASSLESS = 6
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,14 @@ class ModelReport:
     limits : tuple of LimitState
         Each element with ``limits``: its own coordinate at the assembled configuration
         and whether it is within them.
+    total_mass : float
+        The sum of the bodies' masses, kg.
+    massless_bodies : tuple of str
+        Moving bodies without a mass (at most `LISTED_MASSLESS` names, copies' by their
+        expanded names), and `n_massless` how many there are.
+    n_loads : int
+    gravity : (gx, gy)
+        m/s².
     """
 
     name: str
@@ -134,6 +144,11 @@ class ModelReport:
     free_motions: tuple[FreeMotion, ...]
     analysis: JacobianAnalysis
     limits: tuple[LimitState, ...] = ()
+    total_mass: float = 0.0
+    massless_bodies: tuple[str, ...] = ()
+    n_massless: int = 0
+    n_loads: int = 0
+    gravity: tuple[float, float] = (0.0, 0.0)
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -281,8 +296,14 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         rest = np.zeros((1, pattern.n_coordinates))
         values = own_coordinates(outputs, coordinates[None], rest, rest)[0]
         limits = tuple(limit_states(mechanism, outputs, values, [float(time)]))
+    massless, n_massless = _massless_bodies(mechanism)
     return ModelReport(
         limits=limits,
+        total_mass=mechanism.total_mass,
+        massless_bodies=massless,
+        n_massless=n_massless,
+        n_loads=mechanism.n_loads,
+        gravity=mechanism.gravity,
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -298,6 +319,17 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         free_motions=free_motions,
         analysis=analysis,
     )
+
+
+def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
+    """The first `LISTED_MASSLESS` moving bodies without a mass, and how many there are."""
+    names = [body.name for body in mechanism.own("bodies") if not body.mass]
+    count = len(names)
+    for copies in mechanism.copies:
+        local = [body.name for body in copies.unit.bodies if not body.mass]
+        count += copies.count * len(local)
+        names += [copies.name(k, name) for k in range(min(copies.count, LISTED_MASSLESS)) for name in local]
+    return tuple(names[:LISTED_MASSLESS]), count
 
 
 def _assemble(mechanism, pattern, assembler, time, drawn, analysis):
@@ -378,8 +410,23 @@ def format_report(report: ModelReport) -> str:
     if report.limits:
         lines.append(f"limits: {len(report.limits)} element{'s' * (len(report.limits) != 1)}")
         lines += [f"  {state}" for state in report.limits]
+    lines.append(_masses_line(report))
     lines.append("verdict: " + ("sound" if report.sound else "; ".join(report.problems)))
     return "\n".join(lines)
+
+
+def _masses_line(report: ModelReport) -> str:
+    """Total mass, massless moving bodies, loads and gravity: what the forces will rest on."""
+    if not report.total_mass and not report.n_loads:
+        return "masses and loads: none (a run computes no forces)"
+    if report.n_massless == 0:
+        bodies = "every moving body has a mass"
+    else:
+        listed = ", ".join(report.massless_bodies) + (" …" if report.n_massless > len(report.massless_bodies) else "")
+        bodies = f"{report.n_massless} of {report.n_bodies} moving bodies have no mass ({listed})"
+    gravity = "no gravity" if report.gravity == (0.0, 0.0) else f"gravity ({report.gravity[0]:g}, {report.gravity[1]:g}) m/s²"
+    return (f"masses: total {report.total_mass:.6g} kg; {bodies}; {report.n_loads} load{'s' * (report.n_loads != 1)}; "
+            f"{gravity}")
 
 
 def _number(value: float) -> str:

@@ -54,10 +54,11 @@ EXIT_INTERRUPTED = 130
 #: while the run holds at most `MAX_DEFAULT_VALUES` values of each of q, qd and qdd (else
 #: none: ``--format zarr`` streams them); a one-line note says what was left out and how
 #: to ask for it.
-DEFAULT_RULE = "points ≤ 100, joints ≤ 100, coordinates ≤ 2e7 values"
+DEFAULT_RULE = "points ≤ 100, joints ≤ 100, coordinates ≤ 2e7 values, forces of ≤ 100 drivers and joints"
 MAX_DEFAULT_POINTS = 100
 MAX_DEFAULT_JOINTS = 100
 MAX_DEFAULT_VALUES = 20_000_000
+MAX_DEFAULT_FORCE_ELEMENTS = 100
 #: A progress bar appears once a run has lasted this long, s.
 PROGRESS_DELAY = 2.0
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
@@ -97,6 +98,10 @@ class RunSettings:
         No progress bar.
     notes : tuple of str
         What the default rule left out, in words.
+    forces : None, "all" or tuple of str
+        The drivers and joints whose forces are written to ``forces.csv`` (or the store).
+    quasi_static : bool
+        Forces without the inertial forces.
     """
 
     times: np.ndarray
@@ -108,6 +113,8 @@ class RunSettings:
     format: str = "csv"
     quiet: bool = False
     notes: tuple[str, ...] = ()
+    forces: str | tuple[str, ...] | None = None
+    quasi_static: bool = False
 
 
 # ---------------------------------------------------------------------- entry point
@@ -160,9 +167,10 @@ def add_run_command(subparsers) -> None:
     """Add ``run MODEL.toml [--t-end T] [--steps N] [--points A,J] [--out DIR] [--plot]``."""
     parser = subparsers.add_parser(
         "run",
-        help="analyse a model and write points.csv, joints.csv and coordinates.npz",
+        help="analyse a model and write points.csv, joints.csv, forces.csv and coordinates.npz",
         description="Solve positions, velocities and accelerations at steps times from 0 to t_end "
-        "and write points.csv, joints.csv, coordinates.npz and, with --plot, PNG figures.",
+        "(and, for a model with masses or loads, the forces that hold the motion) and write points.csv, "
+        "joints.csv, forces.csv, coordinates.npz and, with --plot, PNG figures.",
     )
     parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
     parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
@@ -178,6 +186,13 @@ def add_run_command(subparsers) -> None:
         "--joints", metavar="J1,J2", help="joints written to joints.csv, separated by commas, or all or none "
         f"(default: every joint with an own coordinate up to {MAX_DEFAULT_JOINTS})"
     )
+    parser.add_argument(
+        "--forces", metavar="D1,J2", help="drivers and joints whose forces are written to forces.csv, separated by "
+        f"commas, or all or none (default, for a model with a mass or a load: all of them if there are at most "
+        f"{MAX_DEFAULT_FORCE_ELEMENTS})"
+    )
+    parser.add_argument("--quasi-static", action="store_true",
+                        help="forces without the inertial forces: what holds the mechanism still in each position")
     coordinates = parser.add_mutually_exclusive_group()
     coordinates.add_argument("--no-coordinates", dest="coordinates", action="store_false", default=None,
                              help="leave out every body's coordinates (coordinates.npz, or q, qd, qdd in Zarr)")
@@ -273,10 +288,22 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
         if not coordinates:
             notes.append(f"{steps} samples of {mechanism.n_coordinates} coordinates: not written (give "
                          "--coordinates, or --format zarr --coordinates to stream them)")  # fmt: skip
+    force_text = getattr(arguments, "forces", None)
+    n_elements = mechanism.n_drivers + mechanism.n_joints
+    if force_text is not None:
+        forces = parse_force_elements(force_text, mechanism)
+    elif not mechanism.has_forces:
+        forces = None
+    elif n_elements <= MAX_DEFAULT_FORCE_ELEMENTS:
+        forces = "all"
+    else:
+        forces = None
+        notes.append(f"{n_elements} drivers and joints: no forces written (give --forces D1,J2 or all)")
     directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
     return RunSettings(
         np.linspace(0.0, t_end, steps), tuple(point_names), directory, arguments.plot, joint_indices, coordinates,
-        getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes),
+        getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces,
+        bool(getattr(arguments, "quasi_static", False)),
     )  # fmt: skip
 
 
@@ -335,6 +362,29 @@ def parse_joint_names(text: str, mechanism: Mechanism) -> tuple[int, ...]:
                                "coordinate of its own")  # fmt: skip
         indices.append(k)
     return tuple(indices)
+
+
+def parse_force_elements(text: str, mechanism: Mechanism) -> str | tuple[str, ...] | None:
+    """``--forces``: None for ``none``, ``"all"``, or the driver and joint names, each checked."""
+    from .results import element_index
+
+    if text.strip() in ("none", "all"):
+        return None if text.strip() == "none" else "all"
+    names = tuple(dict.fromkeys(name.strip() for name in text.split(",")))
+    for name in names:
+        if not name:
+            raise CommandError(f"--forces: empty name in {text!r}: expected names separated by commas")
+        found = False
+        for kind in ("drivers", "joints"):
+            try:
+                element_index(mechanism, kind, name)
+                found = True
+            except KeyError:
+                pass
+        if not found:
+            raise CommandError(f'--forces: no driver or joint is called "{name}" (expected names, drivers[i] or '
+                               "joints[i], all or none)")  # fmt: skip
+    return names
 
 
 def _require_zarr() -> None:
@@ -406,7 +456,7 @@ def _solve(mechanism: Mechanism, settings: RunSettings, model_path: Path, progre
                 return solve_kinematics(
                     mechanism, settings.times, coordinates=settings.coordinates,
                     points=settings.point_names if record else None, joints=settings.joint_indices if record else None,
-                    store=store, progress=progress,
+                    forces=settings.forces, quasi_static=settings.quasi_static, store=store, progress=progress,
                 )  # fmt: skip
             finally:
                 for warning in caught:
@@ -474,13 +524,16 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
             write_points_csv(result, settings.point_names, directory / "points.csv"),
             write_joints_csv(mechanism, result, directory / "joints.csv", settings.joint_indices),
         ]
+        if settings.forces is not None:
+            written.append(write_forces_csv(result, directory / "forces.csv"))
         if settings.coordinates:
             written.append(write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"))
     if settings.plot and _count_samples(result) > 0:
-        from .plotting import draw_mechanism, plot_actuators, plot_point_motion
+        from .plotting import draw_mechanism, plot_actuators, plot_driver_forces, plot_point_motion
 
         written += plot_point_motion(result, settings.point_names, directory)
         written += plot_actuators(result, directory)
+        written += plot_driver_forces(result, directory)
         written.append(draw_mechanism(mechanism, result, directory))
     return written
 
@@ -538,6 +591,20 @@ def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path
     return path
 
 
+def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
+    """Write time and the force columns the run recorded, every float by `repr`.
+
+    The header is ``t,motor.force,motor.power,pivot.fx,pivot.fy,...``
+    (`sparsekin.dynamics.ForceOutputs`); for None, the column ``t`` alone.
+    """
+    labels = () if result is None else result.force_labels
+    table = np.empty((0, 1 + len(labels))) if result is None else np.column_stack([result.times, result.force_tracks])
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(",".join(["t", *labels]) + "\n")
+        file.writelines(",".join(map(repr, row)) + "\n" for row in table.tolist())
+    return path
+
+
 def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:
     """Write arrays ``t``, ``q``, ``qd``, ``qdd`` (n_times × 3·n_bodies) and ``body_names``."""
     if result is None or result.coordinates is None:
@@ -559,6 +626,8 @@ def _count_samples(result: KinematicsResult | None) -> int:
 def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline, written: list[Path]) -> str:
     """A few lines: samples, Newton corrections per step, factorizations, times, files."""
     corrections = result.newton_iterations
+    if timeline.first is None:  # nothing was solved (a model without coordinates): all at once
+        timeline.first, timeline.first_done = timeline.solved, result.n_times
     first = timeline.first - timeline.start
     later = result.n_times - timeline.first_done
     per_sample = (timeline.solved - timeline.first) / later if later else (timeline.solved - timeline.read) / result.n_times

@@ -25,7 +25,18 @@ registries `JOINT_KINDS` and `DRIVER_KINDS`:
 ``draw``               method: its drawing, on a `sparsekin.plotting.Canvas`
 ``law_fields``         drivers only: the field holding the law of each equation, in
                        row order (default ``("law",)``)
+``force_names``        drivers only: the ``forces.csv`` column suffix of each
+                       equation's force (default ``("force",)``)
+``reaction_point``     joints only, classmethod: the point about which the reaction's
+                       torque is taken, and the body of the joint that carries it
+                       (default: the frame origin of ``bodies[0]``)
+``reaction_torque``    joints only: whether ``forces.csv`` has the reaction's torque
 =====================  ==============================================================
+
+Loads (`LOAD_KINDS`, registered with `load_kind`) declare ``type_name``, ``file_keys``,
+``loads`` (classmethod: their blocks of the primitive loads of `sparsekin.loads`, read
+from their `Columns`, whose ``rows`` are then the index of each load's first law),
+``n_laws`` and ``laws()`` (the law of each component), ``describe`` and ``draw``.
 
 The guide ``docs/adding-an-element.md`` walks through adding a kind.
 
@@ -48,7 +59,8 @@ import numpy as np
 from . import _validate
 from ._validate import FileKeys
 from .errors import ModelError
-from .laws import Law
+from .laws import Law, Polynomial
+from .loads import BodyTorque, PointForce, SpringDamper
 from .primitives import Coincidence, Combination, Distance, Projection
 
 __all__ = [
@@ -69,6 +81,12 @@ __all__ = [
     "AbsoluteDriver",
     "DistanceDriver",
     "PathDriver",
+    "LOAD_KINDS",
+    "load_kind",
+    "Load",
+    "Force",
+    "Torque",
+    "Spring",
 ]
 
 #: Name of the fixed body.
@@ -82,6 +100,7 @@ PointRef = Union[str, tuple[float, float]]
 #: The registries, by file ``type``, in the order kinds are declared.
 JOINT_KINDS: dict[str, type] = {}
 DRIVER_KINDS: dict[str, type] = {}
+LOAD_KINDS: dict[str, type] = {}
 
 #: What every kind must declare (see the module docstring).
 _DECLARATION = ("type_name", "file_keys", "equation_names", "equations", "describe", "draw")
@@ -111,8 +130,8 @@ class Columns(Protocol):
     def joints(self, field: str) -> Columns: ...  # the joints named by the field, with these rows
 
 
-def _register(registry: dict[str, type], kind: type) -> type:
-    missing = [name for name in _DECLARATION if not hasattr(kind, name)]
+def _register(registry: dict[str, type], kind: type, declaration: tuple[str, ...] = _DECLARATION) -> type:
+    missing = [name for name in declaration if not hasattr(kind, name)]
     if missing:
         raise TypeError(f"{kind.__name__} does not declare {', '.join(missing)}")
     if kind.type_name in registry:
@@ -123,7 +142,8 @@ def _register(registry: dict[str, type], kind: type) -> type:
         raise TypeError(f"{kind.__name__}.file_keys names {unknown}, which are not fields")
     if kind.output_names and not hasattr(kind, "outputs"):
         raise TypeError(f"{kind.__name__} declares output_names but no outputs")
-    kind.n_equations = len(kind.equation_names)
+    if registry is not LOAD_KINDS:
+        kind.n_equations = len(kind.equation_names)
     registry[kind.type_name] = kind
     return kind
 
@@ -141,8 +161,13 @@ def driver_kind(kind: type) -> type:
     return _register(DRIVER_KINDS, kind)
 
 
+def load_kind(kind: type) -> type:
+    """Class decorator: check the declaration of a load kind and register it."""
+    return _register(LOAD_KINDS, kind, ("type_name", "file_keys", "loads", "n_laws", "describe", "draw"))
+
+
 class _Element:
-    """Defaults shared by joints and drivers."""
+    """Defaults shared by joints, drivers and loads."""
 
     __slots__ = ()
     output_names: tuple[str, ...] = ()
@@ -158,6 +183,15 @@ class Joint(_Element):
     """Base of the joint kinds."""
 
     __slots__ = ()
+    reaction_torque: bool = False
+
+    @classmethod
+    def reaction_point(cls, joints: Columns) -> tuple[np.ndarray, np.ndarray]:
+        """``(carrier, point)``: 0 or 1, which of the two bodies carries the point about
+        which the reaction's torque is taken, and its drawn position (k, 2); here the
+        frame origin of ``bodies[0]``."""
+        first, _ = joints.pair()
+        return 0, joints.frames[first, :2]
 
 
 class Driver(_Element):
@@ -165,6 +199,7 @@ class Driver(_Element):
 
     __slots__ = ()
     law_fields: tuple[str, ...] = ("law",)
+    force_names: tuple[str, ...] = ("force",)
 
     def laws(self) -> tuple[Law, ...]:
         """The law of each equation, in row order."""
@@ -208,6 +243,10 @@ class Revolute(Joint):
     def outputs(cls, joints: Columns):
         return [_angle_difference(joints.rows, *joints.pair())]
 
+    @classmethod
+    def reaction_point(cls, joints: Columns):
+        return 0, joints.point("at")
+
     def draw(self, canvas) -> None:
         canvas.pin(canvas.point(self.bodies[0], self.at), grounded=GROUND in self.bodies)
 
@@ -236,6 +275,7 @@ class Translational(Joint):
     equation_names = ("relative angle", "offset from the axis")
     output_names = ("stroke", "speed", "accel")
     point_fields = ("axis", "at")
+    reaction_torque = True
 
     def __post_init__(self) -> None:
         _pair_checks(self)
@@ -288,6 +328,10 @@ class Translational(Joint):
         return [cls.stroke(joints)]
 
     @classmethod
+    def reaction_point(cls, joints: Columns):
+        return 0, cls.geometry(joints)[0]  # P, the first axis point (or `at`)
+
+    @classmethod
     def stroke(cls, joints: Columns, rows: np.ndarray | None = None) -> Projection:
         """The stroke of each joint, as a projection on its axis (also what drives it), on
         `rows` (default the joints' own)."""
@@ -327,6 +371,7 @@ class Rigid(Joint):
     type_name = "rigid"
     file_keys = FileKeys(required=("bodies",), optional=("name",))
     equation_names = ("x", "y", "relative angle")
+    reaction_torque = True
 
     def __post_init__(self) -> None:
         _pair_checks(self)
@@ -383,6 +428,10 @@ class PinInSlot(Joint):
         return [cls._along(joints, normal=False)]
 
     @classmethod
+    def reaction_point(cls, joints: Columns):
+        return 1, joints.point("at")  # the pin, on bodies[1]
+
+    @classmethod
     def _along(cls, joints: Columns, normal: bool) -> Projection:
         at = joints.point("at")
         along = _unit(joints.vector("direction"))
@@ -415,6 +464,7 @@ class Gear(Joint):
     file_keys = FileKeys(required=("bodies", "ratio"), optional=("carrier", "name"))
     equation_names = ("gear ratio",)
     body_fields = ("bodies", "carrier")
+    reaction_torque = True  # its equation ties angles only: its reaction is a torque
 
     def __post_init__(self) -> None:
         _pair_checks(self)
@@ -472,6 +522,7 @@ class RackPinion(Joint):
     file_keys = FileKeys(required=("bodies", "at", "direction", "radius"), optional=("name",))
     equation_names = ("rolling",)
     point_fields = ("at",)
+    reaction_torque = True
 
     def __post_init__(self) -> None:
         _pair_checks(self)
@@ -488,6 +539,10 @@ class RackPinion(Joint):
     def equations(cls, joints: Columns):
         at = joints.point("at")
         return [Projection(joints.rows, *joints.pair(), at, at, _unit(joints.vector("direction")), joints.number("radius"))]
+
+    @classmethod
+    def reaction_point(cls, joints: Columns):
+        return 1, joints.point("at")  # the pinion's centre
 
     def draw(self, canvas) -> None:
         centre = canvas.point(self.bodies[1], self.at)
@@ -694,6 +749,7 @@ class PathDriver(Driver):
     file_keys = FileKeys(required=("body", "point", "law_x", "law_y"), optional=("name",))
     equation_names = ("x", "y")
     law_fields = ("law_x", "law_y")
+    force_names = ("fx", "fy")
     body_fields = ("body",)
     point_fields = ("point",)
 
@@ -717,6 +773,165 @@ class PathDriver(Driver):
 
     def draw(self, canvas) -> None:
         canvas.target(canvas.point(self.body, self.point))
+
+
+# ---------------------------------------------------------------------- loads
+class Load(_Element):
+    """Base of the load kinds: forces and torques applied to the bodies.
+
+    A component given as a number is constant; as a law (`sparsekin.laws`), it follows
+    the law, whose ``offset``/``start`` default to 0 (a load has no "initial" value).
+    """
+
+    __slots__ = ()
+    body_fields: tuple[str, ...] = ("body",)
+    n_laws = 0
+
+    def laws(self) -> tuple[Law, ...]:
+        """The law of each component, in order; numbers as constant laws."""
+        return ()
+
+
+@load_kind
+@dataclass(frozen=True, slots=True)
+class Force(Load):
+    """A force on `body` at its point `at`, ``value = (fx, fy)`` in global axes (N), each
+    component a number or a law."""
+
+    body: str
+    at: PointRef
+    value: tuple[float | Law, float | Law]
+    name: str | None = None
+
+    type_name = "force"
+    file_keys = FileKeys(required=("body", "at", "value"), optional=("name",))
+    point_fields = ("at",)
+    n_laws = 2
+
+    def __post_init__(self) -> None:
+        _load_checks(self)
+        _set(self, "at", _validate.point_reference(self.at, "at"))
+        value = self.value
+        if isinstance(value, str) or not _validate.is_sequence(value) or len(value) != 2:
+            raise ModelError(f"expected [fx, fy], each a number or a law, got {value!r}", element="value")
+        _set(self, "value", (_component(value[0], "value[0]"), _component(value[1], "value[1]")))
+
+    def laws(self) -> tuple[Law, ...]:
+        return tuple(_as_law(component) for component in self.value)
+
+    def describe(self) -> str:
+        return f"force on {self.body} at {shown_point(self.at)}"
+
+    @classmethod
+    def loads(cls, loads: Columns):
+        return [PointForce(loads.rows, loads.body("body"), loads.point("at"))]
+
+    def draw(self, canvas) -> None:
+        direction = [float(law.evaluate(0.0, 0.0)[0]) for law in self.laws()]
+        canvas.arrow(canvas.point(self.body, self.at), direction)
+
+
+@load_kind
+@dataclass(frozen=True, slots=True)
+class Torque(Load):
+    """A torque on `body`, `value` a number or a law (N·m, counter-clockwise positive)."""
+
+    body: str
+    value: float | Law
+    name: str | None = None
+
+    type_name = "torque"
+    file_keys = FileKeys(required=("body", "value"), optional=("name",))
+    n_laws = 1
+
+    def __post_init__(self) -> None:
+        _load_checks(self)
+        _set(self, "value", _component(self.value, "value"))
+
+    def laws(self) -> tuple[Law, ...]:
+        return (_as_law(self.value),)
+
+    def describe(self) -> str:
+        return f"torque on {self.body}"
+
+    @classmethod
+    def loads(cls, loads: Columns):
+        return [BodyTorque(loads.rows, loads.body("body"))]
+
+    def draw(self, canvas) -> None:
+        canvas.turn(canvas.origin(self.body))
+
+
+@load_kind
+@dataclass(frozen=True, slots=True)
+class Spring(Load):
+    """A spring-damper between point ``points[0]`` of ``bodies[0]`` and point ``points[1]``
+    of ``bodies[1]``: tension ``stiffness · (L - free_length) + damping · L'`` (N) along
+    the line between them, L their distance (m).  `free_length` defaults to the drawn
+    distance; the points must not coincide in the drawing."""
+
+    bodies: tuple[str, str]
+    points: tuple[PointRef, PointRef]
+    stiffness: float
+    free_length: float | None = None
+    damping: float = 0.0
+    name: str | None = None
+
+    type_name = "spring"
+    file_keys = FileKeys(required=("bodies", "points", "stiffness"), optional=("free_length", "damping", "name"))
+    body_fields = ("bodies",)
+    point_fields = ("points",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        points = self.points
+        if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
+            raise ModelError(f"expected two points [P, Q], got {points!r}", element="points")
+        _set(self, "points", (_validate.point_reference(points[0], "points[0]"),
+                              _validate.point_reference(points[1], "points[1]")))  # fmt: skip
+        _set(self, "stiffness", _validate.non_negative_float(self.stiffness, "stiffness"))
+        _set(self, "damping", _validate.non_negative_float(self.damping, "damping"))
+        if self.free_length is not None:
+            _set(self, "free_length", _validate.non_negative_float(self.free_length, "free_length"))
+
+    def check(self, mechanism, where: str) -> None:
+        p, q = mechanism.position(self.points[0]), mechanism.position(self.points[1])
+        if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
+            raise ModelError(
+                f"{shown_point(self.points[0])} and {shown_point(self.points[1])} coincide in the drawing; "
+                "expected two distinct points (the spring's force has no direction at zero length)",
+                element=f"{where}.points",
+            )
+
+    def describe(self) -> str:
+        return f"spring {self.bodies[0]}.{shown_point(self.points[0])}–{self.bodies[1]}.{shown_point(self.points[1])}"
+
+    @classmethod
+    def loads(cls, loads: Columns):
+        return [SpringDamper(*loads.pair(), loads.point("points", 0), loads.point("points", 1), loads.number("stiffness"),
+                             loads.number("free_length"), loads.number("damping"))]  # NaN free length: the drawn one
+
+    def draw(self, canvas) -> None:
+        canvas.spring(*(canvas.point(body, point) for body, point in zip(self.bodies, self.points)))
+
+
+def _load_checks(load) -> None:
+    _validate.name(load.body, "body")
+    if load.name is not None:
+        _validate.name(load.name, "name")
+
+
+def _component(value, element: str):
+    """A load component: a finite number, or a law."""
+    if callable(getattr(value, "evaluate", None)):
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ModelError(f"expected a number or a law table {{ type = ... }}, got {value!r}", element=element)
+    return _validate.finite_float(value, element)
+
+
+def _as_law(component) -> Law:
+    return component if callable(getattr(component, "evaluate", None)) else Polynomial((component,))
 
 
 # ---------------------------------------------------------------------- helpers

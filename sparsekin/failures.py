@@ -30,6 +30,7 @@ from .describe import (
     row_preference,
     shares,
 )
+from .dynamics import MAX_MIN_NORM_EQUATIONS
 from .errors import ConvergenceError, ModelError, RedundantConstraintWarning, SingularConfigurationError
 from .model import Mechanism
 from .pattern import ConstraintPattern
@@ -89,10 +90,11 @@ class Diagnosis:
         return f"; largest residual {abs(residual[worst]):.3g} in {self.label(row)}"
 
     # ------------------------------------------------------------------ at the start
-    def redundant_rows(self, assembler, t: float, coordinates: np.ndarray) -> np.ndarray:
+    def redundant_rows(self, assembler, t: float, coordinates: np.ndarray, forces: bool = False) -> np.ndarray:
         """The equations to leave out of a model with more equations than coordinates.
 
-        Warns with `RedundantConstraintWarning` naming them.
+        Warns with `RedundantConstraintWarning` naming them (and, if the run computes
+        `forces`, saying which reactions it gives for the redundant set).
 
         Raises
         ------
@@ -125,9 +127,16 @@ class Diagnosis:
         listed = "; ".join(self.label(row) for row in rows[:LISTED])
         if rows.size > LISTED:
             listed += f"; … ({rows.size} equations)"
+        reactions = ""
+        if forces:
+            reactions = ("; the reactions of the joints involved are not unique: the minimum-norm ones are given"
+                         if rows.size <= MAX_MIN_NORM_EQUATIONS else
+                         f"; the reactions of the joints involved are not unique, and with more than "
+                         f"{MAX_MIN_NORM_EQUATIONS} redundant equations the ones given leave these out")  # fmt: skip
         warnings.warn(
             f"{n_equations} equations for {n_coordinates} coordinates: {rows.size} redundant "
-            f"equation{'s' * (rows.size != 1)} left out (each depends on the others at t = {t:g} s): {listed}",
+            f"equation{'s' * (rows.size != 1)} left out (each depends on the others at t = {t:g} s): {listed}"
+            + reactions,
             RedundantConstraintWarning,
             stacklevel=4,
         )

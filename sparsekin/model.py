@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _validate
 from ._validate import FileKeys
-from .elements import COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, Driver, Joint, PointRef
+from .elements import COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS, Driver, Joint, Load, PointRef
 from .errors import ModelError
 from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step
 
@@ -42,7 +42,12 @@ def _set(instance: object, field_name: str, value: object) -> None:
 
 @dataclass(frozen=True, slots=True)
 class Body:
-    """A rigid body with a frame at `origin`, turned by `angle` (rad), carrying `points`."""
+    """A rigid body with a frame at `origin`, turned by `angle` (rad), carrying `points`.
+
+    For forces: its `mass` (kg, default 0), its `inertia` about its centre of mass
+    (kg·m², default 0) and its centre of mass `com` (a point name or (x, y), drawn;
+    default the frame origin).
+    """
 
     name: str
     origin: PointRef
@@ -101,15 +106,20 @@ class Mechanism:
     joints, drivers : sequences
         Kinematic joints and driving constraints: instances of the kinds registered in
         `sparsekin.elements.JOINT_KINDS` and `~sparsekin.elements.DRIVER_KINDS`.
+    loads : sequence
+        Forces, torques and springs on the bodies (`~sparsekin.elements.LOAD_KINDS`).
+    gravity : (gx, gy)
+        Acceleration of gravity, m/s² (default none); it pulls on every body's mass.
     name : str
         Name of the model (the default output folder of ``sparsekin run``).
     analysis : Analysis
         Defaults for the command line.
     repeats : sequence of Repeat
         Units repeated into chains (`sparsekin.units`).  Their copies come after the
-        model's own bodies, joints and drivers, copy by copy; `points`, `bodies`,
-        `joints` and `drivers` then read the whole model (an `~sparsekin.units.ElementList`
-        builds a copy's element only when asked), while the arguments are the model's own.
+        model's own bodies, joints, drivers and loads, copy by copy; `points`, `bodies`,
+        `joints`, `drivers` and `loads` then read the whole model (an
+        `~sparsekin.units.ElementList` builds a copy's element only when asked), while
+        the arguments are the model's own.
     """
 
     points: Mapping[str, tuple[float, float]]
@@ -119,6 +129,8 @@ class Mechanism:
     name: str = "mechanism"
     analysis: Analysis = field(default_factory=Analysis)
     repeats: tuple[Repeat, ...] = ()
+    loads: tuple[Load, ...] = ()
+    gravity: tuple[float, float] = (0.0, 0.0)
     _body_index: dict[str, int] = field(init=False, repr=False, compare=False)
     _joint_index: dict[str, int] = field(init=False, repr=False, compare=False)
     _copies: list[Copies] = field(init=False, repr=False, compare=False)
@@ -130,12 +142,13 @@ class Mechanism:
             raise ModelError(f"expected a mapping of name to [x, y], got {type(points).__name__}", element="points")
         _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in points.items()})
         for kind, kinds in (("bodies", (Body,)), ("joints", tuple(JOINT_KINDS.values())),
-                            ("drivers", tuple(DRIVER_KINDS.values()))):  # fmt: skip
+                            ("drivers", tuple(DRIVER_KINDS.values())), ("loads", tuple(LOAD_KINDS.values()))):  # fmt: skip
             given = getattr(self, kind)
             _set(self, kind, _tuple_of(given.own if isinstance(given, ElementList) else given, kinds, kind))
         if not isinstance(self.analysis, Analysis):
             raise ModelError(f"expected an Analysis, got {type(self.analysis).__name__}", element="analysis")
         _set(self, "repeats", _tuple_of(self.repeats, (Repeat,), "repeats"))
+        _set(self, "gravity", _validate.pair(self.gravity, "gravity"))
         self._lay_out_copies()
         body_index: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
@@ -152,24 +165,26 @@ class Mechanism:
         _set(self, "_body_index", body_index)
         _set(self, "_joint_index", self._check_elements("joints", self.joints))
         self._check_elements("drivers", self.drivers)
+        self._check_elements("loads", self.loads)
         self._check_copies()
         if self.analysis.points is not None:
             for k, point in enumerate(self.analysis.points):
                 self._check_point(point, "analysis.points[{}]", k)
         if self._copies:  # the whole model: own elements, then the copies'
-            for kind in ("bodies", "joints", "drivers"):
+            for kind in ("bodies", "joints", "drivers", "loads"):
                 _set(self, kind, ElementList(kind, getattr(self, kind), self._copies))
 
     def _lay_out_copies(self) -> None:
         """Where each repeat's copies start among the bodies, joints and drivers."""
         copies: list[Copies] = []
-        first = [len(self.bodies), len(self.joints), len(self.drivers)]
+        first = [len(self.bodies), len(self.joints), len(self.drivers), len(self.loads)]
         own_points = self.points
         table = PointTable(own_points, copies)  # filled below: the copies may name each other's points
         for index, repeat in enumerate(self.repeats):
             copies.append(Copies(repeat, index, *first, model_position=table.__getitem__))
             unit = repeat.unit
-            first = [start + repeat.count * len(part) for start, part in zip(first, (unit.bodies, unit.joints, unit.drivers))]
+            parts = (unit.bodies, unit.joints, unit.drivers, unit.loads)
+            first = [start + repeat.count * len(part) for start, part in zip(first, parts)]
         _set(self, "_copies", copies)
         if copies:  # the points of the whole model, for every check below
             _set(self, "points", table)
@@ -202,9 +217,27 @@ class Mechanism:
     def n_drivers(self) -> int:
         return len(self.drivers)
 
+    @property
+    def n_loads(self) -> int:
+        return len(self.loads)
+
+    @property
+    def has_forces(self) -> bool:
+        """Whether a body has a mass or an inertia, or a load acts: then a run computes the
+        forces that hold the motion (`sparsekin.solve_kinematics`)."""
+        massive = any(body.mass or body.inertia for body in self.declared("bodies"))
+        return massive or any(True for _ in self.declared("loads"))
+
+    @property
+    def total_mass(self) -> float:
+        """The sum of the bodies' masses, kg."""
+        own = sum(body.mass or 0.0 for body in self.own("bodies"))
+        return own + sum(c.count * sum(body.mass or 0.0 for body in c.unit.bodies) for c in self._copies)
+
     def declared(self, kind: str):
-        """The joints or drivers (`kind`) as declared: the model's own, then each repeated
-        unit's once (not once per copy).  Enough to know which kinds and laws the model uses."""
+        """The bodies, joints, drivers or loads (`kind`) as declared: the model's own, then
+        each repeated unit's once (not once per copy).  Enough to know which kinds and laws
+        the model uses."""
         yield from self.own(kind)
         for copies in self._copies:
             yield from getattr(copies.unit, kind)
@@ -216,7 +249,8 @@ class Mechanism:
             return self
         return Mechanism(
             points=dict(self.points), bodies=tuple(self.bodies), joints=tuple(self.joints),
-            drivers=tuple(self.drivers), name=self.name, analysis=self.analysis,
+            drivers=tuple(self.drivers), name=self.name, analysis=self.analysis, loads=tuple(self.loads),
+            gravity=self.gravity,
         )  # fmt: skip
 
     @property
@@ -225,7 +259,7 @@ class Mechanism:
         return tuple(self._copies)
 
     def own(self, kind: str):
-        """The model's own bodies, joints, drivers or points (`kind`), without the repeats' copies."""
+        """The model's own bodies, joints, drivers, loads or points (`kind`), without the repeats' copies."""
         elements = getattr(self, kind)
         return elements.own if isinstance(elements, (ElementList, PointTable)) else elements
 
@@ -315,6 +349,24 @@ class Mechanism:
                 return copies.first_joint + split[0] * copies.n_joints + copies.joint_index[split[1]]
         raise KeyError(name)
 
+    def index_of(self, kind: str, name: str) -> int:
+        """Position in `joints` or `drivers` (`kind`) of the element called `name`; KeyError
+        if there is none.  A copy's element is found by its expanded name, without building
+        the copies."""
+        for index, element in enumerate(self.own(kind)):
+            if element.name == name:
+                return index
+        for copies in self._copies:
+            split = copies.split(name)
+            if split is None:
+                continue
+            local = {"joints": copies.joint_index, "drivers": copies.driver_index}[kind].get(split[1])
+            if local is not None:
+                first, size = (copies.first_joint, copies.n_joints) if kind == "joints" else (copies.first_driver,
+                                                                                               copies.n_drivers)
+                return first + split[0] * size + local
+        raise KeyError(name)
+
     def element_label(self, kind: str, index: int) -> str:
         """``joints[3] "pivot" (revolute c3–c4 at I)``: a label for messages."""
         element = (self.joints if kind == "joints" else self.drivers)[index]
@@ -371,7 +423,7 @@ class Mechanism:
                 self._check_body(target, "{}.first", c.label)
             for k in _copies_to_check(c):
                 where = f"{c.label} copy {k}: units.{c.unit.name}"
-                for kind in ("bodies", "joints", "drivers"):
+                for kind in ("bodies", "joints", "drivers", "loads"):
                     for e in range(len(getattr(c.unit, kind))):
                         self._check_copy_element(c, kind, k, e, where)
 

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from . import _validate
-from .elements import DRIVER_KINDS, JOINT_KINDS
+from .elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from .errors import ModelError
 from .laws import BUILT_IN_LAWS, Spline
 from .model import Analysis, Body, Mechanism
@@ -82,14 +82,15 @@ def _spline(file: Spline | None = None, **samples: Any) -> Spline:
     return file if file is not None else Spline(**samples)
 
 
-_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "analysis", "units", "repeat")
-#: The sections of a unit: those of a model but `[analysis]` and nested units.
-_UNIT_KEYS = ("points", "bodies", "joints", "drivers")
+_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "loads", "gravity", "analysis", "units", "repeat")
+#: The sections of a unit: those of a model but `gravity`, `[analysis]` and nested units.
+_UNIT_KEYS = ("points", "bodies", "joints", "drivers", "loads")
 #: The keys of a `[[repeat]]` entry.
 _REPEAT_KEYS = ("unit", "count", "prefix", "offset", "first", "vary")
 _BODY = _Spec(Body)
 _JOINTS = {type_name: _Spec(kind) for type_name, kind in JOINT_KINDS.items()}
 _DRIVERS = {type_name: _Spec(kind) for type_name, kind in DRIVER_KINDS.items()}
+_LOADS = {type_name: _Spec(kind) for type_name, kind in LOAD_KINDS.items()}
 _LAWS = {kind.type_name: _Spec(kind, _spline if kind is Spline else None) for kind in BUILT_IN_LAWS}
 _ANALYSIS = _Spec(Analysis)
 
@@ -151,12 +152,13 @@ class _Reader:
             "start": _number_or_initial,
             "coefficients": _coefficients,
             "axis": _axis,
+            "value": self.load_value,
         }
 
     def mechanism(self, document: dict[str, Any], default_name: str) -> Mechanism:
         """The `Mechanism` of a whole document."""
         _check_keys(document, "", _TOP_LEVEL_KEYS)
-        points, bodies, joints, drivers, body_names = self.parts(document, "")
+        points, bodies, joints, drivers, loads, body_names = self.parts(document, "")
         analysis = self.element(document.get("analysis", {}), "analysis", _ANALYSIS, "a table [analysis]")
         units = {
             name: self.unit(table, name)
@@ -175,12 +177,14 @@ class _Reader:
                 name=document.get("name", default_name),
                 analysis=analysis,
                 repeats=repeats,
+                loads=loads,
+                gravity=document.get("gravity", (0.0, 0.0)),
             )
         except ModelError as error:
             raise _body_by_name(error, body_names) from None
 
     def parts(self, document: dict[str, Any], prefix: str):
-        """Points, bodies, joints and drivers of a model (`prefix` "") or a unit ("units.NAME.")."""
+        """Points, bodies, joints, drivers and loads of a model (`prefix` "") or a unit ("units.NAME.")."""
         body_tables = _table(document.get("bodies", {}), f"{prefix}bodies", f"tables [{prefix}bodies.NAME]")
         bodies = [
             self.element(table, f"{prefix}bodies.{name}", _BODY, f"a table [{prefix}bodies.{name}]", name=name)
@@ -194,17 +198,21 @@ class _Reader:
             self.typed(table, f"{prefix}drivers[{index}]", _DRIVERS, f"a table [[{prefix}drivers]]")
             for index, table in enumerate(_array(document.get("drivers", []), f"{prefix}drivers"))
         ]
+        loads = [
+            self.typed(table, f"{prefix}loads[{index}]", _LOADS, f"a table [[{prefix}loads]]")
+            for index, table in enumerate(_array(document.get("loads", []), f"{prefix}loads"))
+        ]
         points = _table(document.get("points", {}), f"{prefix}points", f"a table [{prefix}points] of name = [x, y]")
-        return points, bodies, joints, drivers, list(body_tables)
+        return points, bodies, joints, drivers, loads, list(body_tables)
 
     def unit(self, value: object, name: str) -> Unit:
         """The `Unit` of a table ``[units.NAME]``."""
         where = f"units.{name}"
         table = _table(value, where, f"a table [{where}]")
         _check_keys(table, where, _UNIT_KEYS)
-        points, bodies, joints, drivers, body_names = self.parts(table, f"{where}.")
+        points, bodies, joints, drivers, loads, body_names = self.parts(table, f"{where}.")
         try:
-            return Unit(name, points=points, bodies=bodies, joints=joints, drivers=drivers)
+            return Unit(name, points=points, bodies=bodies, joints=joints, drivers=drivers, loads=loads)
         except ModelError as error:
             raise _body_by_name(error, body_names).within(where) from None
 
@@ -280,6 +288,14 @@ class _Reader:
     def law(self, value: object, element: str) -> Any:
         """A driver's law, from its inline table."""
         return self.typed(value, element, _LAWS, 'an inline table { type = "...", ... }')
+
+    def load_value(self, value: object, element: str) -> Any:
+        """A load's value: a number, a law table, or a list of them (a force's components)."""
+        if isinstance(value, dict):
+            return self.law(value, element)
+        if isinstance(value, list):
+            return [self.law(item, f"{element}[{k}]") if isinstance(item, dict) else item for k, item in enumerate(value)]
+        return value
 
     def spline_file(self, value: object, element: str) -> Spline:
         """The `Spline` through the samples of a CSV file with the header ``t,value``."""
@@ -552,7 +568,10 @@ def _model_text(mechanism: Mechanism) -> str:
     Repeated units are written as units and ``[[repeat]]`` entries, never copy by copy.
     """
     blocks = [f"name = {_string(mechanism.name)}"]
-    blocks += _parts_text(mechanism.own("points"), *(mechanism.own(kind) for kind in ("bodies", "joints", "drivers")), "")
+    if mechanism.gravity != (0.0, 0.0):
+        blocks[0] += f"\ngravity = {_value(mechanism.gravity, 'gravity')}"
+    kinds = ("bodies", "joints", "drivers", "loads")
+    blocks += _parts_text(mechanism.own("points"), *(mechanism.own(kind) for kind in kinds), "")
     analysis = _pairs(mechanism.analysis, _ANALYSIS, "analysis")
     if analysis:
         blocks.append(_block("[analysis]", analysis))
@@ -561,7 +580,7 @@ def _model_text(mechanism: Mechanism) -> str:
         if units.setdefault(repeat.unit.name, repeat.unit) is not repeat.unit:
             raise ModelError(f'two different units are called "{repeat.unit.name}"', element=f"repeat[{index}].unit")
     for name, unit in units.items():
-        blocks += _parts_text(unit.points, unit.bodies, unit.joints, unit.drivers, f"units.{_key(name)}.")
+        blocks += _parts_text(unit.points, unit.bodies, unit.joints, unit.drivers, unit.loads, f"units.{_key(name)}.")
     for repeat in mechanism.repeats:
         pairs = [("unit", _string(repeat.unit.name)), ("count", str(repeat.count)), ("prefix", _string(repeat.prefix))]
         if repeat.offset != (0.0, 0.0):
@@ -574,14 +593,14 @@ def _model_text(mechanism: Mechanism) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-def _parts_text(points, bodies, joints, drivers, prefix: str) -> list[str]:
-    """The blocks of the points, bodies, joints and drivers of a model or a unit."""
+def _parts_text(points, bodies, joints, drivers, loads, prefix: str) -> list[str]:
+    """The blocks of the points, bodies, joints, drivers and loads of a model or a unit."""
     blocks = []
     if points:
         blocks.append(_block(f"[{prefix}points]", [(name, _value(xy, f"points.{name}")) for name, xy in points.items()]))
     for body in bodies:
         blocks.append(_block(f"[{prefix}bodies.{_key(body.name)}]", _pairs(body, _BODY, f"bodies.{body.name}")))
-    for kind, specs, items in (("joints", _JOINTS, joints), ("drivers", _DRIVERS, drivers)):
+    for kind, specs, items in (("joints", _JOINTS, joints), ("drivers", _DRIVERS, drivers), ("loads", _LOADS, loads)):
         for index, item in enumerate(items):
             element = f"{prefix}{kind}[{index}]"
             type_name = _type_name(item, specs, element)

@@ -25,7 +25,8 @@ from .geometry import to_local
 from .model import Mechanism
 from .primitives import PackedEquations, Primitives, pack
 
-__all__ = ["ConstraintPattern", "OutputPattern", "PointMap", "build_pattern", "build_output_pattern", "build_point_map"]
+__all__ = ["ConstraintPattern", "OutputPattern", "PointMap", "build_pattern", "build_output_pattern", "build_point_map",
+           "element_columns", "per_element"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,34 +134,44 @@ def _by_kind(elements) -> dict[type, list[int]]:
     return groups
 
 
-def _blocks(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver, method: str) -> list:
-    """The blocks of every joint or driver (`kind`), asked of each element kind once for the
-    model's own elements and once per repeat for all its copies.
-
-    `first_rows` gives the first row of each element of `kind` in model order (-1 for an
-    element without rows, which `method` then does not produce).
-    """
-    blocks = []
+def element_columns(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver):
+    """``(element kind, indices, columns)`` for every group of joints, drivers or loads
+    (`kind`) of one element kind: the model's own elements, then each repeat's over all its
+    copies (`TiledColumns`, copy-major).  `indices` are the elements' positions in the
+    model; `first_rows` gives the first row of each element in model order (-1 for one
+    without rows)."""
     own = mechanism.own(kind)
     for element_kind, indices in _by_kind(own).items():
-        build = getattr(element_kind, method, None)
-        if build is not None:
-            blocks += build(ObjectColumns([own[k] for k in indices], first_rows[indices], resolver))
+        indices = np.array(indices, dtype=np.int64)
+        yield element_kind, indices, ObjectColumns([own[k] for k in indices], first_rows[indices], resolver)
     for copies in mechanism.copies:
         unit_elements = getattr(copies.unit, kind)
-        first = copies.first_joint if kind == "joints" else copies.first_driver
-        grid = first_rows[first : first + copies.count * len(unit_elements)].reshape(copies.count, -1)
+        first = {"joints": copies.first_joint, "drivers": copies.first_driver, "loads": copies.first_load}[kind]
+        grid = first + np.arange(copies.count * len(unit_elements), dtype=np.int64).reshape(copies.count, -1)
         for element_kind, indices in _by_kind(unit_elements).items():
-            build = getattr(element_kind, method, None)
-            if build is not None:
-                columns = TiledColumns(copies, [unit_elements[k] for k in indices], grid[:, indices].ravel(), resolver)
-                blocks += build(columns)
+            positions = grid[:, indices].ravel()
+            columns = TiledColumns(copies, [unit_elements[k] for k in indices], first_rows[positions], resolver)
+            yield element_kind, positions, columns
+
+
+def _blocks(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver, method: str) -> list:
+    """The blocks of every joint, driver or load (`kind`): each element kind's `method`
+    (``equations``, ``outputs``, ``loads``), asked once for the model's own elements and
+    once per repeat for all its copies (`element_columns`).
+
+    An element kind without `method` (no own coordinate, say) produces nothing.
+    """
+    blocks = []
+    for element_kind, _, columns in element_columns(mechanism, kind, first_rows, resolver):
+        build = getattr(element_kind, method, None)
+        if build is not None:
+            blocks += build(columns)
     return blocks
 
 
-def _per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
-    """``value(element)`` for every joint or driver, in model order: the own elements', then
-    each repeat's unit values tiled over its copies."""
+def per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
+    """``value(element)`` for every joint, driver or load, in model order: the own elements',
+    then each repeat's unit values tiled over its copies."""
     own = [value(element) for element in mechanism.own(kind)]
     tiled = [np.tile([value(element) for element in getattr(c.unit, kind)], c.count) for c in mechanism.copies]
     return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
@@ -176,8 +187,8 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     kind: linear in the model size, without an object per copy.
     """
     resolver = Resolver(mechanism)
-    joint_counts = _per_element(mechanism, "joints", lambda element: element.n_equations)
-    driver_counts = _per_element(mechanism, "drivers", lambda element: element.n_equations)
+    joint_counts = per_element(mechanism, "joints", lambda element: element.n_equations)
+    driver_counts = per_element(mechanism, "drivers", lambda element: element.n_equations)
     counts = np.concatenate([joint_counts, driver_counts])
     element_first_row = np.zeros(counts.size + 1, dtype=np.int64)
     np.cumsum(counts, out=element_first_row[1:])
@@ -223,7 +234,7 @@ def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> Out
         return _selected_outputs(mechanism, joints or (), drivers or ())
     resolver = Resolver(mechanism)
     has_output = np.concatenate([
-        _per_element(mechanism, kind, lambda element: bool(type(element).output_names)) for kind in ("joints", "drivers")
+        per_element(mechanism, kind, lambda element: bool(type(element).output_names)) for kind in ("joints", "drivers")
     ]).astype(bool)  # fmt: skip
     rows = np.cumsum(has_output, dtype=np.int64) - 1
     rows[~has_output] = -1

@@ -18,7 +18,7 @@ from .geometry import rotate, to_global, to_local
 from .model import GROUND, Mechanism
 from .results import KinematicsResult
 
-__all__ = ["plot_point_motion", "plot_actuators", "draw_mechanism", "Canvas"]
+__all__ = ["plot_point_motion", "plot_actuators", "plot_driver_forces", "draw_mechanism", "Canvas"]
 
 #: Resolution of the PNG files, dots per inch.
 DPI = 120
@@ -84,7 +84,7 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
     positions = {name: result.point(name).position[0] for name in mechanism.points}
     figure, axes = _new_figure((8.0, 7.0))
     canvas = Canvas(axes, mechanism, result.coordinates[0], SYMBOL_SCALE * _extent(positions.values()))
-    for element in (*mechanism.joints, *mechanism.drivers):
+    for element in (*mechanism.joints, *mechanism.drivers, *mechanism.loads):
         element.draw(canvas)
     obstacles = np.array([*positions.values(), *canvas.ground_marks]).reshape(-1, 2)
     for index, body in enumerate(mechanism.bodies):
@@ -132,6 +132,51 @@ def plot_actuators(result: KinematicsResult, directory) -> list[Path]:
     panels[0].legend(loc="best", fontsize=9)
     panels[-1].set_xlabel("time t (s)")
     return [_save(figure, Path(directory) / "actuators.png")]
+
+
+def plot_driver_forces(result: KinematicsResult, directory) -> list[Path]:
+    """Plot the force (or torque) and the power of every driver the run has forces of.
+
+    One figure, ``forces.png``: forces in newtons in the top panel (a path driver's two
+    components as two lines), torques in newton-metres in the middle one (if any driver
+    drives an angle), powers in watts at the bottom.  Nothing is written without forces.
+
+    Returns
+    -------
+    list of Path
+        The file written, or an empty list.
+    """
+    mechanism = result.mechanism
+    labels = set(result.force_labels)
+    drivers = [(index, driver.name or f"drivers[{index}]") for index, driver in enumerate(mechanism.drivers)
+               if f"{driver.name or f'drivers[{index}]'}.power" in labels]  # fmt: skip
+    if not drivers:
+        return []
+    units = dict(zip(result.force_labels, result.force_units))
+    kinds = {"N": "Force", "N·m": "Torque"}
+    present = [unit for unit in kinds if any(units.get(f"{label}.{name}") == unit for index, label in drivers
+                                             for name in type(mechanism.drivers[index]).force_names)]  # fmt: skip
+    figure, panels = _new_figure((7.0, 3.0 + 2.6 * len(present)), rows=len(present) + 1)
+    panels = list(np.atleast_1d(panels))
+    for index, label in drivers:
+        force = result.driver_force(index)
+        names = type(mechanism.drivers[index]).force_names
+        values = force.force.reshape(result.n_times, -1)
+        for column, name in enumerate(names):
+            unit = units[f"{label}.{name}"]
+            shown = label if len(names) == 1 else f"{label}.{name}"
+            panels[present.index(unit)].plot(result.times, values[:, column], linewidth=1.5, label=shown)
+        panels[-1].plot(result.times, force.power, linewidth=1.5, label=label)
+    for axes, unit in zip(panels, present):
+        axes.set_title(f"{kinds[unit]} of each driver" + (" (quasi-static)" if result.quasi_static else ""))
+        axes.set_ylabel(unit)
+    panels[-1].set_title("Power of each driver")
+    panels[-1].set_ylabel("W")
+    for axes in panels:
+        axes.grid(True, alpha=0.4)
+        axes.legend(loc="best", fontsize=9)
+    panels[-1].set_xlabel("time t (s)")
+    return [_save(figure, Path(directory) / "forces.png")]
 
 
 # ---------------------------------------------------------------------- point motion
@@ -326,6 +371,41 @@ class Canvas:
         middle = start + 0.55 * (end - start)
         self.axes.plot(*np.transpose([start, middle]), color="dimgray", linewidth=6.0, solid_capstyle="butt", zorder=2)
         self.axes.plot(*np.transpose([start, end]), color="black", linewidth=2.0, zorder=2.5)
+
+    def arrow(self, position, direction) -> None:
+        """An arrow ending at `position` along `direction` (a force applied there); none for a
+        zero direction."""
+        direction = np.asarray(direction, dtype=float)
+        length = float(np.hypot(*direction))
+        if length == 0.0:
+            return
+        tail = np.asarray(position) - 5.0 * self.size * direction / length
+        self.axes.annotate("", xy=tuple(position), xytext=tuple(tail), zorder=5,
+                           arrowprops={"arrowstyle": "-|>", "color": "tab:red", "linewidth": 1.8})  # fmt: skip
+
+    def turn(self, centre) -> None:
+        """A curved arrow about `centre`: a torque."""
+        from matplotlib.patches import FancyArrowPatch
+
+        x, y = centre
+        radius = 2.0 * self.size
+        self.axes.add_patch(FancyArrowPatch((x + radius, y), (x, y + radius), connectionstyle="arc3,rad=0.5",
+                                            arrowstyle="-|>", mutation_scale=12, color="tab:red", linewidth=1.5,
+                                            zorder=5))  # fmt: skip
+
+    def spring(self, start, end) -> None:
+        """A zigzag between two points: a spring-damper."""
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        along = end - start
+        length = float(np.hypot(*along))
+        if length == 0.0:
+            return
+        across = 0.8 * self.size * np.array([-along[1], along[0]]) / length
+        fractions = np.linspace(0.2, 0.8, 13)
+        zigzag = start + fractions[:, None] * along + np.where(np.arange(13) % 2, 1.0, -1.0)[:, None] * across
+        zigzag[[0, -1]] = start + fractions[[0, -1], None] * along
+        line = np.vstack([start, zigzag, end])
+        self.axes.plot(line[:, 0], line[:, 1], color="tab:brown", linewidth=1.2, zorder=2)
 
     def target(self, position) -> None:
         """A cross in a circle: a point whose path is prescribed."""

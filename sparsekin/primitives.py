@@ -33,7 +33,6 @@ import numpy as np
 from numba import njit
 
 from ._jit import JIT
-from .geometry import rotate, to_local
 
 __all__ = [
     "Coincidence",
@@ -241,26 +240,48 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
         indices, indptr = indices.astype(np.int32), indptr.astype(np.int32)
     ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
 
+    local = _Local(frames)
     primitives = Primitives(
         CoincidenceArrays(
-            _ints(c.body_i), _ints(c.body_j), to_local(frames[c.body_i], c.point_i),
-            to_local(frames[c.body_j], c.point_j), _ints(c.row), slots[: ends[0]].reshape(-1, 8),
+            _ints(c.body_i), _ints(c.body_j), local(c.body_i, c.point_i), local(c.body_j, c.point_j), _ints(c.row),
+            slots[: ends[0]].reshape(-1, 8),
         ),
         ProjectionArrays(
-            _ints(p.body_i), _ints(p.body_j), to_local(frames[p.body_i], p.start), to_local(frames[p.body_j], p.end),
-            rotate(p.direction, -frames[p.body_i, 2]), _floats(p.rolling), _ints(p.row),
+            _ints(p.body_i), _ints(p.body_j), local(p.body_i, p.start), local(p.body_j, p.end),
+            local(p.body_i, p.direction, turn_only=True), _floats(p.rolling), _ints(p.row),
             slots[ends[0] : ends[1]].reshape(-1, 6),
         ),
         CombinationArrays(term_start, term_column, term_coefficient, _ints(m.row), slots[ends[1] : ends[2]].copy()),
         DistanceArrays(
-            _ints(d.body_i), _ints(d.body_j), to_local(frames[d.body_i], d.point_i),
-            to_local(frames[d.body_j], d.point_j), _ints(d.row), slots[ends[2] :].reshape(-1, 6),
+            _ints(d.body_i), _ints(d.body_j), local(d.body_i, d.point_i), local(d.body_j, d.point_j), _ints(d.row),
+            slots[ends[2] :].reshape(-1, 6),
         ),
     )  # fmt: skip
     row_is_angle = np.zeros(n_rows, dtype=bool)
     row_is_angle[m.row] = np.all((m.coordinate == 2) | (m.body >= n), axis=1)
     initial = initial_values(c, p, m, d, frames, n_rows)
     return PackedEquations(primitives, indptr, indices, initial, row_is_angle)
+
+
+class _Local:
+    """Local coordinates of global points (or vectors) in the drawn frames of bodies: the
+    cos and sin of each body's angle computed once, not once per entry."""
+
+    def __init__(self, frames: np.ndarray) -> None:
+        self.frames, self.cosine, self.sine = frames, np.cos(frames[:, 2]), np.sin(frames[:, 2])
+
+    def __call__(self, body: np.ndarray, points: np.ndarray, turn_only: bool = False) -> np.ndarray:
+        """``R(angle_b)ᵀ (p - origin_b)`` for each entry (``R(angle_b)ᵀ p`` if `turn_only`), shape (k, 2)."""
+        if turn_only:
+            dx, dy = points[:, 0], points[:, 1]
+        else:
+            origins = self.frames[body, :2]
+            dx, dy = points[:, 0] - origins[:, 0], points[:, 1] - origins[:, 1]
+        cosine, sine = self.cosine[body], self.sine[body]
+        out = np.empty((body.size, 2))
+        out[:, 0] = cosine * dx + sine * dy
+        out[:, 1] = cosine * dy - sine * dx
+        return out
 
 
 def initial_values(c: Coincidence, p: Projection, m: Combination, d: Distance, frames, n_rows) -> np.ndarray:

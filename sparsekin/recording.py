@@ -23,6 +23,10 @@ variable       dimensions                      content
 ``joints``     (time, joint, derivative)       value, rate, accel of each recorded joint's
                                                own coordinate; ``joint_quantity`` (angle,
                                                stroke, slide) and ``joint_unit`` per joint
+``forces``     (time, force)                   the columns of ``forces.csv`` (drivers'
+                                               forces and powers, joints' reactions),
+                                               labelled like them; ``force_unit`` per
+                                               column (N, N·m, W)
 =============  ==============================  ===========================================
 """
 
@@ -33,10 +37,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .dynamics import ForceOutputs
 from .elements import COORDINATE_NAMES
 from .geometry import carried_motion
 from .model import Mechanism
-from .pattern import build_output_pattern, build_point_map
+from .pattern import build_output_pattern, build_pattern, build_point_map
 
 __all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
 
@@ -65,14 +70,26 @@ class Selection:
     joints : None, "all" or sequence of str or int
         Joints whose own coordinate is recorded (names, ``joints[i]`` labels or indices);
         "all": every joint that has one.
+    forces : "auto", None, "all" or sequence of str
+        Drivers and joints whose forces are recorded (`sparsekin.dynamics.ForceOutputs`):
+        names or ``drivers[i]`` / ``joints[i]`` labels; "all": every driver and joint;
+        "auto": all when the model has a mass or a load (`Mechanism.has_forces`), else none.
+    pattern : ConstraintPattern, optional
+        The mechanism's, to lay out the force columns (built if needed).
+
+    Attributes
+    ----------
+    forces : ForceOutputs or None
+        The force columns, if any.
 
     Raises
     ------
     ValueError
-        For an unknown point or joint, or a joint without an own coordinate.
+        For an unknown point, joint or driver, or a joint without an own coordinate.
     """
 
-    def __init__(self, mechanism: Mechanism, coordinates: bool = True, points=None, joints=None) -> None:
+    def __init__(self, mechanism: Mechanism, coordinates: bool = True, points=None, joints=None, forces=None,
+                 pattern=None) -> None:  # fmt: skip
         from .results import element_index
 
         self.mechanism = mechanism
@@ -106,14 +123,49 @@ class Selection:
                                      "coordinate of its own")  # fmt: skip
         self.joint_indices = tuple(indices)
         self.joint_labels = tuple(mechanism.joints[k].name or f"joints[{k}]" for k in indices)
+        self.forces = None
+        drivers, joints_with_forces = _force_elements(mechanism, forces)
+        if drivers or joints_with_forces:
+            pattern = build_pattern(mechanism) if pattern is None else pattern
+            self.forces = ForceOutputs(mechanism, pattern, drivers, joints_with_forces)
+
+    @property
+    def n_force_columns(self) -> int:
+        return 0 if self.forces is None else self.forces.n_columns
 
     def bytes_per_sample(self) -> int:
         n = self.mechanism.n_coordinates if self.coordinates else 0
-        return 8 * (1 + 3 * n + 6 * len(self.point_names) + 3 * len(self.joint_indices))
+        return 8 * (1 + 3 * n + 6 * len(self.point_names) + 3 * len(self.joint_indices) + self.n_force_columns)
 
     def chunk_samples(self) -> int:
         """Samples per chunk: `CHUNK_BYTES` at most, one at least."""
         return int(min(MAX_CHUNK_SAMPLES, max(1, CHUNK_BYTES // self.bytes_per_sample())))
+
+
+def _force_elements(mechanism: Mechanism, forces) -> tuple[list[int], list[int]]:
+    """The drivers and the joints whose forces a run records (see `Selection`)."""
+    from .results import element_index
+
+    if isinstance(forces, str) and forces == "auto":
+        forces = "all" if mechanism.has_forces else None
+    if forces is None:
+        return [], []
+    if isinstance(forces, str) and forces == "all":
+        return list(range(mechanism.n_drivers)), list(range(mechanism.n_joints))
+    if isinstance(forces, str) or not isinstance(forces, Sequence):
+        raise ValueError(f'`forces` must be "auto", None, "all" or a list of driver and joint names, got {forces!r}.')
+    chosen: dict[str, list[int]] = {"drivers": [], "joints": []}
+    for name in forces:
+        found = False
+        for kind in ("drivers", "joints"):
+            try:
+                chosen[kind].append(element_index(mechanism, kind, name))
+                found = True
+            except KeyError:
+                pass
+        if not found:
+            raise ValueError(f'`forces`: no driver or joint is called "{name}" (names, or drivers[i] / joints[i])')
+    return sorted(set(chosen["drivers"])), sorted(set(chosen["joints"]))
 
 
 class Recorder:
@@ -142,6 +194,7 @@ class Recorder:
         if selection.joint_indices:
             self._outputs = build_output_pattern(mechanism, joints=selection.joint_indices)
             self._joints = np.empty((size, len(selection.joint_indices), 3))
+        self._forces = np.empty((size, selection.n_force_columns)) if selection.forces is not None else None
         self._rows = 0
         self._first = 0  # the index of the chunk's first sample
         self.n_written = 0
@@ -153,11 +206,13 @@ class Recorder:
         first sample outside."""
         return self._limits.crossings
 
-    def add(self, t: float, coordinates, velocities, accelerations) -> None:
-        """One solved sample."""
+    def add(self, t: float, coordinates, velocities, accelerations, forces=None) -> None:
+        """One solved sample (and its force columns, when the selection has some)."""
         self._limits.watch(t, coordinates)
         row = self._rows
         self._t[row] = t
+        if self._forces is not None:
+            self._forces[row] = forces
         states = (coordinates, velocities, accelerations)
         if self._q is not None:
             for buffer, state in zip(self._q, states):
@@ -174,11 +229,11 @@ class Recorder:
         if self._rows == self.size:
             self.flush()
 
-    def add_block(self, times, coordinates, velocities, accelerations) -> None:
+    def add_block(self, times, coordinates, velocities, accelerations, forces=None) -> None:
         """Solved samples, one per row of the arrays (the compiled loop's): copied by slices."""
         if self.selection.joint_indices or self._limits.active:
             for k in range(len(times)):  # these need a kernel call per sample anyway
-                self.add(times[k], coordinates[k], velocities[k], accelerations[k])
+                self.add(times[k], coordinates[k], velocities[k], accelerations[k], None if forces is None else forces[k])
             return
         done = 0
         while done < len(times):
@@ -193,6 +248,8 @@ class Recorder:
             if self._carriers.size:
                 for buffer, state in zip(self._frames, states):
                     buffer[rows] = state.reshape(m, -1, 3)[:, self._carriers]
+            if self._forces is not None:
+                self._forces[rows] = forces[block]
             self._rows += m
             done += m
             if self._rows == self.size:
@@ -210,6 +267,8 @@ class Recorder:
             data["points"] = self._point_tracks(m)
         if self.selection.joint_indices:
             data["joints"] = self._joints[:m]
+        if self._forces is not None:
+            data["forces"] = self._forces[:m]
         self.sink.write(self._first, data)
         self._first += m
         self.n_written = self._first
@@ -283,6 +342,8 @@ class MemorySink:
             self.arrays["points"] = np.empty((n_times, len(selection.point_names), 6))
         if selection.joint_indices:
             self.arrays["joints"] = np.empty((n_times, len(selection.joint_indices), 3))
+        if selection.forces is not None:
+            self.arrays["forces"] = np.empty((n_times, selection.n_force_columns))
 
     def write(self, first: int, data: dict) -> None:
         for key, values in data.items():
@@ -328,13 +389,16 @@ class ZarrSink:
                 "joint_quantity": ("joint", [kind.output_names[0] for kind in kinds]),
                 "joint_unit": ("joint", ["rad" if angle else "m" for angle in outputs.row_is_angle]),
             }
+        if selection.forces is not None:
+            labels |= {"force": list(selection.forces.labels), "force_unit": ("force", list(selection.forces.units))}
         return labels
 
     def _dataset(self, data: dict, with_labels: bool):
         import xarray as xr
 
         dims = {"q": ("time", "coordinate"), "qd": ("time", "coordinate"), "qdd": ("time", "coordinate"),
-                "points": ("time", "point", "component"), "joints": ("time", "joint", "derivative")}  # fmt: skip
+                "points": ("time", "point", "component"), "joints": ("time", "joint", "derivative"),
+                "forces": ("time", "force")}  # fmt: skip
         variables = {key: (dims[key], values) for key, values in data.items() if key != "t"}
         coords = {"t": ("time", data["t"])}
         if with_labels:
@@ -362,7 +426,7 @@ class ZarrSink:
         if not self._written:  # nothing solved: an empty store with the labels
             self.write(0, {"t": np.empty(0), **self._empty()})
         group = zarr.open_group(self.path, mode="r")
-        return {key: group[key] for key in ("t", "q", "qd", "qdd", "points", "joints") if key in group}
+        return {key: group[key] for key in ("t", "q", "qd", "qdd", "points", "joints", "forces") if key in group}
 
     def _empty(self) -> dict:
         selection = self.selection
@@ -374,4 +438,6 @@ class ZarrSink:
             data["points"] = np.empty((0, len(selection.point_names), 6))
         if selection.joint_indices:
             data["joints"] = np.empty((0, len(selection.joint_indices), 3))
+        if selection.forces is not None:
+            data["forces"] = np.empty((0, selection.n_force_columns))
         return data

@@ -8,7 +8,9 @@ derivatives.  From them it derives, on request:
 * `KinematicsResult.joint` and `~KinematicsResult.driver`: an element's own coordinate (a
   revolute's relative angle, a cylinder's stroke, a pin's slide) and its two derivatives,
   evaluated with the kernels of the constraint equations on the elements' output
-  equations (`sparsekin.pattern.build_output_pattern`).
+  equations (`sparsekin.pattern.build_output_pattern`);
+* `KinematicsResult.driver_force` and `~KinematicsResult.reaction`: the forces a run
+  recorded (`sparsekin.dynamics`).
 """
 
 from __future__ import annotations
@@ -25,8 +27,8 @@ from .geometry import carried_motion
 from .model import Mechanism
 from .pattern import OutputPattern, PointMap, build_output_pattern
 
-__all__ = ["KinematicsResult", "PointMotion", "CoordinateMotion", "LimitState", "element_index", "own_coordinates",
-           "limit_states"]
+__all__ = ["KinematicsResult", "PointMotion", "CoordinateMotion", "DriverForce", "Reaction", "LimitState",
+           "element_index", "own_coordinates", "limit_states"]
 
 
 class PointMotion(NamedTuple):
@@ -43,6 +45,40 @@ class CoordinateMotion(NamedTuple):
     value: np.ndarray
     rate: np.ndarray
     acceleration: np.ndarray
+
+
+class DriverForce(NamedTuple):
+    """What a driver applies to hold the motion.
+
+    Attributes
+    ----------
+    force : ndarray, shape (n_times,), or (n_times, 2) for a path driver
+        N for a stroke, a distance or an x / y coordinate (positive when it pushes the two
+        points apart, or along +x / +y); N·m for an angle (the torque on the driven body,
+        counter-clockwise positive); a path driver's force on its body at the point, global
+        (fx, fy).
+    power : ndarray, shape (n_times,)
+        Force times the rate of the driven quantity, W.
+    """
+
+    force: np.ndarray
+    power: np.ndarray
+
+
+class Reaction(NamedTuple):
+    """The force of a joint on its ``bodies[0]`` from its ``bodies[1]``.
+
+    Attributes
+    ----------
+    force : ndarray, shape (n_times, 2)
+        Global x and y, N.
+    torque : ndarray, shape (n_times,), or None
+        About the joint's point, N·m, counter-clockwise positive; None for the kinds whose
+        reaction has no torque (revolute, pin in slot).
+    """
+
+    force: np.ndarray
+    torque: np.ndarray | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,6 +123,13 @@ class KinematicsResult:
         Indices of the joints whose own coordinate the run recorded (`joint_tracks`).
     joint_tracks : array, shape (n_times, n_recorded_joints, 3), or None
         Value, rate and acceleration of each recorded joint's own coordinate.
+    force_labels, force_units : tuple of str
+        The force columns the run recorded (``forces.csv``'s names: ``D.force``,
+        ``D.power``, ``J.fx``, …) and their units.
+    force_tracks : array, shape (n_times, n_force_columns), or None
+        Their values.
+    quasi_static : bool
+        Whether the forces leave out the inertial forces.
     store : str or None
         The Zarr store the run was streamed to.
     """
@@ -109,6 +152,10 @@ class KinematicsResult:
     point_tracks: np.ndarray | None = None
     recorded_joints: tuple[int, ...] = ()
     joint_tracks: np.ndarray | None = None
+    force_labels: tuple[str, ...] = ()
+    force_units: tuple[str, ...] = ()
+    force_tracks: np.ndarray | None = None
+    quasi_static: bool = False
     store: str | None = None
 
     @property
@@ -195,6 +242,47 @@ class KinematicsResult:
         value, rate, acceleration = self._outputs
         return CoordinateMotion(value[:, row], rate[:, row], acceleration[:, row])
 
+    def driver_force(self, name: str | int) -> DriverForce:
+        """The force (or torque) driver `name` applies to hold the motion, and its power.
+
+        Raises
+        ------
+        KeyError
+            No such driver, or the run did not record its force (``forces=``).
+        """
+        index = element_index(self.mechanism, "drivers", name)
+        driver = self.mechanism.drivers[index]
+        label = driver.name or f"drivers[{index}]"
+        columns = self._force_columns(label, [*type(driver).force_names, "power"], "drivers", index)
+        force = columns[:, :-1] if columns.shape[1] > 2 else columns[:, 0]
+        return DriverForce(force, columns[:, -1])
+
+    def reaction(self, name: str | int) -> Reaction:
+        """The force of joint `name` on its ``bodies[0]`` from its ``bodies[1]`` (`Reaction`).
+
+        Raises
+        ------
+        KeyError
+            No such joint, or the run did not record its forces (``forces=``).
+        """
+        index = element_index(self.mechanism, "joints", name)
+        joint = self.mechanism.joints[index]
+        label = joint.name or f"joints[{index}]"
+        names = ["fx", "fy", "torque"] if type(joint).reaction_torque else ["fx", "fy"]
+        columns = self._force_columns(label, names, "joints", index)
+        return Reaction(columns[:, :2], columns[:, 2] if columns.shape[1] == 3 else None)
+
+    def _force_columns(self, label: str, names: list[str], kind: str, index: int) -> np.ndarray:
+        position = self._force_position.get(f"{label}.{names[0]}")
+        if position is None:
+            why = "no forces" if not self.force_labels else "the forces of other elements"
+            raise KeyError(f"{kind}[{index}] ({label}): the run recorded {why} (solve_kinematics(..., forces=...))")
+        return np.asarray(self.force_tracks[:, position : position + len(names)])
+
+    @cached_property
+    def _force_position(self) -> dict[str, int]:
+        return {label: k for k, label in enumerate(self.force_labels)}
+
     @cached_property
     def _outputs_pattern(self) -> OutputPattern:
         return build_output_pattern(self.mechanism)
@@ -229,6 +317,9 @@ class KinematicsResult:
             labels = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
             coords |= {"joint": labels, "derivative": list(JOINT_DERIVATIVES)}
             variables["joints"] = (("time", "joint", "derivative"), np.asarray(self.joint_tracks))
+        if self.force_labels:
+            coords |= {"force": list(self.force_labels), "force_unit": ("force", list(self.force_units))}
+            variables["forces"] = (("time", "force"), np.asarray(self.force_tracks))
         return xr.Dataset(variables, coords=coords)
 
 
@@ -305,14 +396,18 @@ def element_index(mechanism: Mechanism, kind: str, name: str | int) -> int:
         if 0 <= name < len(elements):
             return int(name)
         raise KeyError(f"{kind}[{name}] does not exist: the model has {len(elements)} {kind}")
-    for index, element in enumerate(elements):
-        if element.name == name:
-            return index
+    try:
+        return mechanism.index_of(kind, name)
+    except KeyError:
+        pass
     if name.startswith(f"{kind}[") and name.endswith("]") and name[len(kind) + 1 : -1].isdigit():
         index = int(name[len(kind) + 1 : -1])
         if index < len(elements):
             return index
-    named = [element.name for element in elements if element.name]
+    named = [element.name for element in mechanism.declared(kind) if element.name]
+    if mechanism.copies:
+        named = [*(e.name for e in mechanism.own(kind) if e.name), *(
+            c.name(0, e.name) + " …" for c in mechanism.copies for e in getattr(c.unit, kind) if e.name)]
     raise KeyError(
         f'unknown {kind[:-1]} "{name}": expected a name ({", ".join(named) or "none given"}) or '
         f"{kind}[i] with i < {len(elements)}"

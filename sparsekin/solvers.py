@@ -7,6 +7,12 @@ converged position then serves two more solves:
     Phi_q · qd  = -Phi_t        (velocities)
     Phi_q · qdd = gamma         (accelerations)
 
+When the model has masses or loads (or when asked, ``forces=``), the same factorization
+serves one more, transposed, solve for the forces that hold the motion
+(`sparsekin.dynamics`):
+
+    Phi_q^T · lam = Q - M qdd - h   (Lagrange multipliers: driver forces, joint reactions)
+
 Convergence is judged on the residual, lengths relative to the size of the model (so a
 chain 10^4 m long converges as surely as a 1 m linkage) and angles in radians.  The loop
 itself is `sparsekin.stepper.KinematicStepper` (predictor, Newton, branch guard, step
@@ -33,7 +39,8 @@ import warnings
 
 import numpy as np
 
-from ._compiled import solve_compiled, supports_compiled
+from ._compiled import CompiledForces, solve_compiled, supports_compiled
+from .dynamics import ForceSolver, build_load_pattern
 from .errors import AnalysisInterrupted, ConvergenceError, LimitWarning
 from .laws import Spline
 from .model import Mechanism
@@ -63,6 +70,8 @@ def solve_kinematics(
     coordinates: bool = True,
     points=None,
     joints=None,
+    forces="auto",
+    quasi_static: bool = False,
     store=None,
     progress=None,
 ) -> KinematicsResult:
@@ -96,6 +105,14 @@ def solve_kinematics(
         is False: a long run of a large model keeps only what it needs).
     joints : None, "all" or sequence of str
         Joints whose own coordinate (angle, stroke, slide) is recorded while the run goes on.
+    forces : "auto", None, "all" or sequence of str
+        Drivers and joints whose forces are computed and recorded: each driver's force (or
+        torque) and power, each joint's reaction (`KinematicsResult.driver_force`,
+        `~KinematicsResult.reaction`).  "auto" (the default): all of them when the model
+        has a mass or a load (`Mechanism.has_forces`), none otherwise.
+    quasi_static : bool
+        Forces without the inertial forces: what holds the mechanism still in each
+        configuration (gravity and loads only).
     store : str or path-like, optional
         Stream what is recorded to this Zarr store, chunk by chunk (``pip install
         "sparsekin[zarr]"``): memory then holds a chunk, not the run.  The result reads
@@ -129,7 +146,8 @@ def solve_kinematics(
     Warns
     -----
     RedundantConstraintWarning
-        When redundant equations are left out.
+        When redundant equations are left out (with forces: the reactions of a redundant
+        set are not unique; the minimum-norm ones are given).
     LimitWarning
         Once for each element with ``limits`` whose own coordinate leaves them, at the
         first sample outside.
@@ -156,17 +174,23 @@ def solve_kinematics(
         raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
     if progress is not None and not callable(progress):
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
-    selection = Selection(mechanism, coordinates, points, joints)
+    if not isinstance(quasi_static, (bool, np.bool_)):
+        raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
     pattern = build_pattern(mechanism)
+    selection = Selection(mechanism, coordinates, points, joints, forces, pattern=pattern)
     n = pattern.n_coordinates
     if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
         stepper = None
     else:
         stepper = KinematicStepper(
-            mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern
-        )
+            mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern,
+            forces=selection.forces is not None,
+        )  # fmt: skip
     sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    run = _Run(mechanism, stepper, times, Recorder(selection, sink), progress)
+    force_solver = None
+    if selection.forces is not None and stepper is not None:
+        force_solver = ForceSolver(pattern, build_load_pattern(mechanism), selection.forces, bool(quasi_static))
+    run = _Run(mechanism, stepper, times, Recorder(selection, sink), progress, force_solver)
     compiled = (
         stepper is not None
         and (linear_solver == "dense" or (linear_solver == "auto" and n <= COMPILED_MAX_COORDINATES))
@@ -188,9 +212,9 @@ class _Run:
     """One run: the stepper (or the compiled loop, chunk by chunk) feeding a recorder."""
 
     def __init__(self, mechanism, stepper: KinematicStepper | None, times: np.ndarray, recorder: Recorder,
-                 progress) -> None:  # fmt: skip
+                 progress, force_solver: ForceSolver | None = None) -> None:  # fmt: skip
         self.mechanism, self.stepper, self.times, self.recorder = mechanism, stepper, times, recorder
-        self.progress = progress
+        self.progress, self.force_solver = progress, force_solver
         self.iterations = np.zeros(times.size, dtype=np.int64)
         self.compiled_counts = np.zeros(2, dtype=np.int64)  # factorizations and solves of the compiled loop
         self.path = stepper.path if stepper is not None else "none"
@@ -204,8 +228,9 @@ class _Run:
         try:
             if stepper is None:
                 empty = np.zeros(0)
+                no_forces = np.zeros(self.recorder.selection.n_force_columns)
                 for k in range(times.size):
-                    self.recorder.add(times[k], empty, empty, empty)
+                    self.recorder.add(times[k], empty, empty, empty, no_forces)
                 return self.result(times.size)
             if compiled:
                 k = self._solve_compiled()
@@ -228,7 +253,8 @@ class _Run:
 
     def _record(self, k: int) -> None:
         stepper = self.stepper
-        self.recorder.add(self.times[k], stepper.coordinates, stepper.velocities, stepper.accelerations)
+        forces = None if self.force_solver is None else self.force_solver.evaluate(stepper)
+        self.recorder.add(self.times[k], stepper.coordinates, stepper.velocities, stepper.accelerations, forces)
         if self.progress is not None:
             self.progress(k + 1, self.times.size)
 
@@ -244,6 +270,11 @@ class _Run:
         rows = [np.empty((size + 1, n)) for _ in range(3)]
         iterations = np.zeros(size + 1, dtype=np.int64)
         chunk_times = np.empty(size + 1)
+        forces = None
+        if self.force_solver is not None:
+            solver = self.force_solver
+            forces = CompiledForces(solver.loads.arrays, solver.loads.laws, solver.loads.n_laws, solver.outputs.arrays(),
+                                    solver.inertial, np.zeros((size + 1, solver.outputs.n_columns)))  # fmt: skip
         done = 0
         while done < times.size:
             start = 0 if done == 0 else 1  # row 0: the previous sample
@@ -257,13 +288,15 @@ class _Run:
             outcome = solve_compiled(
                 stepper.mechanism, stepper.pattern, chunk_times[:stop], stepper.tolerance, stepper.max_iterations,
                 rows[0][:stop], rows[1][:stop], rows[2][:stop], iterations[:stop], start=start,
+                forces=None if forces is None else forces._replace(rows=forces.rows[:stop]),
             )  # fmt: skip
             self.compiled_counts += (outcome.n_factorizations, outcome.n_solves)
             solved = first_branch_jump(chunk_times, *rows, stepper.pattern.coordinate_weights, outcome.n_solved)
             new = solved - start
             if new > 0:
                 self.iterations[done : done + new] = iterations[start:solved]
-                self.recorder.add_block(chunk_times[start:solved], *(array[start:solved] for array in rows))
+                self.recorder.add_block(chunk_times[start:solved], *(array[start:solved] for array in rows),
+                                        None if forces is None else forces.rows[start:solved])  # fmt: skip
                 if done == 0:
                     self._first = (chunk_times[0], rows[0][0].copy())
                 self._last = (chunk_times[solved - 1], *(array[solved - 1].copy() for array in rows))
@@ -304,6 +337,10 @@ class _Run:
             point_tracks=arrays.get("points"),
             recorded_joints=selection.joint_indices,
             joint_tracks=arrays.get("joints"),
+            force_labels=() if selection.forces is None else selection.forces.labels,
+            force_units=() if selection.forces is None else selection.forces.units,
+            force_tracks=arrays.get("forces"),
+            quasi_static=self.force_solver is not None and not self.force_solver.inertial,
             store=getattr(self.recorder.sink, "path", None),
         )
         return self._result

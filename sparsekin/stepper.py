@@ -119,6 +119,10 @@ class KinematicStepper:
         ``build_pattern(mechanism)``, if already made.
     assembler : Assembler, optional
         The assembler to fill the equations with (for instance one whose calls are timed).
+    forces : bool
+        Whether the run computes forces from the stepper's factorizations
+        (`sparsekin.dynamics.ForceSolver`); only the warning about redundant equations
+        says more then.
 
     Attributes
     ----------
@@ -147,6 +151,7 @@ class KinematicStepper:
         chord: bool | None = None,
         pattern: ConstraintPattern | None = None,
         assembler: Assembler | None = None,
+        forces: bool = False,
     ) -> None:
         if not isinstance(mechanism, Mechanism):
             raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
@@ -189,6 +194,7 @@ class KinematicStepper:
         self._first: tuple[float, np.ndarray] | None = None  # (t, q) of the first sample
         self.time: float | None = None
         self.n_subdivisions = 0
+        self.forces = bool(forces)
 
     # ------------------------------------------------------------------ counters
     @property
@@ -382,7 +388,7 @@ class KinematicStepper:
 
     def _leave_out_redundant(self, t: float, coordinates: np.ndarray) -> None:
         """More equations than coordinates: solve without the redundant ones."""
-        self.redundant_rows = self.diagnosis.redundant_rows(self.assembler, t, coordinates)
+        self.redundant_rows = self.diagnosis.redundant_rows(self.assembler, t, coordinates, self.forces)
         kept = np.setdiff1d(np.arange(self.pattern.n_equations), self.redundant_rows)
         self.system = ReducedSystem(self.assembler, kept)
         self.factorizer = Factorizer(self.system, self.linear_solver)

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _validate
-from .elements import DRIVER_KINDS, GROUND, JOINT_KINDS
+from .elements import DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS
 from .errors import ModelError
 
 __all__ = ["Unit", "Repeat", "Step", "Cycle", "Copies", "ElementList", "PointTable", "PREV"]
@@ -74,7 +74,7 @@ class Cycle:
 
 @dataclass(frozen=True)
 class Unit:
-    """A sub-mechanism to be repeated: its points, bodies, joints and drivers.
+    """A sub-mechanism to be repeated: its points, bodies, joints, drivers and loads.
 
     Names are local to the unit.  A reference to a body that is not the unit's is either
     ``prev.NAME`` (body NAME of the copy before; for copy 0 what `Repeat.first` says, by
@@ -87,6 +87,7 @@ class Unit:
     bodies: tuple = ()
     joints: tuple = ()
     drivers: tuple = ()
+    loads: tuple = ()
 
     def __post_init__(self) -> None:
         from .model import Body, _point_pair, _tuple_of
@@ -98,6 +99,7 @@ class Unit:
         object.__setattr__(self, "bodies", _tuple_of(self.bodies, (Body,), "bodies"))
         object.__setattr__(self, "joints", _tuple_of(self.joints, tuple(JOINT_KINDS.values()), "joints"))
         object.__setattr__(self, "drivers", _tuple_of(self.drivers, tuple(DRIVER_KINDS.values()), "drivers"))
+        object.__setattr__(self, "loads", _tuple_of(self.loads, tuple(LOAD_KINDS.values()), "loads"))
         bodies: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
             if body.name == GROUND or body.name.startswith(PREV):
@@ -112,7 +114,7 @@ class Unit:
                     if element.name in seen:
                         raise ModelError(f'duplicate {kind[:-1]} name "{element.name}"', element=f"{kind}[{index}].name")
                     seen.add(element.name)
-        for kind in ("joints", "drivers"):  # a "prev." reference must name a body of the unit
+        for kind in ("joints", "drivers", "loads"):  # a "prev." reference must name a body of the unit
             for index, element in enumerate(getattr(self, kind)):
                 for field_name, k, name in _body_references(element):
                     if name.startswith(PREV) and name[len(PREV) :] not in bodies:
@@ -236,22 +238,24 @@ class Copies:
     repeat : Repeat
     index : int
         Its position among the mechanism's repeats (for messages).
-    first_body, first_joint, first_driver : int
-        Index of copy 0's first body, joint and driver in the mechanism.
+    first_body, first_joint, first_driver, first_load : int
+        Index of copy 0's first body, joint, driver and load in the mechanism.
     model_position : callable
         The drawn position of a point name of the mechanism (for the unit's references to
         the model's points).
     """
 
     def __init__(self, repeat: Repeat, index: int, first_body: int, first_joint: int, first_driver: int,
-                 model_position) -> None:  # fmt: skip
+                 first_load: int, model_position) -> None:  # fmt: skip
         self.repeat, self.index = repeat, index
         self.model_position = model_position  # the drawn position of a point name of the model
         self.unit = unit = repeat.unit
         self.count, self.prefix = repeat.count, repeat.prefix
         self.offset = np.asarray(repeat.offset, dtype=float)
         self.first_body, self.first_joint, self.first_driver = first_body, first_joint, first_driver
+        self.first_load = first_load
         self.n_bodies, self.n_joints, self.n_drivers = len(unit.bodies), len(unit.joints), len(unit.drivers)
+        self.n_loads = len(unit.loads)
         self.body_index = unit.body_index
         self.point_index = {name: k for k, name in enumerate(unit.points)}
         self.joint_index = {joint.name: k for k, joint in enumerate(unit.joints) if joint.name is not None}
@@ -394,7 +398,7 @@ class Copies:
 
     # ------------------------------------------------------------------ elements on demand
     def element(self, kind: str, k: int, e: int):
-        """Copy k's element e of the unit's `kind` ("bodies", "joints", "drivers"), as an object."""
+        """Copy k's element e of the unit's `kind` ("bodies", "joints", "drivers", "loads"), as an object."""
         unit_element = getattr(self.unit, kind)[e]
         if kind == "bodies":
             return dataclasses.replace(
@@ -438,8 +442,8 @@ def _finite(value, path: str) -> float:
 
 # ---------------------------------------------------------------------- lazy views of the whole model
 class ElementList(Sequence):
-    """The bodies, joints or drivers of a mechanism with repeats: its own, then each repeat's
-    copies (copy-major).  Copies' elements are built on demand."""
+    """The bodies, joints, drivers or loads of a mechanism with repeats: its own, then each
+    repeat's copies (copy-major).  Copies' elements are built on demand."""
 
     def __init__(self, kind: str, own: tuple, copies: list[Copies]) -> None:
         self.kind, self.own, self.copies = kind, own, copies
@@ -484,7 +488,7 @@ class ElementList(Sequence):
 
 
 def _unit_size(copies: Copies, kind: str) -> int:
-    return {"bodies": copies.n_bodies, "joints": copies.n_joints, "drivers": copies.n_drivers}[kind]
+    return {"bodies": copies.n_bodies, "joints": copies.n_joints, "drivers": copies.n_drivers, "loads": copies.n_loads}[kind]
 
 
 class PointTable(Mapping):
