@@ -348,19 +348,21 @@ def dense_lu_solve_transposed(a, pivots, b):
 
     ``P matrix = L U`` (P the row interchanges), so ``matrix.T = U.T L.T P``: forward
     substitution with U.T, back substitution with the unit L.T, then the interchanges
-    undone in reverse order.
+    undone in reverse order.  Both substitutions read rows of `a` (contiguous) and skip
+    the zero entries of the partial solution, as `dense_lu_solve` does with columns.
     """
     n = a.shape[0]
-    for j in range(n):
-        total = b[j]
-        for i in range(j):
-            total -= a[i, j] * b[i]
-        b[j] = total / a[j, j]
-    for j in range(n - 1, -1, -1):
-        total = b[j]
-        for i in range(j + 1, n):
-            total -= a[i, j] * b[i]
-        b[j] = total
+    for j in range(n):  # U.T y = b: y_j, then take row j of U out of the rest
+        y_j = b[j] / a[j, j]
+        b[j] = y_j
+        if y_j != 0.0:
+            for i in range(j + 1, n):
+                b[i] -= a[j, i] * y_j
+    for j in range(n - 1, -1, -1):  # L.T z = y: z_j, then take row j of L out of the rest
+        z_j = b[j]
+        if z_j != 0.0:
+            for i in range(j):
+                b[i] -= a[j, i] * z_j
     for k in range(n - 1, -1, -1):
         swap = pivots[k]
         if swap != k:

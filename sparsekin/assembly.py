@@ -137,12 +137,16 @@ class Assembler:
 
         A linear solver that reads the values in its own order (`RefactorSolver`'s
         ``value_positions``) then takes `values` as they are, without a gather; `jacobian`
-        becomes a copy in CSR order.  ``None`` returns to the CSR order.
+        becomes a copy in CSR order.  ``None`` returns to the CSR order.  The values
+        already there are moved to the new order, so that `values`, `csr_positions` and
+        `jacobian` always describe the last fill.
         """
         p = self.pattern
+        in_csr_order = self.values.copy() if self._csr_position is None else self.values[self._csr_position]
         if positions is None:
             self._primitives = p.primitives
             self._csr_position = None
+            self.values[:] = in_csr_order
             return
         positions = np.asarray(positions, dtype=np.int64)
         if positions.shape != (p.nnz,) or (
@@ -152,6 +156,7 @@ class Assembler:
         # the ground's discard slot stays where it is
         self._primitives = p.primitives.with_slots(np.append(positions, p.nnz))
         self._csr_position = positions
+        self.values[positions] = in_csr_order
 
     def set_time(self, t: float) -> None:
         """Evaluate the driver laws at time `t` (s) and update the targets."""

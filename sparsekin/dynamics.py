@@ -186,22 +186,20 @@ class ForceOutputs:
         units: list[str] = []
         driver_row, driver_rows, driver_column = [], [], []
         for d in self.driver_indices:
-            driver = mechanism.drivers[d]
-            label = driver.name or f"drivers[{d}]"
+            label, kind = _label_and_kind(mechanism, "drivers", d)
             row = int(first_row[n_joints + d])
             driver_row.append(row)
-            driver_rows.append(driver.n_equations)
+            driver_rows.append(kind.n_equations)
             driver_column.append(len(labels))
             unit = "N·m" if pattern.row_is_angle[row] else "N"
-            labels += [f"{label}.{name}" for name in type(driver).force_names] + [f"{label}.power"]
-            units += [unit] * driver.n_equations + ["W"]
+            labels += [f"{label}.{name}" for name in kind.force_names] + [f"{label}.power"]
+            units += [unit] * kind.n_equations + ["W"]
         joint_column, joint_torque = [], []
         for k in self.joint_indices:
-            joint = mechanism.joints[k]
-            label = joint.name or f"joints[{k}]"
+            label, kind = _label_and_kind(mechanism, "joints", k)
             joint_column.append(len(labels))
-            joint_torque.append(type(joint).reaction_torque)
-            names = ("fx", "fy", "torque") if type(joint).reaction_torque else ("fx", "fy")
+            joint_torque.append(kind.reaction_torque)
+            names = ("fx", "fy", "torque") if kind.reaction_torque else ("fx", "fy")
             labels += [f"{label}.{name}" for name in names]
             units += ["N", "N", "N·m"][: len(names)]
         self.labels, self.units = tuple(labels), tuple(units)
@@ -226,6 +224,25 @@ class ForceOutputs:
             positions = np.ascontiguousarray(csr_positions[self._csr_arrays.entry_position], dtype=np.int64)
             self._ordered = (csr_positions, self._csr_arrays._replace(entry_position=positions))
         return self._ordered[1]
+
+
+def _label_and_kind(mechanism: Mechanism, kind: str, index: int) -> tuple[str, type]:
+    """The label (name, else ``kind[i]``) and the kind of joint or driver `index`, a copy's
+    read from its unit without building the copy."""
+    own = mechanism.own(kind)
+    if index < len(own):
+        element = own[index]
+    else:
+        for copies in mechanism.copies:
+            first, size = ((copies.first_joint, copies.n_joints) if kind == "joints"
+                           else (copies.first_driver, copies.n_drivers))  # fmt: skip
+            if 0 <= index - first < copies.count * size:
+                k, e = divmod(index - first, size)
+                unit_element = getattr(copies.unit, kind)[e]
+                name = copies.name(k, unit_element.name) if unit_element.name else None
+                return name or f"{kind}[{index}]", type(unit_element)
+        raise IndexError(f"{kind}[{index}] out of range")
+    return element.name or f"{kind}[{index}]", type(element)
 
 
 def _reaction_geometry(mechanism: Mechanism, pattern: ConstraintPattern, joints: tuple[int, ...]):

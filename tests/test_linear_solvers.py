@@ -326,6 +326,10 @@ def test_dense_lu_kernels_against_numpy(n, rng):
     _lu_kernels.dense_lu_solve(factors, pivots, x)
     np.testing.assert_allclose(x, np.linalg.solve(matrix, b), rtol=1e-10, atol=1e-10 * np.abs(x).max())
     assert backward_error(matrix, x, b) <= BACKWARD_ERROR
+    x = b.copy()  # the transposed system, with the same factors (the forces' solve)
+    _lu_kernels.dense_lu_solve_transposed(factors, pivots, x)
+    np.testing.assert_allclose(x, np.linalg.solve(matrix.T, b), rtol=1e-10, atol=1e-10 * np.abs(x).max())
+    assert backward_error(matrix.T, x, b) <= BACKWARD_ERROR
     swapped = matrix.copy()  # the documented pivot convention: swaps in order give L U
     for k, row in enumerate(pivots):
         swapped[[k, row]] = swapped[[row, k]]
