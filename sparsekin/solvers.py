@@ -38,7 +38,7 @@ from .errors import AnalysisInterrupted, ConvergenceError, LimitWarning
 from .laws import Spline
 from .model import Mechanism
 from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
-from .pattern import build_pattern, build_point_map
+from .pattern import ConstraintPattern, build_pattern, build_point_map
 from .recording import MemorySink, Recorder, Selection, ZarrSink
 from .results import KinematicsResult, PointMotion
 from .stepper import (
@@ -65,6 +65,7 @@ def solve_kinematics(
     joints=None,
     store=None,
     progress=None,
+    pattern: ConstraintPattern | None = None,
 ) -> KinematicsResult:
     """Positions, velocities and accelerations of `mechanism` at `times`.
 
@@ -102,6 +103,10 @@ def solve_kinematics(
         from the store; ``result.to_xarray()`` opens it lazily.
     progress : callable, optional
         Called as ``progress(samples_done, n_times)`` while the run goes on.
+    pattern : ConstraintPattern, optional
+        ``build_pattern(m)`` of a mechanism ``m`` with the same bodies, joints, drivers and
+        drawing as `mechanism` (only the parameters of driver laws may differ): a sweep
+        over law parameters builds it once for many variants.  Default: built here.
 
     Returns
     -------
@@ -157,7 +162,13 @@ def solve_kinematics(
     if progress is not None and not callable(progress):
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
     selection = Selection(mechanism, coordinates, points, joints)
-    pattern = build_pattern(mechanism)
+    if pattern is None:
+        pattern = build_pattern(mechanism)
+    elif not isinstance(pattern, ConstraintPattern) or (pattern.n_bodies, pattern.n_equations) != (
+        mechanism.n_bodies, mechanism.n_equations
+    ):  # fmt: skip
+        raise ValueError(f"`pattern` must be the ConstraintPattern of a mechanism like `mechanism` "
+                         f"({mechanism.n_bodies} bodies, {mechanism.n_equations} equations).")  # fmt: skip
     n = pattern.n_coordinates
     if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
         stepper = None
