@@ -14,6 +14,12 @@ rank of its Jacobian, its redundant equations and its free motions
 a problem (redundant equations, free motions, or it cannot be assembled), 2 on a bad
 model file or bad arguments.
 
+``sparsekin sweep MODEL.toml --vary PATH=START:STOP:N ...`` solves many variants on Dask
+(`sparsekin.sweeps`) and writes ``sweep.zarr`` and ``variants.csv``; exit status 0 once
+every variant is written, whatever its status, 2 on a bad argument, 3 when a task failed.
+``sparsekin workspace MODEL.toml --point K`` maps the point over two drivers' values
+(`sparsekin.workspaces`).
+
 Each subcommand is a pair of functions: one adds its parser to the subparsers, the other
 runs it and returns the exit status.  `SUBCOMMANDS` lists the first of each pair, so a
 new subcommand only needs its two functions and one entry there.
