@@ -849,6 +849,8 @@ def _count_samples(result: KinematicsResult | None) -> int:
 def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline, written: list[Path]) -> str:
     """A few lines: samples, Newton corrections per step, factorizations, times, files."""
     corrections = result.newton_iterations
+    if timeline.first is None:  # nothing to solve (a model without bodies): no progress was reported
+        timeline.first, timeline.first_done = timeline.solved, result.n_times
     first = timeline.first - timeline.start
     later = result.n_times - timeline.first_done
     per_sample = (timeline.solved - timeline.first) / later if later else (timeline.solved - timeline.read) / result.n_times
