@@ -48,7 +48,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
-    others, large = [], []
+    others, large, sweeps = [], [], []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -58,9 +58,11 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             setups[(info["family"], info["bodies"])] = info
         elif record["name"].startswith("test_large_file"):
             large.append(info)
+        elif record["name"].startswith("test_task5_amplitude_sweep"):
+            sweeps.append(info)
         else:
             others.append(record)
-    document["others"], document["large"] = others, large
+    document["others"], document["large"], document["sweeps"] = others, large, sweeps
     return steps, setups, document
 
 
@@ -169,6 +171,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             lines.append(f"- {family}, {name}: {exponent:.3f}")
     if document["large"]:
         lines += ["", *_large_files(document["large"])]
+    if document["sweeps"]:
+        lines += ["", *_sweeps(document["sweeps"])]
     if document["others"]:
         lines += [
             "",
@@ -228,6 +232,32 @@ def _large_files(records: list[dict]) -> list[str]:
             _seconds(info["seconds_per_sample"]) if "seconds_per_sample" in info else "—",
             f"{info['peak_rss_bytes'] / 2**30:.2f} GB",
         ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _sweeps(records: list[dict]) -> list[str]:
+    """The table of `test_sweep_speed.py`: a Task 5 amplitude sweep, serial and on Dask."""
+    serial = next((info for info in records if info["workers"] == 0), None)
+    first = records[0]
+    lines = [
+        "## Design sweeps on Dask (`test_sweep_speed.py`)",
+        "",
+        f"A Task 5 amplitude sweep: {first['variants']} variants (both amplitudes 0.03 … 0.07 m), each "
+        f"{first['samples']} samples over 10 s recording point K. Serial: a Python loop over `solve_kinematics`",
+        "in a process with the one BLAS thread Dask gives its workers. Dask: `sparsekin.sweep` on a local cluster",
+        "of single-threaded worker processes, started and warmed up before the timing. Parallel efficiency:",
+        "serial time / (workers × time).",
+        "",
+        "| runner | workers | tasks | variants locked up | time | variants/s | parallel efficiency |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for info in sorted(records, key=lambda info: info["workers"]):
+        efficiency = ""
+        if serial is not None and info["workers"]:
+            efficiency = f"{serial['seconds'] / (info['workers'] * info['seconds']):.0%}"
+        cells = [info["runner"], str(info["workers"] or "—"), str(info.get("tasks", "—")), str(info["locked"]),
+                 _seconds(info["seconds"]), f"{info['variants_per_second']:.3g}", efficiency]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 

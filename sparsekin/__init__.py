@@ -35,6 +35,8 @@ The modules follow the data flow:
 `recording`        what a run keeps, in chunks, in memory or in a Zarr store
 `solvers`          `solve_kinematics`: validate, run the loop, return the result
 `check`            `check_model`: degrees of freedom, rank, redundancy, free motions
+`sweeps`           `sweep`: many variants on Dask (`VariantSet`, `SweepResult`)
+`workspaces`       `workspace`: a point's reachable region over two drivers' values
 `cli`              the ``sparsekin`` command; `plotting` its figures
 =================  ===========================================================
 
@@ -151,5 +153,25 @@ __all__ = [
     "load_model",
     "save_model",
     "solve_kinematics",
+    "SweepResult",
+    "VariantSet",
+    "Workspace",
+    "sweep",
+    "workspace",
 ]
 __version__ = "0.1.0"
+
+#: Names imported on first use, so that ``import sparsekin`` loads neither Dask nor the
+#: sweep machinery: name -> module.
+_LAZY = {"sweep": "sweeps", "VariantSet": "sweeps", "SweepResult": "sweeps",
+         "workspace": "workspaces", "Workspace": "workspaces"}  # fmt: skip
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        from importlib import import_module
+
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,6 +14,12 @@ rank of its Jacobian, its redundant equations and its free motions
 a problem (redundant equations, free motions, or it cannot be assembled), 2 on a bad
 model file or bad arguments.
 
+``sparsekin sweep MODEL.toml --vary PATH=START:STOP:N ...`` solves many variants on Dask
+(`sparsekin.sweeps`) and writes ``sweep.zarr`` and ``variants.csv``; exit status 0 once
+every variant is written, whatever its status, 2 on a bad argument, 3 when a task failed.
+``sparsekin workspace MODEL.toml --point K`` maps the point over two drivers' values
+(`sparsekin.workspaces`).
+
 Each subcommand is a pair of functions: one adds its parser to the subparsers, the other
 runs it and returns the exit status.  `SUBCOMMANDS` lists the first of each pair, so a
 new subcommand only needs its two functions and one entry there.
@@ -186,13 +192,7 @@ def add_run_command(subparsers) -> None:
         "--joints", metavar="J1,J2", help="joints written to joints.csv, separated by commas, or all or none "
         f"(default: every joint with an own coordinate up to {MAX_DEFAULT_JOINTS})"
     )
-    parser.add_argument(
-        "--forces", metavar="D1,J2", help="drivers and joints whose forces are written to forces.csv, separated by "
-        f"commas, or all or none (default, for a model with a mass or a load: all of them if there are at most "
-        f"{MAX_DEFAULT_FORCE_ELEMENTS})"
-    )
-    parser.add_argument("--quasi-static", action="store_true",
-                        help="forces without the inertial forces: what holds the mechanism still in each position")
+    _add_force_arguments(parser, "written to forces.csv")
     coordinates = parser.add_mutually_exclusive_group()
     coordinates.add_argument("--no-coordinates", dest="coordinates", action="store_false", default=None,
                              help="leave out every body's coordinates (coordinates.npz, or q, qd, qdd in Zarr)")
@@ -208,6 +208,17 @@ def add_run_command(subparsers) -> None:
     )
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
     parser.set_defaults(handler=run_command)
+
+
+def _add_force_arguments(parser, where: str) -> None:
+    """``--forces`` and ``--quasi-static`` (of ``run`` and ``sweep``)."""
+    parser.add_argument(
+        "--forces", metavar="D1,J2", help=f"drivers and joints whose forces are {where}, separated by commas, or all "
+        f"or none (default, for a model with a mass or a load: all of them if there are at most "
+        f"{MAX_DEFAULT_FORCE_ELEMENTS})"
+    )
+    parser.add_argument("--quasi-static", action="store_true",
+                        help="forces without the inertial forces: what holds the mechanism still in each position")
 
 
 def run_command(arguments: argparse.Namespace) -> int:
@@ -499,6 +510,292 @@ def check_command(arguments: argparse.Namespace) -> int:
     return EXIT_SUCCESS if report.sound else EXIT_PROBLEM
 
 
+# ---------------------------------------------------------------------- sweep
+#: Variants' values of q, qd and qdd that ``sweep`` writes by default, all variants together.
+MAX_DEFAULT_SWEEP_VALUES = MAX_DEFAULT_VALUES
+
+
+def add_sweep_command(subparsers) -> None:
+    """Add ``sweep MODEL.toml --vary PATH=START:STOP:N [...] [--workers N] [--scheduler ADDRESS]``."""
+    parser = subparsers.add_parser(
+        "sweep",
+        help="solve many variants of a model on Dask and write sweep.zarr and variants.csv",
+        description="Solve every variant of the model (a grid of parameter values, random samples of a "
+        "tolerance study, or both) as an independent analysis on Dask, and write DIR/sweep.zarr (the "
+        "recorded motion of every variant) and DIR/variants.csv (each variant's values, status and stop "
+        'time). Needs "sparsekin[distributed]".',
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument("--vary", action="append", default=[], metavar="PATH=START:STOP:N",
+                        help="N values of a parameter from START to STOP; paths joined by commas take the same "
+                        "values; several --vary make a grid of every combination")  # fmt: skip
+    parser.add_argument("--samples", type=int, metavar="N", help="random variants (at each grid point)")
+    parser.add_argument("--perturb", action="append", default=[], metavar="points=SIGMA",
+                        help="move every point's drawn position by a normal deviation of SIGMA m")  # fmt: skip
+    parser.add_argument("--seed", type=int, metavar="S", help="seed of the random deviations (default: fresh, "
+                        "written to the store)")  # fmt: skip
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument("--steps", type=int, metavar="N", help=f"samples per variant, t = 0 included (default: "
+                        f"[analysis].steps, else {DEFAULT_STEPS})")  # fmt: skip
+    parser.add_argument("--points", metavar="A,J", help="points recorded, or all or none (default: "
+                        f"[analysis].points, else every named point up to {MAX_DEFAULT_POINTS})")  # fmt: skip
+    parser.add_argument("--joints", metavar="J1,J2", help="joints recorded, or all or none (default: every joint "
+                        f"with an own coordinate up to {MAX_DEFAULT_JOINTS})")  # fmt: skip
+    _add_force_arguments(parser, "recorded")
+    coordinates = parser.add_mutually_exclusive_group()
+    coordinates.add_argument("--no-coordinates", dest="coordinates", action="store_false", default=None,
+                             help="leave out every body's coordinates (q, qd, qdd)")
+    coordinates.add_argument("--coordinates", dest="coordinates", action="store_true",
+                             help=f"write them whatever their size (default: up to {MAX_DEFAULT_SWEEP_VALUES:.0e} "
+                             "values over all variants)")  # fmt: skip
+    cluster = parser.add_mutually_exclusive_group()
+    cluster.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster "
+                         "(default: one per core)")  # fmt: skip
+    cluster.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://host:8786) "
+                         "instead of a local cluster")  # fmt: skip
+    parser.add_argument("--variants-per-task", type=int, metavar="N", help="variants per Dask task (default: "
+                        "four tasks per worker)")  # fmt: skip
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--out", type=Path, metavar="DIR", help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/"
+                        "<model name>)")  # fmt: skip
+    parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
+                        'the stop times against the varied parameter (needs "sparsekin[plot]")')  # fmt: skip
+    parser.add_argument("--plot-point", metavar="P", help="the point whose paths are drawn (default: the first "
+                        "point recorded)")  # fmt: skip
+    parser.set_defaults(handler=sweep_command)
+
+
+def sweep_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin sweep``: 0 once every variant is written (whatever its status),
+    2 on a bad argument, 3 if a task failed (the sweep is incomplete), 130 on Ctrl-C.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+        For a bad argument, a bad model file or an output folder that cannot be written.
+    """
+    _require_distributed()
+    from .sweeps import VariantSet, sweep, write_variants_csv
+
+    mechanism = load_model(arguments.model)
+    try:
+        variants = VariantSet.from_arguments(arguments.vary, arguments.samples, arguments.perturb, arguments.seed)
+        design = variants.bind(mechanism)
+    except ValueError as error:  # a ModelError too: the path and what was expected
+        raise CommandError(str(error)) from None
+    arguments.plot, arguments.format = False, "zarr"
+    settings = resolve_run_settings(arguments, mechanism)
+    notes = list(settings.notes)
+    coordinates = arguments.coordinates
+    if coordinates is None:
+        values = design.n_variants * settings.times.size * mechanism.n_coordinates
+        coordinates = values <= MAX_DEFAULT_SWEEP_VALUES
+        notes = [note for note in notes if "coordinates" not in note]
+        if not coordinates:
+            notes.append(f"{design.n_variants} variants × {settings.times.size} samples × {mechanism.n_coordinates} "
+                         "coordinates: not written (give --coordinates)")  # fmt: skip
+    if arguments.workers is not None and arguments.workers < 1:
+        raise CommandError(f"--workers must be a whole number >= 1, got {arguments.workers}")
+    if arguments.variants_per_task is not None and arguments.variants_per_task < 1:
+        raise CommandError(f"--variants-per-task must be a whole number >= 1, got {arguments.variants_per_task}")
+    plot_point = None
+    if arguments.plot_figures:
+        _require_matplotlib()
+        points = settings.point_names
+        plot_point = arguments.plot_point or (points[0] if points else None)
+        if plot_point is None or plot_point not in points:
+            raise CommandError(f"--plot-point: {plot_point or 'no point'} is not recorded (recorded: "
+                               f"{', '.join(points) or 'none'}): give --points with it")  # fmt: skip
+    client = None
+    if arguments.scheduler is not None:
+        client = _connect(arguments.scheduler)
+    settings.directory.mkdir(parents=True, exist_ok=True)
+    for note in notes:
+        _report(f"note: {note}")
+    store = settings.directory / "sweep.zarr"
+    bar = None
+    if not arguments.quiet and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=design.n_variants, unit="variant", delay=PROGRESS_DELAY, file=sys.stderr,
+                   dynamic_ncols=True, leave=False)  # fmt: skip
+
+    def progress(done: int, total: int) -> None:
+        if bar is not None:
+            bar.update(done - bar.n)
+
+    try:
+        result = sweep(
+            mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
+            coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
+            forces=settings.forces, quasi_static=settings.quasi_static, variants_per_task=arguments.variants_per_task,
+            progress=progress,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        _report(f"interrupted: {store} holds the variants finished so far (status empty for the others)")
+        return EXIT_INTERRUPTED
+    except (ModelError, CommandError):
+        raise
+    except Exception as error:  # a task that failed: a lost worker too often, a bug, a scheduler gone
+        _report(f"sweep stopped: {type(error).__name__}: {error}")
+        return EXIT_STOPPED
+    finally:
+        if bar is not None:
+            bar.close()
+        if client is not None:
+            client.close()
+    written = [store, write_variants_csv(result, settings.directory / "variants.csv")]
+    if plot_point is not None:
+        from .plotting import plot_stop_times, plot_sweep_paths
+
+        written += [plot_sweep_paths(result, plot_point, settings.directory), plot_stop_times(result, settings.directory)]
+    counts = ", ".join(f"{status} {count}" for status, count in result.counts.items())
+    workers = "the scheduler's workers" if arguments.scheduler else f"{arguments.workers or 'one per core'} workers"
+    print("\n".join([
+        f"{mechanism.name}: {result.n_variants} variants, {settings.times.size} samples each, "
+        f"t = 0 … {settings.times[-1]:g} s",
+        f"status: {counts}",
+        f"{result.n_tasks} tasks on {workers}: {result.wall_time:.3g} s, "
+        f"{result.n_variants / max(result.wall_time, 1e-9):.3g} variants/s",
+        "wrote:",
+        *(f"  {path}" for path in written),
+    ]))  # fmt: skip
+    return EXIT_SUCCESS
+
+
+def _require_distributed() -> None:
+    try:
+        import dask  # noqa: F401
+        import distributed  # noqa: F401
+        import xarray  # noqa: F401
+        import zarr  # noqa: F401
+    except ImportError:
+        raise CommandError('sweep needs dask, distributed, zarr and xarray: pip install "sparsekin[distributed]"') from None
+
+
+def _connect(address: str):
+    """A client of the scheduler at `address`, or a CommandError saying it cannot be reached."""
+    import distributed
+
+    try:
+        return distributed.Client(address, timeout=SCHEDULER_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as error:
+        raise CommandError(f"--scheduler {address}: cannot reach a Dask scheduler there ({error})") from None
+
+
+#: Seconds to wait for ``--scheduler ADDRESS`` to answer.
+SCHEDULER_TIMEOUT = 10
+
+
+# ---------------------------------------------------------------------- workspace
+def add_workspace_command(subparsers) -> None:
+    """Add ``workspace MODEL.toml --point K [--drivers 0,1] [--grid 50] [--range I=START:STOP]``."""
+    parser = subparsers.add_parser(
+        "workspace",
+        help="where a point gets over a grid of two drivers' values, and where the mechanism locks up",
+        description="Solve the mechanism over a grid of the values of two drivers (strokes, angles) by "
+        "continuation from the configuration at t = 0, and write DIR/workspace.csv (the point's position "
+        "and the status of every grid point), DIR/boundary.csv (where the continuation met a singular "
+        "configuration) and, with --plot, workspace_<point>.png.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument("--point", required=True, metavar="K", help="the point whose positions are mapped")
+    parser.add_argument("--drivers", default="0,1", metavar="D1,D2",
+                        help="the two drivers: indices, names or drivers[i] (default: 0,1)")  # fmt: skip
+    parser.add_argument("--grid", default="50", metavar="N[,M]", help="grid values per driver (default: 50)")
+    parser.add_argument("--range", action="append", default=[], metavar="D=START:STOP", dest="ranges",
+                        help="a driver's range of values, m or rad (default: the span of its law over "
+                        "[analysis].t_end, widened twofold)")  # fmt: skip
+    parser.add_argument("--out", type=Path, metavar="DIR", help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/"
+                        "<model name>)")  # fmt: skip
+    parser.add_argument("--plot", action="store_true", help='also draw workspace_<point>.png (needs "sparsekin[plot]")')
+    parser.set_defaults(handler=workspace_command)
+
+
+def workspace_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin workspace``: 0 on success, 2 on a bad argument or model.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+    """
+    from .workspaces import workspace
+
+    mechanism = load_model(arguments.model)
+    if arguments.point not in mechanism.points:
+        known = _validate.known_list(list(mechanism.points), limit=LISTED_POINTS)
+        raise CommandError(f'--point: unknown point "{arguments.point}" (known: {known})')
+    drivers = [int(d) if d.strip().isdigit() else d.strip() for d in arguments.drivers.split(",")]
+    if len(drivers) != 2:
+        raise CommandError(f"--drivers: expected two drivers separated by a comma, got {arguments.drivers!r}")
+    try:
+        grid = tuple(int(n) for n in arguments.grid.split(","))
+    except ValueError:
+        raise CommandError(f"--grid: expected N or N,M (whole numbers >= 2), got {arguments.grid!r}") from None
+    if len(grid) not in (1, 2) or min(grid) < 2:
+        raise CommandError(f"--grid: expected N or N,M (whole numbers >= 2), got {arguments.grid!r}")
+    ranges = None
+    if arguments.ranges:
+        given = {}
+        for text in arguments.ranges:
+            name, equals, span = text.partition("=")
+            bounds = span.split(":")
+            try:
+                key = int(name) if name.strip().isdigit() else name.strip()
+                given[drivers.index(key)] = (float(bounds[0]), float(bounds[1]))
+                if len(bounds) != 2:
+                    raise ValueError
+            except (ValueError, IndexError):
+                raise CommandError(f"--range {text}: expected D=START:STOP with D one of --drivers "
+                                   f"({arguments.drivers})") from None  # fmt: skip
+        if len(given) != 2:
+            raise CommandError("--range: give the range of both drivers (or of none)")
+        ranges = [given[0], given[1]]
+    if arguments.plot:
+        _require_matplotlib()
+    try:
+        space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)
+    except ModelError as error:
+        raise (error if error.file else error.in_file(str(arguments.model))) from None
+    except ConvergenceError as error:
+        raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
+    directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
+    directory.mkdir(parents=True, exist_ok=True)
+    written = write_workspace(space, directory)
+    if arguments.plot:
+        from .plotting import plot_workspace
+
+        written.append(plot_workspace(space, directory))
+    counts = ", ".join(f"{status} {int((space.status == status).sum())}" for status in dict.fromkeys(space.status.ravel()))
+    print("\n".join([
+        f"{mechanism.name}: {arguments.point} over {space.status.shape[1]} × {space.status.shape[0]} values of "
+        f"{space.drivers[0]} and {space.drivers[1]}",
+        f"grid points: {counts}; singular boundary: {len(space.boundary)} points",
+        *([f"limits left: {', '.join(space.limits_left)}"] if space.limits_left else []),
+        "wrote:",
+        *(f"  {path}" for path in written),
+    ]))  # fmt: skip
+    return EXIT_SUCCESS
+
+
+def write_workspace(space, directory: Path) -> list[Path]:
+    """Write ``workspace.csv`` (``a``, ``b``, ``status``, ``P.x``, ``P.y`` per grid point, a
+    the first driver's value) and ``boundary.csv`` (``a``, ``b``, ``P.x``, ``P.y``)."""
+    a_label, b_label = (label.split(" ", 1)[0] for label in space.drivers)
+    paths = [directory / "workspace.csv", directory / "boundary.csv"]
+    with open(paths[0], "w", encoding="utf-8", newline="") as file:
+        file.write(f"{a_label},{b_label},status,{space.point}.x,{space.point}.y\n")
+        for j, b in enumerate(space.values[1].tolist()):
+            for i, a in enumerate(space.values[0].tolist()):
+                x, y = space.positions[j, i].tolist()
+                file.write(f"{a!r},{b!r},{space.status[j, i]},{x!r},{y!r}\n")
+    with open(paths[1], "w", encoding="utf-8", newline="") as file:
+        file.write(f"{a_label},{b_label},{space.point}.x,{space.point}.y\n")
+        for (a, b), (x, y) in zip(space.boundary.tolist(), space.boundary_positions.tolist()):
+            file.write(f"{a!r},{b!r},{x!r},{y!r}\n")
+    return paths
+
+
 # ---------------------------------------------------------------------- output files
 def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings) -> list[Path]:
     """Write ``points.csv``, ``joints.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
@@ -626,7 +923,7 @@ def _count_samples(result: KinematicsResult | None) -> int:
 def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline, written: list[Path]) -> str:
     """A few lines: samples, Newton corrections per step, factorizations, times, files."""
     corrections = result.newton_iterations
-    if timeline.first is None:  # nothing was solved (a model without coordinates): all at once
+    if timeline.first is None:  # nothing to solve (a model without bodies): no progress was reported
         timeline.first, timeline.first_done = timeline.solved, result.n_times
     first = timeline.first - timeline.start
     later = result.n_times - timeline.first_done
@@ -647,4 +944,4 @@ def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline
 
 
 #: The subcommands: each adds its parser and sets ``handler`` to the function running it.
-SUBCOMMANDS = (add_run_command, add_check_command)
+SUBCOMMANDS = (add_run_command, add_check_command, add_sweep_command, add_workspace_command)

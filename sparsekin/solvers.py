@@ -45,7 +45,7 @@ from .errors import AnalysisInterrupted, ConvergenceError, LimitWarning
 from .laws import Spline
 from .model import Mechanism
 from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
-from .pattern import build_pattern, build_point_map
+from .pattern import ConstraintPattern, build_pattern, build_point_map
 from .recording import MemorySink, Recorder, Selection, ZarrSink
 from .results import KinematicsResult, PointMotion
 from .stepper import (
@@ -74,6 +74,7 @@ def solve_kinematics(
     quasi_static: bool = False,
     store=None,
     progress=None,
+    pattern: ConstraintPattern | None = None,
 ) -> KinematicsResult:
     """Positions, velocities and accelerations of `mechanism` at `times`.
 
@@ -119,6 +120,10 @@ def solve_kinematics(
         from the store; ``result.to_xarray()`` opens it lazily.
     progress : callable, optional
         Called as ``progress(samples_done, n_times)`` while the run goes on.
+    pattern : ConstraintPattern, optional
+        ``build_pattern(m)`` of a mechanism ``m`` with the same bodies, joints, drivers and
+        drawing as `mechanism` (only the parameters of driver laws may differ): a sweep
+        over law parameters builds it once for many variants.  Default: built here.
 
     Returns
     -------
@@ -176,7 +181,13 @@ def solve_kinematics(
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
     if not isinstance(quasi_static, (bool, np.bool_)):
         raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
-    pattern = build_pattern(mechanism)
+    if pattern is None:
+        pattern = build_pattern(mechanism)
+    elif not isinstance(pattern, ConstraintPattern) or (pattern.n_bodies, pattern.n_equations) != (
+        mechanism.n_bodies, mechanism.n_equations
+    ):  # fmt: skip
+        raise ValueError(f"`pattern` must be the ConstraintPattern of a mechanism like `mechanism` "
+                         f"({mechanism.n_bodies} bodies, {mechanism.n_equations} equations).")  # fmt: skip
     selection = Selection(mechanism, coordinates, points, joints, forces, pattern=pattern)
     n = pattern.n_coordinates
     if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration

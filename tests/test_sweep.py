@@ -1,0 +1,344 @@
+"""Sweeps on Dask against serial runs of the same variants, built here without the sweep's paths.
+
+The references are `solve_kinematics` runs of Task 5 whose laws are replaced by hand
+(`dataclasses.replace`), one after the other in this process; the sweeps run on a local
+cluster of two worker processes shared by the module, on a cluster that loses a worker
+mid-sweep, and on a scheduler and a worker started as ``dask scheduler`` / ``dask worker``
+subprocesses.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+pytest.importorskip("zarr")
+
+import sparsekin as sk  # noqa: E402
+from sparsekin.cli import main  # noqa: E402
+from sparsekin.sweeps import VariantSet, resolve_path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+TASK5 = ROOT / "examples" / "task5.toml"
+#: 0.03 … 0.07 m in nine values, and 0.054 m: the largest amplitude that does not lock up.
+AMPLITUDES = np.sort(np.append(np.linspace(0.03, 0.07, 9), 0.054))
+BOTH = ("drivers[0].law.amplitude", "drivers[1].law.amplitude")
+#: 2 s at 10 ms: every lock-up of these amplitudes happens in the first quarter period (1.05 s).
+TIMES = np.linspace(0.0, 2.0, 201)
+RECORD = dict(coordinates=True, points=["K", "A"], joints="all")
+
+
+@pytest.fixture(scope="module")
+def task5():
+    return sk.load_model(TASK5)
+
+
+@pytest.fixture(scope="module")
+def client():
+    import logging
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                  silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as client:  # fmt: skip
+        yield client
+
+
+def with_amplitude(mechanism, amplitude):
+    """Task 5 with both actuators' amplitude set by hand."""
+    drivers = tuple(
+        dataclasses.replace(driver, law=sk.Harmonic(amplitude=amplitude, omega=driver.law.omega))
+        for driver in mechanism.drivers
+    )
+    return dataclasses.replace(mechanism, drivers=drivers)
+
+
+def serial_run(mechanism, times=TIMES, **record):
+    """(status, result, t_failure) of one run, as a sweep should report it."""
+    try:
+        return "complete", sk.solve_kinematics(mechanism, times, **(record or RECORD)), np.nan
+    except sk.SingularJacobianError as error:
+        return "singular", error.result, error.time
+    except sk.ConvergenceError as error:
+        return "no_convergence", error.result, error.time
+
+
+@pytest.fixture(scope="module")
+def serial(task5):
+    return [serial_run(with_amplitude(task5, amplitude)) for amplitude in AMPLITUDES]
+
+
+@pytest.fixture(scope="module")
+def swept(task5, client):
+    return sk.sweep(task5, {BOTH: AMPLITUDES}, TIMES, client, variants_per_task=3, **RECORD)
+
+
+def assert_equals_serial(result, serial_runs, variants=None):
+    """Every variant's status, times and recorded arrays equal the serial run's, bit for bit."""
+    for k, (status, run, t_failure) in zip(variants or range(len(serial_runs)), serial_runs):
+        assert result.status[k] == status, k
+        n = run.n_times
+        assert result.t_stop[k] == run.times[-1]
+        np.testing.assert_array_equal(result.t_failure[k], t_failure)
+        for swept_array, serial_array in ((result.coordinates, run.coordinates), (result.velocities, run.velocities),
+                                          (result.accelerations, run.accelerations),
+                                          (result.point_tracks, run.point_tracks),
+                                          (result.joint_tracks, run.joint_tracks)):  # fmt: skip
+            values = np.asarray(swept_array[k])
+            np.testing.assert_array_equal(values[:n], serial_array)
+            assert np.isnan(values[n:]).all()
+
+
+# ---------------------------------------------------------------------- results
+def test_sweep_equals_serial_runs_bit_for_bit(swept, serial):
+    assert swept.n_variants == AMPLITUDES.size and swept.n_tasks == 4
+    np.testing.assert_array_equal(swept.parameters, np.column_stack([AMPLITUDES, AMPLITUDES]))
+    assert_equals_serial(swept, serial)
+
+
+def test_task5_amplitudes_above_0054_lock_up_when_a_single_run_does(swept, task5):
+    complete = AMPLITUDES <= 0.054
+    assert complete.sum() == 6 and (swept.status[complete] == "complete").all()
+    assert (swept.status[~complete] == "singular").all()
+    k = int(np.flatnonzero(np.isclose(AMPLITUDES, 0.06))[0])
+    assert (
+        round(float(swept.t_failure[k]), 6) == 0.755244
+    )  # the single run of README: "singular ... t = 0.755244 s"
+    assert swept.t_stop[k] == 0.75
+    assert "singular configuration" in swept.messages[k] and swept.messages[0] == ""
+
+
+def test_a_sweep_records_the_forces_of_each_variant_as_a_serial_run_does(client, tmp_path):
+    task5_dynamics = sk.load_model(ROOT / "examples" / "task5_dynamics.toml")
+    amplitudes = [0.04, 0.06]  # one complete, one that locks up
+    result = sk.sweep(task5_dynamics, {BOTH: amplitudes}, TIMES, client, coordinates=False, store=tmp_path / "s.zarr")
+    assert result.force_labels[:2] == ("cylinder1.force", "cylinder1.power")
+    stored = result.to_xarray()
+    for k, amplitude in enumerate(amplitudes):
+        status, run, _ = serial_run(with_amplitude(task5_dynamics, amplitude), coordinates=False)
+        assert result.status[k] == status and run.force_labels == result.force_labels
+        np.testing.assert_array_equal(stored["forces"].values[k, : run.n_times], run.force_tracks)
+        assert np.isnan(stored["forces"].values[k, run.n_times :]).all()
+
+
+def test_tolerance_study_with_zero_sigma_repeats_the_nominal_run(task5, client):
+    result = sk.sweep(task5, VariantSet(samples=3, perturb_points=0.0, seed=7), TIMES, client, **RECORD)
+    nominal = serial_run(task5)
+    assert_equals_serial(result, [nominal] * 3)
+    assert result.columns == tuple(f"deviation.{p}.{c}" for p in task5.points for c in "xy")
+    assert not result.parameters.any()
+
+
+def test_tolerance_study_moves_every_point_reproducibly(task5):
+    design = VariantSet(samples=4, perturb_points=1e-3, seed=11).bind(task5)
+    columns, table = design.table()
+    for k in range(4):
+        moved = design.variant(k).points
+        for p, name in enumerate(task5.points):
+            expected = np.add(task5.points[name], table[k, 2 * p : 2 * p + 2])
+            assert moved[name] == tuple(expected.tolist())
+    again = VariantSet(samples=4, perturb_points=1e-3, seed=11).bind(task5).table()[1]
+    np.testing.assert_array_equal(table, again)
+    assert 0.5e-3 < table.std() < 2e-3
+
+
+def test_grid_is_the_product_of_axes_with_paths_varied_together(task5):
+    variants = VariantSet.from_arguments([f"{BOTH[0]},{BOTH[1]}=0.04:0.05:3", "points.M.x=0.19:0.21:2"])
+    assert variants.shape == (3, 2, 1)
+    design = variants.bind(task5)
+    variant = design.variant(2)  # the second amplitude, the first x (first axis slowest)
+    assert variant.drivers[0].law.amplitude == variant.drivers[1].law.amplitude == 0.045
+    assert variant.points["M"] == (0.19, 0.6)
+    assert design.geometry_varies
+
+
+def test_unit_parameters_change_every_copy():
+    chain = sk.load_model(ROOT / "examples" / "task5_chain.toml")
+    unit = chain.copies[0].unit.name
+    path = f"units.{unit}.drivers[0].law.amplitude"
+    variant = VariantSet({path: [0.02]}).bind(chain).variant(0)
+    assert variant.copies[0].unit.drivers[0].law.amplitude == 0.02
+    assert variant.drivers[chain.n_drivers - 2].law.amplitude == 0.02  # the last copy's first driver
+    assert variant.n_bodies == chain.n_bodies
+
+
+# ---------------------------------------------------------------------- mistakes
+@pytest.mark.parametrize("text, message", [
+    ("drivers[0].law.amplitude=0.03:0.07", r"--vary drivers\[0\]\.law\.amplitude=0\.03:0\.07: expected PATH=START:STOP:N"),
+    ("drivers[0].law.amplitude=0.03:0.07:x", r"expected N, a whole number >= 1, got 'x'"),
+    ("drivers[0].law.amplitude=a:0.07:3", r"expected START as a number or x,y, got 'a'"),
+    ("points.M=0.2,0.6:0.3:3", r"START and STOP must both be numbers or both x,y pairs"),
+    (",drivers[0].law.amplitude=0:1:2", r"empty path"),
+])  # fmt: skip
+def test_bad_vary_is_one_line_naming_it(text, message):
+    with pytest.raises(ValueError, match=message):
+        VariantSet.from_arguments([text])
+
+
+@pytest.mark.parametrize("path, message", [
+    ("drivers[2].law.amplitude", r"drivers\[2\]\.law\.amplitude: the model has 2 drivers"),
+    ("drivers.lift.law.amplitude", r'drivers\.lift\.law\.amplitude: the model has no driver named "lift"'),
+    ("drivers[0].law.amplitud", r"the Harmonic law of drivers\[0\] has no parameter amplitud \(its parameters: "
+                                r"amplitude, omega, phase, offset\)"),
+    ("points.Q", r'points\.Q: the model has no point "Q"'),
+    ("units.loop.points.P", r'units\.loop\.points\.P: unknown unit "loop"'),
+    ("joints[0].at", r"joints\[0\]\.at: expected drivers\[i\]\.law\.KEY"),
+])  # fmt: skip
+def test_bad_path_names_the_path_and_what_was_expected(task5, path, message):
+    with pytest.raises(sk.ModelError, match=message):
+        resolve_path(task5, path)
+
+
+def test_values_a_parameter_refuses_name_the_path(task5):
+    with pytest.raises(sk.ModelError, match=r"points\.M: expected x,y pairs"):
+        VariantSet({"points.M": [0.1, 0.2]}).bind(task5)
+    with pytest.raises(ValueError, match=r"`grid`: values of drivers\[0\]\.law\.amplitude must be finite"):
+        VariantSet({BOTH[0]: [0.1, np.nan]})
+
+
+def run_cli(arguments, capsys):
+    status = main([str(a) for a in arguments])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--vary", "drivers[0].law.amplitude=0.03:0.07"], "expected PATH=START:STOP:N"),
+    (["--vary", "drivers[5].law.amplitude=0.03:0.07:3"], r"drivers\[5\]\.law\.amplitude: the model has 2 drivers"),
+    (["--samples", "3"], "nothing to vary"),
+    (["--perturb", "points=0.001"], "--perturb needs --samples N"),
+    (["--perturb", "joints=0.1", "--samples", "2"], r"--perturb joints=0\.1: expected points=SIGMA"),
+    (["--vary", "drivers[0].law.amplitude=0.03:0.07:3", "--workers", "0"], "--workers must be a whole number >= 1"),
+])  # fmt: skip
+def test_cli_mistakes_exit_2_with_one_line(arguments, message, capsys, tmp_path):
+    status, _, err = run_cli(["sweep", TASK5, *arguments, "--out", tmp_path], capsys)
+    assert status == 2
+    assert err.count("\n") == 1 and err.startswith("sparsekin: error: ")
+    assert __import__("re").search(message, err), err
+
+
+def test_cli_without_the_extra_names_it(capsys, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    status, _, err = run_cli(["sweep", TASK5, "--vary", f"{BOTH[0]}=0.03:0.07:3", "--out", tmp_path], capsys)
+    assert status == 2 and 'pip install "sparsekin[distributed]"' in err and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------------- the command
+def read_variants(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as file:
+        return list(csv.DictReader(file))
+
+
+def assert_store_and_csv_match(directory: Path, serial_runs, columns):
+    import xarray as xr
+
+    rows = read_variants(directory / "variants.csv")
+    assert list(rows[0])[: len(columns) + 1] == ["variant", *columns]
+    assert list(rows[0])[len(columns) + 1 :] == ["status", "t_stop", "t_failure", "message"]
+    store = xr.open_zarr(directory / "sweep.zarr")
+    assert store.points.dims == ("variant", "time", "point", "component")
+    for k, (row, (status, run, t_failure)) in enumerate(zip(rows, serial_runs)):
+        assert row["status"] == status == store.status.values[k]
+        assert float(row["t_stop"]) == run.times[-1]
+        np.testing.assert_array_equal(float(row["t_failure"]), t_failure)
+        n = run.n_times
+        np.testing.assert_array_equal(store.points.values[k, :n], run.point_tracks)
+        assert np.isnan(store.points.values[k, n:]).all()
+        np.testing.assert_array_equal(store.t.values, TIMES)
+
+
+def test_cli_sweep_writes_the_store_and_the_table(task5, capsys, tmp_path):
+    vary = f"{BOTH[0]},{BOTH[1]}=0.03:0.07:5"
+    status, out, err = run_cli(["sweep", TASK5, "--vary", vary, "--t-end", 2, "--steps", 201, "--points", "K",
+                                "--workers", 2, "--out", tmp_path, "--plot"], capsys)  # fmt: skip
+    assert status == 0, err
+    assert "status: complete 3, singular 2, no_convergence 0, invalid 0" in out
+    runs = [serial_run(with_amplitude(task5, a), points=["K"], joints="all", coordinates=True)
+            for a in np.linspace(0.03, 0.07, 5)]  # fmt: skip
+    assert_store_and_csv_match(tmp_path, runs, BOTH)
+    assert (tmp_path / "sweep_paths_K.png").stat().st_size > 0 and (
+        tmp_path / "stop_times.png"
+    ).stat().st_size > 0
+
+
+def test_worker_killed_mid_sweep_loses_no_variant(task5, serial):
+    import logging
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                  silence_logs=logging.CRITICAL) as cluster, distributed.Client(cluster) as client:  # fmt: skip
+        client.wait_for_workers(2, timeout=60)
+        pids = client.run(os.getpid)
+        victim = max(pids.values())
+        killed = []
+
+        def kill_once(done, total):
+            if not killed:
+                os.kill(victim, signal.SIGKILL)  # a worker process dies with tasks submitted to it
+                killed.append(done)
+
+        result = sk.sweep(task5, {BOTH: AMPLITUDES}, TIMES, client, variants_per_task=1, progress=kill_once,
+                          **RECORD)  # fmt: skip
+        assert killed and killed[0] < AMPLITUDES.size
+        client.wait_for_workers(2, timeout=60)
+        assert victim not in client.run(os.getpid).values()  # the nanny started a new worker process
+    assert (result.status != "").all()
+    assert_equals_serial(result, serial)
+
+
+def test_external_scheduler_runs_the_same_sweep(task5, capsys, tmp_path):
+    environment = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    )
+    scheduler_file = tmp_path / "scheduler.json"
+    common = dict(env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)
+    scheduler = subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                                  "--no-dashboard", "--scheduler-file", scheduler_file], **common)  # fmt: skip
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        worker = subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nworkers", "1", "--nthreads",
+                                   "1", "--no-dashboard"], **common)  # fmt: skip
+        with distributed.Client(address, timeout=30) as client:
+            client.wait_for_workers(1, timeout=60)
+        vary = f"{BOTH[0]},{BOTH[1]}=0.03:0.07:5"
+        status, out, err = run_cli(["sweep", TASK5, "--vary", vary, "--t-end", 2, "--steps", 201, "--points", "K",
+                                    "--scheduler", address, "--out", tmp_path / "out"], capsys)  # fmt: skip
+        assert status == 0, err
+        assert "the scheduler's workers" in out
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                process.terminate()
+                try:
+                    process.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+    runs = [serial_run(with_amplitude(task5, a), points=["K"], joints="all", coordinates=True)
+            for a in np.linspace(0.03, 0.07, 5)]  # fmt: skip
+    assert_store_and_csv_match(tmp_path / "out", runs, BOTH)
+
+
+def test_unreachable_scheduler_is_a_usage_error(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr("sparsekin.cli.SCHEDULER_TIMEOUT", 1)
+    status, _, err = run_cli(["sweep", TASK5, "--vary", f"{BOTH[0]}=0.03:0.07:3", "--scheduler", "tcp://127.0.0.1:9",
+                              "--out", tmp_path], capsys)  # fmt: skip
+    assert status == 2 and "--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there" in err
+
+
+def test_import_sparsekin_does_not_import_dask():
+    code = "import sys, sparsekin; assert 'dask' not in sys.modules and 'distributed' not in sys.modules; sparsekin.VariantSet"
+    subprocess.run(
+        [sys.executable, "-c", code], check=True, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT))
+    )
