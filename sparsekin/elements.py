@@ -296,12 +296,12 @@ class Translational(Joint):
         return start, end, _unit(axis)
 
     def draw(self, canvas) -> None:
+        """A guide on ``bodies[0]`` and a slider on it; one-point bodies (a hydraulic
+        cylinder and its rod, a slider block) drawn along the axis (`Canvas.slide`)."""
         if self.axis is not None:
-            canvas.slider(canvas.point(self.bodies[0], self.axis[0]), canvas.point(self.bodies[1], self.axis[1]))
+            canvas.slide(*self.bodies, self.axis[0], self.axis[1])
         else:
-            at = canvas.point(self.bodies[0], self.at)
-            along = canvas.direction(self.bodies[0], self.direction)
-            canvas.slider(at - 8.0 * canvas.size * along, at + 8.0 * canvas.size * along)
+            canvas.slide(*self.bodies, self.at, self.at, direction=self.direction)
 
 
 @joint_kind
@@ -380,7 +380,10 @@ class PinInSlot(Joint):
         centre = canvas.point(self.bodies[0], self.at)
         along = canvas.direction(self.bodies[0], self.direction)
         canvas.slot(centre, along, self.limits)
-        canvas.pin(canvas.point(self.bodies[1], self.at), grounded=False)
+        pin = canvas.point(self.bodies[1], self.at)
+        if canvas.single_point(self.bodies[1]):  # a block sliding in the slot
+            canvas.block(self.bodies[1], pin, along)
+        canvas.pin(pin, grounded=False)
 
 
 @joint_kind
