@@ -665,7 +665,8 @@ class DistanceDriver(Driver):
 
     def draw(self, canvas) -> None:
         ends = [canvas.point(body, point) for body, point in zip(self.bodies, self.points)]
-        canvas.actuator(*ends)
+        drawn = [canvas.drawn_point(point) for point in self.points]
+        canvas.actuator(*ends, drawn_length=float(np.hypot(*(drawn[1] - drawn[0]))))
         for body, end in zip(self.bodies, ends):
             canvas.pin(end, grounded=body == GROUND)
 

@@ -59,7 +59,8 @@ DPI = 120
 #: Size of symbols (joints, ground marks, one-point bodies) relative to the model's extent.
 SYMBOL_SCALE = 0.025
 #: Background of body labels: a pale box, so that lines under the name do not hide it.
-LABEL_BOX = {"boxstyle": "round,pad=0.15", "facecolor": "white", "alpha": 0.8, "edgecolor": "none"}
+LABEL_PAD = 0.15
+LABEL_BOX = {"boxstyle": f"round,pad={LABEL_PAD}", "facecolor": "white", "alpha": 0.8, "edgecolor": "none"}
 #: Point labels and body labels: font size (points), weight, colour.
 POINT_LABEL_STYLE = {"fontsize": 10, "color": "tab:blue"}
 BODY_LABEL_STYLE = {"fontsize": 9, "fontweight": "bold", "color": "black"}
@@ -425,8 +426,6 @@ def place_labels(axes, labels, segments=(), discs=(), *, kept=None, texts=None) 
     list of (Label, int)
         Each label and the candidate it took.
     """
-    from matplotlib.font_manager import FontProperties
-
     kept = kept or {}
     texts = {} if texts is None else texts
     figure = axes.get_figure()
@@ -444,14 +443,14 @@ def place_labels(axes, labels, segments=(), discs=(), *, kept=None, texts=None) 
         style = POINT_LABEL_STYLE if label.kind == "point" else BODY_LABEL_STYLE
         key = (label.kind, label.text)
         text = texts.get(key)
-        if text is None:
-            properties = FontProperties(size=style["fontsize"], weight=style.get("fontweight", "normal"))
-            width, height, _ = renderer.get_text_width_height_descent(label.text, properties, ismath=False)
-            if label.kind == "body":  # the pale box around the name
-                pad = 2 * 0.15 * style["fontsize"] * points_to_pixels
-                width, height = width + pad, height + pad
-        else:
-            width, height = text._sparsekin_size
+        if text is None:  # measured as matplotlib lays it out (line height, not glyph height)
+            text = axes.text(*label.anchor, label.text, ha="center", va="center", zorder=6,
+                             bbox=LABEL_BOX if label.kind == "body" else None, **style)  # fmt: skip
+            extent = text.get_window_extent(renderer)
+            pad = 2 * LABEL_PAD * style["fontsize"] * points_to_pixels if label.kind == "body" else 0.0
+            text._sparsekin_size = (extent.width + pad, extent.height + pad)
+            texts[key] = text
+        width, height = text._sparsekin_size
         anchor = to_pixels(np.asarray(label.anchor, dtype=float)[None])[0]
         candidates, offsets = _label_candidates(label, anchor, width, height, label.clearance * scale,
                                                 points_to_pixels)  # fmt: skip
@@ -470,13 +469,7 @@ def place_labels(axes, labels, segments=(), discs=(), *, kept=None, texts=None) 
         box = candidates[choice]
         boxes = np.vstack([boxes, box])
         centre = axes.transData.inverted().transform([[(box[0] + box[2]) / 2, (box[1] + box[3]) / 2]])[0]
-        if text is None:
-            text = axes.text(*centre, label.text, ha="center", va="center_baseline", zorder=6,
-                             bbox=LABEL_BOX if label.kind == "body" else None, **style)  # fmt: skip
-            text._sparsekin_size = (width, height)
-            texts[key] = text
-        else:
-            text.set_position(centre)
+        text.set_position(centre)
         placed.append((label, choice))
     return placed
 
@@ -493,7 +486,7 @@ def _label_candidates(label: Label, anchor, width, height, clearance, points_to_
         across = np.array([-label.along[1], label.along[0]]) / max(np.hypot(*label.along), 1e-300)
         directions = np.vstack([across, -across, directions])
     directions /= np.hypot(*directions.T)[:, None]
-    offsets = [np.zeros((1, 2))] if label.kind == "body" else []
+    offsets = [np.zeros((1, 2))] if label.kind == "body" and label.along is None else []  # inside a polygon
     for distance in LABEL_DISTANCES:
         offsets.append(directions * (clearance + distance * points_to_pixels))
     offsets = np.vstack(offsets)
@@ -1055,12 +1048,21 @@ class Canvas:
         self.add_line(*np.transpose([start, end]), linestyle="-.", color="tab:purple", linewidth=1.2, zorder=2)
         self.segments.append(np.array([start, end], dtype=float))
 
-    def actuator(self, start, end) -> None:
-        """A linear actuator between two points: a thick cylinder from `start`, a thin rod to `end`."""
+    def actuator(self, start, end, drawn_length: float | None = None) -> None:
+        """A linear actuator between two points: a thick cylinder from `start`, a thin rod to `end`.
+
+        With its `drawn_length` (the distance in the model's drawing), the cylinder and the
+        rod keep their lengths as the actuator extends; without, the cylinder covers 55 %
+        of the present length.
+        """
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-        middle = start + 0.55 * (end - start)
-        self.add_line(*np.transpose([start, middle]), color="dimgray", linewidth=6.0, solid_capstyle="butt", zorder=2)
-        self.add_line(*np.transpose([start, end]), color="black", linewidth=2.0, zorder=2.5)
+        length = float(np.hypot(*(end - start)))
+        along = (end - start) / length if length > 0.0 else np.zeros(2)
+        reach = CYLINDER_FRACTION * drawn_length if drawn_length else 0.55 * length
+        self.add_line(*np.transpose([start, start + reach * along]), color="dimgray", linewidth=6.0,
+                      solid_capstyle="butt", zorder=2)  # fmt: skip
+        rod_start = end - reach * along if drawn_length else start
+        self.add_line(*np.transpose([rod_start, end]), color="#303030", linewidth=2.5, zorder=2.5)
         self.segments.append(np.array([start, end]))
 
     def target(self, position) -> None:
