@@ -584,7 +584,8 @@ class Animation:
     path : Path
         The file.
     times : ndarray, shape (n_frames,)
-        The time shown by each frame, s.
+        The time shown by each frame, s.  (An MP4 of an analysis that stopped repeats its
+        last frame for `STOP_HOLD` seconds; a GIF shows it longer.)
     fps : float
         Frames per second.
     duration : float
