@@ -26,7 +26,10 @@ extensions = [
     "numpydoc",
     "sparsekin_docs",
 ]
-source_suffix = {".md": "markdown", ".rst": "restructuredtext"}  # .rst: numpydoc loads autosummary, which wants it
+source_suffix = {
+    ".md": "markdown",
+    ".rst": "restructuredtext",
+}  # .rst: numpydoc loads autosummary, which wants it
 root_doc = "index"
 exclude_patterns = ["_ext", "make_element_reference.py", "generated/**/*.md"]
 
@@ -50,4 +53,6 @@ html_theme_options = {
     "header_links_before_dropdown": 6,
 }
 html_show_sourcelink = False
-html_context = {"default_mode": "light"}  # a first visit has no stored mode; without it the theme logs an error
+html_context = {
+    "default_mode": "light"
+}  # a first visit has no stored mode; without it the theme logs an error

@@ -244,6 +244,7 @@ def _sorted_columns(pd, labels):
     columns' order: pandas then knows it is sorted (lexsorted), and selecting by all three
     levels neither copies nor warns, while every column keeps its place."""
     from graphlib import CycleError, TopologicalSorter
+    from itertools import pairwise
 
     levels = []
     for depth in range(3):
@@ -251,7 +252,7 @@ def _sorted_columns(pd, labels):
             levels.append(list(dict.fromkeys(label[depth] for label in labels)))
             continue
         before: dict[str, set[str]] = {label[2]: set() for label in labels}  # quantity -> those before it
-        for previous, label in zip(labels, labels[1:]):
+        for previous, label in pairwise(labels):
             if previous[:2] == label[:2]:
                 before[label[2]].add(previous[2])
         try:

@@ -25,7 +25,9 @@ STOP_RED = np.array([214, 39, 40])
 @pytest.fixture(scope="module")
 def image():
     pytest.importorskip("matplotlib", reason='animations need matplotlib: pip install "sparsekin[animate]"')
-    return pytest.importorskip("PIL.Image", reason='GIF animations need Pillow: pip install "sparsekin[animate]"')
+    return pytest.importorskip(
+        "PIL.Image", reason='GIF animations need Pillow: pip install "sparsekin[animate]"'
+    )
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +192,9 @@ def test_animate_command_writes_the_clip(tmp_path, capsys, image):
 
 def test_animate_command_writes_one_frame(tmp_path, capsys, image):
     out = tmp_path / "frame.png"
-    assert main(["animate", str(TASK5), "--t-end", "2", "--steps", "41", "--at", "1.5", "--out", str(out)]) == 0
+    assert (
+        main(["animate", str(TASK5), "--t-end", "2", "--steps", "41", "--at", "1.5", "--out", str(out)]) == 0
+    )
     with image.open(out) as frame:
         assert frame.size == (640, 560)
     assert "frame at t = 1.5 s" in capsys.readouterr().out
@@ -202,7 +206,9 @@ def test_animate_command_on_a_lock_up_exits_3_with_the_clip_up_to_the_stop(tmp_p
     out = tmp_path / "lock.gif"
     assert main(["animate", str(model), "--t-end", "2", "--steps", "201", "--out", str(out)]) == 3
     lines = capsys.readouterr().err.splitlines()
-    assert len(lines) == 2 and lines[0].startswith("sparsekin: analysis stopped: singular configuration at t = 0.755")
+    assert len(lines) == 2 and lines[0].startswith(
+        "sparsekin: analysis stopped: singular configuration at t = 0.755"
+    )
     assert lines[1].startswith("sparsekin: animated 76 of 201 samples (t = 0 … 0.75 s)")
     frames, _ = gif_frames(image, out)
     assert len(frames) == 15 and red_pixels(frames[-1]) > 1000

@@ -30,7 +30,16 @@ CHROMEDRIVER = Path("/usr/bin/chromedriver")
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync")  # fmt: skip
 #: Text that a page shows only when a directive or a docstring was not rendered.
-UNRENDERED = (".. py:", ".. auto", ":Parameters:", ".. rubric::", "```", "<!-- sparsekin", "{eval-rst}", "{toctree}")
+UNRENDERED = (
+    ".. py:",
+    ".. auto",
+    ":Parameters:",
+    ".. rubric::",
+    "```",
+    "<!-- sparsekin",
+    "{eval-rst}",
+    "{toctree}",
+)
 
 pytest.importorskip("sphinx", reason=DOCS_EXTRA)
 pytest.importorskip("myst_parser", reason=DOCS_EXTRA)
@@ -51,7 +60,7 @@ def site(tmp_path_factory) -> Path:
     build = subprocess.run(
         [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(work / "docs"),
          str(work / "site")],
-        capture_output=True, text=True, timeout=900,
+        capture_output=True, text=True, timeout=900, check=False,
     )  # fmt: skip
     assert build.returncode == 0, f"the site does not build without warnings:\n{build.stderr}"
     print(f"\nsite built in {time.perf_counter() - start:.1f} s")
@@ -121,7 +130,9 @@ def test_every_page_renders_with_its_images_and_no_broken_link(site, server, bro
     n_images = 0
     for page in site_pages(site):
         browser.get(f"{server}/{page}")
-        WebDriverWait(browser, 30).until(lambda driver: driver.execute_script("return document.readyState") == "complete")
+        WebDriverWait(browser, 30).until(
+            lambda driver: driver.execute_script("return document.readyState") == "complete"
+        )
         WebDriverWait(browser, 30).until(
             lambda driver: driver.execute_script("return Array.from(document.images).every(i => i.complete)")
         )
@@ -136,7 +147,9 @@ def test_every_page_renders_with_its_images_and_no_broken_link(site, server, bro
                 ids: Array.from(document.querySelectorAll('[id]')).map(e => e.id),
             };""")  # fmt: skip
         n_images += state["images"]
-        if not state["title"] or (page not in ("search.html", "genindex.html") and not state["heading"].strip()):
+        if not state["title"] or (
+            page not in ("search.html", "genindex.html") and not state["heading"].strip()
+        ):
             problems.append(f"{page}: no title or no heading")
         if len(state["text"]) < 100 and page != "search.html":  # the search page waits for a query
             problems.append(f"{page}: almost no text ({len(state['text'])} characters)")
@@ -159,4 +172,6 @@ def test_every_page_renders_with_its_images_and_no_broken_link(site, server, bro
         elif parts.fragment and path in ids and unquote(parts.fragment) not in ids[path]:
             problems.append(f"{page}: link to a missing anchor {path}#{parts.fragment}")
     assert not problems, "\n".join(problems)
-    assert n_images >= 2 * len(list((ROOT / "examples").glob("*.toml")))  # each gallery page: drawing and frame
+    assert n_images >= 2 * len(
+        list((ROOT / "examples").glob("*.toml"))
+    )  # each gallery page: drawing and frame

@@ -24,8 +24,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from examples_loader import EXAMPLES
+
 from sparsekin import DistanceDriver, Harmonic, check_model, load_model, solve_kinematics
 
 GALLERY = sorted(path.stem for path in EXAMPLES.glob("*.toml"))
@@ -119,7 +119,10 @@ def test_four_bar_rocker_follows_two_circles_and_stops_where_crank_and_coupler_l
     branch = side(points["A"], points["O4"], points["B"])
     # the rocker's extreme positions: B at crank + coupler or coupler - crank from O2
     extremes = []
-    for reach, crank_turn in ((links["crank"] + links["coupler"], 0.0), (links["coupler"] - links["crank"], np.pi)):
+    for reach, crank_turn in (
+        (links["crank"] + links["coupler"], 0.0),
+        (links["coupler"] - links["crank"], np.pi),
+    ):
         opening = law_of_cosines_angle(links["ground"], links["rocker"], reach)  # angle at O4
         b = o4 + links["rocker"] * np.array([math.cos(math.pi - opening), math.sin(math.pi - opening)])
         crank_angle = (direction_angle(b - o2) + crank_turn) % (2 * np.pi)
@@ -146,7 +149,9 @@ def test_watt_six_bar_output_follows_two_four_bars_in_turn():
     times = np.linspace(0.0, 1.0, 361)
     crank_angle = 2 * np.pi * times
     pin_a = p["O2"] + links["crank"] * np.stack([np.cos(crank_angle), np.sin(crank_angle)], axis=1)
-    pin_b = circle_intersection(pin_a, links["coupler"], p["O4"], links["rocker"], side(p["A"], p["O4"], p["B"]))
+    pin_b = circle_intersection(
+        pin_a, links["coupler"], p["O4"], links["rocker"], side(p["A"], p["O4"], p["B"])
+    )
     rocker_turn = direction_angle(pin_b - p["O4"]) - direction_angle(p["B"] - p["O4"])
     c0 = p["C"] - p["O4"]
     pin_c = p["O4"] + np.stack([np.cos(rocker_turn) * c0[0] - np.sin(rocker_turn) * c0[1],
@@ -165,7 +170,11 @@ def test_watt_six_bar_output_follows_two_four_bars_in_turn():
 def test_quick_return_stroke_and_time_ratio():
     mechanism = load_model(EXAMPLES / "quick_return.toml")
     p = {name: np.array(xy) for name, xy in mechanism.points.items()}
-    crank, centres, lever = math.dist(p["O2"], p["A"]), math.dist(p["O2"], p["O4"]), math.dist(p["O4"], p["T"])
+    crank, centres, lever = (
+        math.dist(p["O2"], p["A"]),
+        math.dist(p["O2"], p["O4"]),
+        math.dist(p["O4"], p["T"]),
+    )
     rate = -np.pi  # the file's crank law, rad/s, from θ = 0 (A level with O2)
     # the lever is at an extreme when it is tangent to the crank circle: sin θ = -r/d
     tangent = np.array([-math.asin(crank / centres), math.pi + math.asin(crank / centres)])
@@ -193,7 +202,9 @@ def excavator_stroke(mechanism, name: str, times) -> np.ndarray:
     driver = next(d for d in mechanism.drivers if d.name == name)
     start, end = mechanism.joint_named(driver.joint).axis
     law = driver.law
-    return math.dist(mechanism.points[start], mechanism.points[end]) + law.amplitude * np.sin(law.omega * times)
+    return math.dist(mechanism.points[start], mechanism.points[end]) + law.amplitude * np.sin(
+        law.omega * times
+    )
 
 
 def test_excavator_boom_and_stick_follow_the_law_of_cosines():

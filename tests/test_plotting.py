@@ -236,9 +236,11 @@ def crowded_mechanism() -> Mechanism:
             Body("rocker", origin="Q", points=("Q", "B")),
         ],
         joints=[
-            Revolute(("crank", "ground"), at="O"), Revolute(("crank", "coupler"), at="A"),
-            Revolute(("coupler", "rocker"), at="B"), Revolute(("rocker", "ground"), at="Q"),
-        ],  # fmt: skip
+            Revolute(("crank", "ground"), at="O"),
+            Revolute(("crank", "coupler"), at="A"),
+            Revolute(("coupler", "rocker"), at="B"),
+            Revolute(("rocker", "ground"), at="Q"),
+        ],
         drivers=[RotationalDriver(("crank", "ground"), law=Linear(rate=2 * np.pi))],
         name="crowded",
     )

@@ -39,7 +39,15 @@ EXAMPLES = ROOT / "examples"
 #: What a build writes into docs/ (and .gitignore lists).
 GENERATED = (DOCS / "gallery", DOCS / "generated", DOCS / "reference" / "cli.md")
 #: Gallery pages first in this order, then any other example by name.
-GALLERY_ORDER = ("task5", "slider_crank", "four_bar", "watt_six_bar", "quick_return", "excavator", "planetary_gear")
+GALLERY_ORDER = (
+    "task5",
+    "slider_crank",
+    "four_bar",
+    "watt_six_bar",
+    "quick_return",
+    "excavator",
+    "planetary_gear",
+)
 #: Titles of the gallery pages (default: the file name in words).
 GALLERY_TITLES = {
     "task5": "Task 5 linkage",
@@ -100,7 +108,9 @@ def show_command_output(app, docname, source) -> None:
 # ---------------------------------------------------------------------- gallery
 def gallery_names() -> list[str]:
     names = sorted(path.stem for path in EXAMPLES.glob("*.toml"))
-    return [name for name in GALLERY_ORDER if name in names] + [name for name in names if name not in GALLERY_ORDER]
+    return [name for name in GALLERY_ORDER if name in names] + [
+        name for name in names if name not in GALLERY_ORDER
+    ]
 
 
 def opening_comment(text: str) -> str:
@@ -124,8 +134,10 @@ def make_gallery(folder: Path) -> None:
     index = [
         "# Gallery",
         "",
-        "Each mechanism is a model file of `examples/` that the tests run and check against an "
-        "independent reference (`tests/test_gallery.py`). The pictures are drawn when this site is built.",
+        (
+            "Each mechanism is a model file of `examples/` that the tests run and check against an "
+            "independent reference (`tests/test_gallery.py`). The pictures are drawn when this site is built."
+        ),
         "",
         "```{toctree}",
         ":hidden:",
@@ -151,8 +163,10 @@ def make_gallery(folder: Path) -> None:
             "",
             opening_comment(text),
             "",
-            f"{mechanism.n_bodies} bodies, {len(mechanism.joints)} joints, {len(mechanism.drivers)} drivers; "
-            f"analysed over {analysis.t_end:g} s in {analysis.steps} samples.",
+            (
+                f"{mechanism.n_bodies} bodies, {len(mechanism.joints)} joints, {len(mechanism.drivers)} drivers; "
+                f"analysed over {analysis.t_end:g} s in {analysis.steps} samples."
+            ),
             "",
             f"![{title} at t = 0](images/{name}.png)",
             "",
@@ -191,10 +205,12 @@ def cli_reference() -> str:
     lines = [
         "# Command line",
         "",
-        "Generated from `sparsekin.cli.build_parser()` when the site is built. Exit status of every "
-        "command: 0 on success, 2 on a bad model file or bad arguments (one line on stderr), "
-        "3 when the analysis stops (`run` and `animate` still write what was solved); "
-        "`check` exits with 1 for a model with a problem.",
+        (
+            "Generated from `sparsekin.cli.build_parser()` when the site is built. Exit status of every "
+            "command: 0 on success, 2 on a bad model file or bad arguments (one line on stderr), "
+            "3 when the analysis stops (`run` and `animate` still write what was solved); "
+            "`check` exits with 1 for a model with a problem."
+        ),
         "",
         "```text",
         parser.format_usage().strip(),
@@ -221,7 +237,7 @@ def run_commands(pages, destination: Path) -> dict[str, tuple[int, str]]:
     """Run every command named in `pages`, once each, in a scratch folder; copy what they
     wrote to `destination`.  Returns the exit status and the output of each command."""
     import sparsekin
-    import sparsekin.testset  # noqa: F401  (named in DOC_MODELS)
+    import sparsekin.testset  # named in DOC_MODELS
     from sparsekin.cli import main
 
     outputs: dict[str, tuple[int, str]] = {}
@@ -240,7 +256,11 @@ def run_commands(pages, destination: Path) -> dict[str, tuple[int, str]]:
                 if command in outputs:
                     continue
                 printed = io.StringIO()
-                with contextlib.chdir(scratch), contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+                with (
+                    contextlib.chdir(scratch),
+                    contextlib.redirect_stdout(printed),
+                    contextlib.redirect_stderr(printed),
+                ):
                     status = main(shlex.split(command))
                 if status != expected:
                     raise ExtensionError(f"{page.relative_to(DOCS)}: `sparsekin {command}` exited with {status}, "
@@ -256,6 +276,6 @@ def run_commands(pages, destination: Path) -> dict[str, tuple[int, str]]:
 
 def _check_element_reference() -> None:
     check = subprocess.run([sys.executable, str(DOCS / "make_element_reference.py"), "--check"],
-                           capture_output=True, text=True)  # fmt: skip
+                           capture_output=True, text=True, check=False)  # fmt: skip
     if check.returncode:
         raise ExtensionError(check.stderr.strip())
