@@ -37,6 +37,7 @@ exclude_patterns = ["_ext", "make_element_reference.py", "generated/**/*.md"]
 # design-notes.md#which-linear-solver-path-auto-takes resolve (and are checked).
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence"]
+smartquotes = False  # "--plot" in prose stays two hyphens, not an en dash
 
 # API reference: the types are in the numpydoc docstrings, not repeated from the hints.
 autodoc_typehints = "none"
@@ -56,3 +57,5 @@ html_show_sourcelink = False
 html_context = {
     "default_mode": "light"
 }  # a first visit has no stored mode; without it the theme logs an error
+html_static_path = ["_static"]
+html_css_files = ["sparsekin.css"]
