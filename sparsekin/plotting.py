@@ -713,6 +713,8 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
         raise ValueError(f"`duration` must be a number of seconds > 0, got {duration!r}")
     if result.n_times == 0:
         raise ValueError("`result` has no sample to animate")
+    _require("matplotlib", "matplotlib", "animate")
+    _require(*(("PIL", "Pillow") if suffix == ".gif" else ("imageio_ffmpeg", "imageio-ffmpeg")), "animate")
     if stopped is None and not result.complete:
         stopped = f"analysis stopped after t = {result.times[-1]:.6g} s"
     times = frame_times(result, fps, duration)
@@ -1132,8 +1134,17 @@ class Canvas:
 
 
 # ---------------------------------------------------------------------- files
+def _require(module: str, package: str, extra: str) -> None:
+    """Import `module`, or say in one line which extra installs it."""
+    try:
+        __import__(module)
+    except ImportError:
+        raise ImportError(f'{package} is needed here: pip install "sparsekin[{extra}]"') from None
+
+
 def _new_figure(size: tuple[float, float], rows: int = 1):
     """A figure on the Agg canvas and its axes (an array of `rows` stacked axes if rows > 1)."""
+    _require("matplotlib", "matplotlib", "plot")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -246,6 +246,16 @@ def test_animate_command_without_its_extra_names_it(tmp_path, capsys, monkeypatc
     assert not out.exists()
 
 
+@pytest.mark.parametrize("suffix, module, package", [(".gif", "PIL", "Pillow"), (".mp4", "imageio_ffmpeg", "imageio-ffmpeg")])
+def test_animate_without_its_extra_names_it(tmp_path, monkeypatch, task5_result, suffix, module, package):
+    from sparsekin.plotting import animate
+
+    monkeypatch.setitem(sys.modules, module, None)
+    with pytest.raises(ImportError, match=rf'^{package} is needed here: pip install "sparsekin\[animate\]"$'):
+        animate(task5_result, tmp_path / f"clip{suffix}")
+    assert not list(tmp_path.iterdir())
+
+
 def test_a_model_error_is_reported_against_the_file(tmp_path, capsys):
     model = tmp_path / "broken.toml"
     model.write_text(TASK5.read_text().replace('bodies = ["c3", "c4"]', 'bodies = ["c3", "c11"]'))
