@@ -299,9 +299,9 @@ class Translational(Joint):
         """A guide on ``bodies[0]`` and a slider on it; one-point bodies (a hydraulic
         cylinder and its rod, a slider block) drawn along the axis (`Canvas.slide`)."""
         if self.axis is not None:
-            canvas.slide(*self.bodies, self.axis[0], self.axis[1])
+            canvas.slide(*self.bodies, self.axis[0], self.axis[1], limits=self.limits)
         else:
-            canvas.slide(*self.bodies, self.at, self.at, direction=self.direction)
+            canvas.slide(*self.bodies, self.at, self.at, direction=self.direction, limits=self.limits)
 
 
 @joint_kind

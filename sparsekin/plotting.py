@@ -977,36 +977,40 @@ class Canvas:
         self.add_patch(Circle((x, y), 0.6 * size, facecolor="white", edgecolor="black", linewidth=1.2, zorder=4))
         self.discs.append((x, y, 0.6 * size))
 
-    def slide(self, guide: str, slider: str, start, end, direction=None) -> None:
+    def slide(self, guide: str, slider: str, start, end, direction=None, limits=None) -> None:
         """A translational joint: `slider` slides along a line fixed in `guide`.
 
         `start` is the reference of the point of `guide` the line goes through, `end` the
         point of `slider` on it; the line runs along `direction` (drawn, global) or, when
-        it is None, from `start` to `end` as drawn.  One-point bodies are drawn here, with
-        lengths fixed in them: a one-point guide is a cylinder from `start` towards
-        `end`, and a one-point slider on it the rod from `end` back into it; a one-point
-        slider on any other guide is a block on a dashed guide line.  Two bodies that
-        carry more points are drawn from them, with a dashed line from `start` to `end`
-        and a small square at its middle.
+        it is None, from `start` to `end` as drawn.  The slider's point is then at
+        ``start + stroke · direction``.  One-point bodies are drawn here, with lengths fixed
+        in them: a one-point guide is a cylinder from `start` towards `end`, and a
+        one-point slider on it the rod from `end` back into it.  On any other guide the
+        line is dashed, over the stroke's `limits` when given, and the slider is a block
+        (a square) at its point.
         """
         drawn_start, drawn_end = self.drawn_point(start), self.drawn_point(end)
         length = float(np.hypot(*(drawn_end - drawn_start)))
         along = self.direction(guide, direction if direction is not None else drawn_end - drawn_start)
         here, there = self.point(guide, start), self.point(slider, end)
-        reach = CYLINDER_FRACTION * length if length > 0.0 else 6.0 * self.size
-        centred = 0.5 if length == 0.0 else 0.0  # an `at`/`direction` joint: drawn about its point
         if self.single_point(guide):
+            reach = CYLINDER_FRACTION * length if length > 0.0 else 6.0 * self.size
+            centred = 0.5 if length == 0.0 else 0.0  # an `at`/`direction` joint: drawn about its point
             self.cylinder(guide, here - centred * reach * along, here + (1.0 - centred) * reach * along)
             if self.single_point(slider):
                 self.rod(slider, there + centred * reach * along, there - (1.0 - centred) * reach * along)
             return
+        if limits is not None:
+            low, high = limits
+        elif length > 0.0:
+            low, high = -0.15 * length, 1.15 * length
+        else:
+            low, high = -6.0 * self.size, 6.0 * self.size
+        self._dashed(here + low * along, here + high * along)
         if self.single_point(slider):
-            guide_line = (here - (centred + 0.15) * reach * along, here + (1.15 - centred) * reach * along)
-            self._dashed(*guide_line)
             self.block(slider, there, along)
-            return
-        self._dashed(here, there)
-        self._square((here + there) / 2, along, zorder=3.5)
+        else:
+            self._square(there, along, zorder=3.5)
 
     def slider(self, start, end) -> None:
         """A dashed line from `start` to `end` with a small square at its middle, turned with it."""
