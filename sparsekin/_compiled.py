@@ -35,7 +35,8 @@ from numba import njit
 from ._jit import JIT
 from ._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
 from ._lu_kernels import dense_lu_factor, dense_lu_solve
-from .laws import BUILT_IN_LAWS, evaluate_laws, pack_laws
+from .assembly import DriverLaws
+from .laws import BUILT_IN_LAWS, evaluate_laws
 from .model import Mechanism
 from .newton import (
     CHORD_REJECTED,
@@ -99,7 +100,7 @@ def supports_compiled(mechanism: Mechanism) -> bool:
 
     Subclasses and other law objects are refused: their `evaluate` may differ.
     """
-    return all(type(law) in BUILT_IN_LAWS for driver in mechanism.drivers for law in driver.laws())
+    return all(type(law) in BUILT_IN_LAWS for driver in mechanism.declared("drivers") for law in driver.laws())
 
 
 @njit(inline="always", **JIT)
@@ -168,10 +169,11 @@ def _solve_positions(
 
 @njit(**JIT)
 def _run_time_loop(
-    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times,
+    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times, start,
     tolerance, max_iterations, chord, coordinates, velocities, accelerations, iterations,
 ):  # fmt: skip
-    """Every sample in turn; returns (n_solved, status, n_factorizations, n_solves, n_restarts)."""
+    """Samples `start` … in turn (rows before `start` are solved already); returns
+    (n_solved, status, n_factorizations, n_solves, n_restarts)."""
     n = initial_coordinates.size
     n_driven = driven_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
@@ -192,7 +194,7 @@ def _run_time_loop(
     acceleration = np.empty(n_driven)
     counts = np.zeros(2, dtype=np.int64)  # factorizations, solves
     n_restarts = 0
-    for k in range(times.size):
+    for k in range(start, times.size):
         t = times[k]
         if k == 0:
             for c in range(n):
@@ -212,10 +214,10 @@ def _run_time_loop(
         # Chord Newton first (not at the first sample: no factorization yet), and on any
         # failure plain Newton from the predictor again.
         corrections, status = 0, CHORD_REJECTED
-        for attempt in range(1 if k == 0 or not chord else 2):
+        for attempt in range(1 if k == start or not chord else 2):
             for c in range(n):
                 q[c] = predictor[c]
-            use_chord = attempt == 0 and chord and k > 0
+            use_chord = attempt == 0 and chord and k > start
             corrections, status = _solve_positions(
                 primitives, indptr, indices, weights, q, turns, target, tolerance, max_iterations, use_chord,
                 residual, jac_data, lu, pivots, counts,
@@ -261,6 +263,7 @@ def solve_compiled(
     iterations: np.ndarray,
     *,
     chord: bool = True,
+    start: int = 0,
 ) -> CompiledOutcome:
     """Positions, velocities and accelerations at every time, in one compiled loop.
 
@@ -289,6 +292,10 @@ def solve_compiled(
     chord : bool
         Try chord Newton first; False runs plain Newton at every sample, with the Python
         path's iterates and counts.
+    start : int
+        The first sample to solve; rows ``0 .. start - 1`` of the outputs hold samples
+        solved before (the loop predicts sample `start` from row ``start - 1``).  A chunk
+        of a long run starts at 1 with the last sample of the chunk before in row 0.
 
     Returns
     -------
@@ -326,11 +333,12 @@ def solve_compiled(
     for name, array in outputs.items():
         _check_array(array, name, (n_times, n_coordinates), np.float64)
     _check_array(iterations, "iterations", (n_times,), np.int64)
-    laws, _ = pack_laws([law for driver in mechanism.drivers for law in driver.laws()], pattern.driven_initial)
+    laws = DriverLaws(mechanism, pattern.driven_initial).table
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
         pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
         pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws, times,
-        float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations, iterations,
+        int(start), float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations,
+        iterations,
     )  # fmt: skip
     return CompiledOutcome(int(n_solved), LoopStatus(status), int(n_factorizations), int(n_solves), int(n_restarts))
 

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.sparse import csr_array
 
 from . import _kernels
-from .laws import fill_laws, pack_laws
+from .laws import LawPacker, fill_laws
 from .model import Mechanism
 from .pattern import ConstraintPattern
 
@@ -29,10 +29,26 @@ class DriverLaws:
     """
 
     def __init__(self, mechanism: Mechanism, initial: np.ndarray) -> None:
-        laws = [law for driver in mechanism.drivers for law in driver.laws()]
-        self.table, self._others = pack_laws(laws, initial)
+        packer = LawPacker()
+        own = mechanism.own("drivers")
+        target = 0
+        for driver in own:
+            for law in driver.laws():
+                packer.add(law, np.array([target]), initial[target : target + 1])
+                target += 1
+        for copies in mechanism.copies:  # each unit law over all the copies, by arrays
+            per_copy = sum(driver.n_equations for driver in copies.unit.drivers)
+            within = 0
+            for e, driver in enumerate(copies.unit.drivers):
+                variations = copies.law_variations(e)
+                for field_name, law in zip(driver.law_fields, driver.laws()):
+                    targets = target + within + per_copy * np.arange(copies.count)
+                    packer.add(law, targets, initial[targets], variations.get(field_name))
+                    within += 1
+            target += per_copy * copies.count
+        self.table, self._others = packer.table(), packer.others
         self._initial = initial
-        self.n_laws = len(laws)
+        self.n_laws = target
 
     @property
     def all_built_in(self) -> bool:

@@ -274,7 +274,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         )
         for k, column in enumerate(analysis.free_coordinates)
     )
-    limited = [element for element in (*mechanism.joints, *mechanism.drivers) if getattr(element, "limits", None)]
+    limited = [e for kind in ("joints", "drivers") for e in mechanism.declared(kind) if getattr(e, "limits", None)]
     limits = ()
     if limited:
         outputs = build_output_pattern(mechanism)

@@ -1,10 +1,12 @@
 """The ``sparsekin`` command line.
 
 ``sparsekin run MODEL.toml`` reads a model file, runs the kinematic analysis and writes
-``points.csv``, ``joints.csv`` and ``coordinates.npz`` (with ``--plot``, also PNG figures)
-as described in ``docs/model-format.md``.  Exit status: 0 on success, 2 on a bad model or bad arguments (one
-line on stderr, no traceback), 3 when the analysis stops (the samples solved so far are
-still written).
+``points.csv``, ``joints.csv`` and ``coordinates.npz`` (``--format zarr``: one Zarr store;
+with ``--plot``, also PNG figures) as described in ``docs/model-format.md``.  On a large
+model it writes what a person can use by default (`DEFAULT_RULE`).  A progress bar shows
+on stderr for runs longer than two seconds.  Exit status: 0 on success, 2 on a bad model
+or bad arguments (one line on stderr, no traceback), 3 when the analysis stops and 130 on
+Ctrl-C (in both cases the samples solved so far are still written).
 
 ``sparsekin animate MODEL.toml`` runs the same analysis and writes an animation (GIF or
 MP4, `sparsekin.plotting.animate`) or one frame of it (PNG).  Exit status as for ``run``;
@@ -36,7 +38,7 @@ import numpy as np
 
 from . import _validate
 from .check import check_model
-from .errors import ConvergenceError, ModelError, SingularConfigurationError
+from .errors import AnalysisInterrupted, ConvergenceError, ModelError, SingularConfigurationError
 from .model import Mechanism
 from .modelfile import load_model
 from .results import KinematicsResult
@@ -49,6 +51,19 @@ EXIT_SUCCESS = 0
 EXIT_PROBLEM = 1
 EXIT_USAGE = 2
 EXIT_STOPPED = 3
+EXIT_INTERRUPTED = 130
+#: What ``run`` writes when neither the options nor ``[analysis]`` say (docs/model-format.md):
+#: every named point up to `MAX_DEFAULT_POINTS` (else none), every joint with an own
+#: coordinate up to `MAX_DEFAULT_JOINTS` (else none), and the coordinates of every body
+#: while the run holds at most `MAX_DEFAULT_VALUES` values of each of q, qd and qdd (else
+#: none: ``--format zarr`` streams them); a one-line note says what was left out and how
+#: to ask for it.
+DEFAULT_RULE = "points ≤ 100, joints ≤ 100, coordinates ≤ 2e7 values"
+MAX_DEFAULT_POINTS = 100
+MAX_DEFAULT_JOINTS = 100
+MAX_DEFAULT_VALUES = 20_000_000
+#: A progress bar appears once a run has lasted this long, s.
+PROGRESS_DELAY = 2.0
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
 DEFAULT_STEPS = 101
 #: Parent of the default output folder, ``./sparsekin-out/<model name>``.
@@ -77,12 +92,26 @@ class RunSettings:
         Output folder.
     plot : bool
         Whether to write the PNG figures.
+    joint_indices : tuple of int
+        Joints written to ``joints.csv`` (or the store).
+    coordinates : bool
+        Whether every body's coordinates are written.
+    format : {"csv", "zarr"}
+    quiet : bool
+        No progress bar.
+    notes : tuple of str
+        What the default rule left out, in words.
     """
 
     times: np.ndarray
     point_names: tuple[str, ...]
     directory: Path
     plot: bool
+    joint_indices: tuple[int, ...] = ()
+    coordinates: bool = True
+    format: str = "csv"
+    quiet: bool = False
+    notes: tuple[str, ...] = ()
 
 
 # ---------------------------------------------------------------------- entry point
@@ -146,9 +175,22 @@ def add_run_command(subparsers) -> None:
         f"[analysis].steps, else {DEFAULT_STEPS})"
     )
     parser.add_argument(
-        "--points", metavar="A,J", help="output points, separated by commas (default: [analysis].points, "
-        "else every named point)"
+        "--points", metavar="A,J", help="output points separated by commas, or all or none (default: "
+        f"[analysis].points, else every named point up to {MAX_DEFAULT_POINTS})"
     )
+    parser.add_argument(
+        "--joints", metavar="J1,J2", help="joints written to joints.csv, separated by commas, or all or none "
+        f"(default: every joint with an own coordinate up to {MAX_DEFAULT_JOINTS})"
+    )
+    coordinates = parser.add_mutually_exclusive_group()
+    coordinates.add_argument("--no-coordinates", dest="coordinates", action="store_false", default=None,
+                             help="leave out every body's coordinates (coordinates.npz, or q, qd, qdd in Zarr)")
+    coordinates.add_argument("--coordinates", dest="coordinates", action="store_true",
+                             help=f"write them whatever their size (default: up to {MAX_DEFAULT_VALUES:.0e} values)")
+    parser.add_argument("--format", choices=("csv", "zarr"), default="csv",
+                        help='csv: points.csv, joints.csv, coordinates.npz; zarr: results.zarr, written while the '
+                        'run goes on (needs "sparsekin[zarr]")')
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
         "--out", type=Path, metavar="DIR",
         help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/<model name>)",
@@ -170,16 +212,26 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings = resolve_run_settings(arguments, mechanism)
     if settings.plot:
         _require_matplotlib()
+    if settings.format == "zarr":
+        _require_zarr()
     settings.directory.mkdir(parents=True, exist_ok=True)
+    for note in settings.notes:
+        _report(f"note: {note}")
     start = time.perf_counter()
     try:
-        result = _solve(mechanism, settings.times, arguments.model)
+        with _progress_bar(settings) as progress:
+            result = _solve(mechanism, settings, arguments.model, progress)
     except ConvergenceError as error:
         written = write_outputs(mechanism, error.result, settings)
         _report(f"analysis stopped: {error}")
         _report(f"wrote {_count_samples(error.result)} of {settings.times.size} samples to "
                 f"{settings.directory}: {', '.join(path.name for path in written)}")
         return EXIT_STOPPED
+    except AnalysisInterrupted as interrupt:
+        written = write_outputs(mechanism, interrupt.result, settings)
+        _report(f"interrupted: wrote {_count_samples(interrupt.result)} of {settings.times.size} samples to "
+                f"{settings.directory}: {', '.join(path.name for path in written)}")
+        return EXIT_INTERRUPTED
     wall_time = time.perf_counter() - start
     written = write_outputs(mechanism, result, settings)
     print(_summary(mechanism, result, wall_time, written))
@@ -195,12 +247,37 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
         If no end time is given, a number is out of range or a point is unknown.
     """
     analysis = mechanism.analysis
-    if arguments.points is not None:
+    times = resolve_times(arguments, mechanism)
+    steps = times.size
+    notes = []
+    if getattr(arguments, "points", None) is not None:
         point_names = parse_point_names(arguments.points, mechanism)
+    elif analysis.points is not None:
+        point_names = analysis.points
+    elif len(mechanism.points) <= MAX_DEFAULT_POINTS:
+        point_names = tuple(mechanism.points)
     else:
-        point_names = analysis.points if analysis.points is not None else tuple(mechanism.points)
+        point_names = ()
+        notes.append(f"{len(mechanism.points)} named points: none written (give --points A,B or [analysis].points)")
+    joint_text = getattr(arguments, "joints", None)
+    if joint_text is not None:
+        joint_indices = parse_joint_names(joint_text, mechanism)
+    elif mechanism.n_joints <= MAX_DEFAULT_JOINTS:
+        joint_indices = tuple(k for k, joint in enumerate(mechanism.joints) if type(joint).output_names)
+    else:
+        joint_indices = ()
+        notes.append(f"{mechanism.n_joints} joints: none written to joints.csv (give --joints J1,J2 or all)")
+    coordinates = getattr(arguments, "coordinates", None)
+    if coordinates is None:
+        coordinates = steps * mechanism.n_coordinates <= MAX_DEFAULT_VALUES
+        if not coordinates:
+            notes.append(f"{steps} samples of {mechanism.n_coordinates} coordinates: not written (give "
+                         "--coordinates, or --format zarr --coordinates to stream them)")  # fmt: skip
     directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
-    return RunSettings(resolve_times(arguments, mechanism), tuple(point_names), directory, arguments.plot)
+    return RunSettings(
+        times, tuple(point_names), directory, arguments.plot, joint_indices, coordinates,
+        getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes),
+    )  # fmt: skip
 
 
 def resolve_times(arguments: argparse.Namespace, mechanism: Mechanism) -> np.ndarray:
@@ -244,6 +321,8 @@ def parse_point_names(text: str, mechanism: Mechanism, option: str = "--points")
     ...
     sparsekin.cli.CommandError: --points: unknown point "Q" (known: A, J)
     """
+    if text.strip() in ("none", "all"):
+        return () if text.strip() == "none" else tuple(mechanism.points)
     names = tuple(dict.fromkeys(name.strip() for name in text.split(",")))
     for name in names:
         if not name:
@@ -254,6 +333,61 @@ def parse_point_names(text: str, mechanism: Mechanism, option: str = "--points")
     return names
 
 
+def parse_joint_names(text: str, mechanism: Mechanism) -> tuple[int, ...]:
+    """The indices of the joints named in the comma-separated `text` (``all``, ``none``)."""
+    from .results import element_index
+
+    if text.strip() == "none":
+        return ()
+    if text.strip() == "all":
+        return tuple(k for k, joint in enumerate(mechanism.joints) if type(joint).output_names)
+    indices = []
+    for name in dict.fromkeys(name.strip() for name in text.split(",")):
+        try:
+            k = element_index(mechanism, "joints", name)
+        except KeyError as error:
+            raise CommandError(f"--joints: {error.args[0]}") from None
+        if not type(mechanism.joints[k]).output_names:
+            raise CommandError(f'--joints: "{name}" is a {mechanism.joints[k].type_name} joint, which has no '
+                               "coordinate of its own")  # fmt: skip
+        indices.append(k)
+    return tuple(indices)
+
+
+def _require_zarr() -> None:
+    try:
+        import xarray  # noqa: F401
+        import zarr  # noqa: F401
+    except ImportError:
+        raise CommandError('--format zarr needs zarr and xarray: pip install "sparsekin[zarr]"') from None
+
+
+class _progress_bar:
+    """A tqdm bar on stderr, shown once a run has lasted `PROGRESS_DELAY` (not with --quiet,
+    nor when stderr is not a terminal, nor without tqdm); a callable (done, total)."""
+
+    def __init__(self, settings: RunSettings) -> None:
+        self._bar = None
+        if settings.quiet or not sys.stderr.isatty():
+            return
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            return
+        self._bar = tqdm(total=settings.times.size, unit="sample", delay=PROGRESS_DELAY, file=sys.stderr,
+                         dynamic_ncols=True, leave=False)  # fmt: skip
+
+    def __enter__(self):
+        return None if self._bar is None else self
+
+    def __call__(self, done: int, total: int) -> None:
+        self._bar.update(done - self._bar.n)
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
 def _require_matplotlib() -> None:
     try:
         import matplotlib  # noqa: F401
@@ -261,16 +395,25 @@ def _require_matplotlib() -> None:
         raise CommandError('--plot needs matplotlib: pip install "sparsekin[plot]"') from None
 
 
-def _solve(mechanism: Mechanism, times: np.ndarray, model_path: Path) -> KinematicsResult:
-    """`solve_kinematics`, with its argument and model errors reported against the file.
+def _solve(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress) -> KinematicsResult:
+    """`solve_kinematics` recording what `settings` asks for, with its argument and model
+    errors reported against the file.
 
-    Warnings (redundant equations left out) are printed as one line each.
+    Warnings (redundant equations left out, limits left) are printed as one line each.
     """
+    store = settings.directory / "results.zarr" if settings.format == "zarr" else None
+    # With the coordinates in memory, points and joints are derived after the run; a store,
+    # or a run without the coordinates, records them while it goes on.
+    record = store is not None or not settings.coordinates
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                return solve_kinematics(mechanism, times)
+                return solve_kinematics(
+                    mechanism, settings.times, coordinates=settings.coordinates,
+                    points=settings.point_names if record else None, joints=settings.joint_indices if record else None,
+                    store=store, progress=progress,
+                )  # fmt: skip
             finally:
                 for warning in caught:
                     _report(f"warning: {warning.message}")
@@ -330,11 +473,15 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
         The files written.
     """
     directory = settings.directory
-    written = [
-        write_points_csv(result, settings.point_names, directory / "points.csv"),
-        write_joints_csv(mechanism, result, directory / "joints.csv"),
-        write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"),
-    ]
+    if settings.format == "zarr":
+        written = [directory / "results.zarr"]
+    else:
+        written = [
+            write_points_csv(result, settings.point_names, directory / "points.csv"),
+            write_joints_csv(mechanism, result, directory / "joints.csv", settings.joint_indices),
+        ]
+        if settings.coordinates:
+            written.append(write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"))
     if settings.plot and _count_samples(result) > 0:
         from .plotting import draw_mechanism, plot_actuators, plot_point_motion, plot_point_paths
 
@@ -368,24 +515,25 @@ def point_table(result: KinematicsResult | None, point_names: Sequence[str]) -> 
     return np.hstack(columns)
 
 
-def joint_columns(mechanism: Mechanism) -> list[tuple[int, str, tuple[str, ...]]]:
+def joint_columns(mechanism: Mechanism, indices=None) -> list[tuple[int, str, tuple[str, ...]]]:
     """The joints of ``joints.csv``, in model order: (index, label, column suffixes).
 
-    Every joint whose kind has an own coordinate; labelled by its name, else ``joints[i]``.
+    The joints of `indices`, by default every joint whose kind has an own coordinate;
+    labelled by its name, else ``joints[i]``.
     """
-    return [
-        (index, joint.name or f"joints[{index}]", type(joint).output_names)
-        for index, joint in enumerate(mechanism.joints)
-        if type(joint).output_names
-    ]
+    if indices is None:
+        indices = [index for index, joint in enumerate(mechanism.joints) if type(joint).output_names]
+    joints = mechanism.joints
+    return [(index, joints[index].name or f"joints[{index}]", type(joints[index]).output_names) for index in indices]
 
 
-def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path: Path) -> Path:
+def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path: Path, indices=None) -> Path:
     """Write time and each joint's own coordinate with its two derivatives, every float by `repr`.
 
-    The header is ``t,pivot.angle,pivot.rate,pivot.accel,guide.stroke,...``.
+    The header is ``t,pivot.angle,pivot.rate,pivot.accel,guide.stroke,...``; the joints
+    of `indices` (default: every joint with an own coordinate).
     """
-    joints = joint_columns(mechanism)
+    joints = joint_columns(mechanism, indices)
     header = ",".join(["t", *(f"{label}.{suffix}" for _, label, suffixes in joints for suffix in suffixes)])
     if result is None:
         table = np.empty((0, 1 + 3 * len(joints)))
@@ -399,7 +547,7 @@ def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path
 
 def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:
     """Write arrays ``t``, ``q``, ``qd``, ``qdd`` (n_times × 3·n_bodies) and ``body_names``."""
-    if result is None:
+    if result is None or result.coordinates is None:
         empty = np.empty((0, 3 * len(body_names)))
         arrays = {"t": np.empty(0), "q": empty, "qd": empty, "qdd": empty}
     else:
@@ -485,9 +633,18 @@ def animate_command(arguments: argparse.Namespace) -> int:
     path = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name / "animation.gif"
     _check_animation_options(arguments, path, times)
     path.parent.mkdir(parents=True, exist_ok=True)
+    # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
+    settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
     start = time.perf_counter()
     try:
-        result = _solve(mechanism, times, arguments.model)
+        result = _solve(mechanism, settings, arguments.model, None)
+    except AnalysisInterrupted as interrupt:
+        solved = _count_samples(interrupt.result)
+        if solved:
+            mark = f"interrupted at t = {interrupt.result.times[-1]:.6g} s"
+            written = _write_animation(interrupt.result, path, arguments, trace, mark)
+            _report(f"interrupted: animated {solved} of {times.size} samples: {written}")
+        return EXIT_INTERRUPTED
     except ConvergenceError as error:
         _report(f"analysis stopped: {error}")
         solved = _count_samples(error.result)

@@ -145,7 +145,7 @@ def describe_motion(
     coordinate_share = shares(scaled_motion).reshape(-1, 3)
     share, largest = coordinate_share.sum(axis=1), coordinate_share.max(axis=1)
     moving = [int(b) for b in np.argsort(-largest, kind="stable") if share[b] >= LISTED_SHARE]
-    points = _current_points(mechanism, coordinates)
+    points = _current_points(mechanism, coordinates, moving[:limit])
     parts = []
     for body in moving[:limit]:
         x, y, _ = coordinates[3 * body : 3 * body + 3]
@@ -170,14 +170,27 @@ def _shown(value: float, scale: float) -> str:
     return f"{value:.4g}" if abs(value) > 1e-9 * scale else "0"
 
 
-def _current_points(mechanism: Mechanism, coordinates: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Global position of every named point in the configuration `coordinates`."""
+#: Up to this many named points, every one is a candidate for naming a centre of rotation;
+#: beyond, only the points of the bodies described.
+NAMED_CANDIDATES = 10_000
+
+
+def _current_points(mechanism: Mechanism, coordinates: np.ndarray, bodies) -> dict[str, tuple[float, float]]:
+    """Global position, in the configuration `coordinates`, of the named points that may
+    name a centre of rotation: all of them in a model of at most `NAMED_CANDIDATES`, else
+    those the given `bodies` (indices) carry."""
     point_map = build_point_map(mechanism)
-    frames = np.zeros((point_map.body.size, 3))  # ground points: the identity frame
-    on_body = point_map.body >= 0
-    frames[on_body] = coordinates.reshape(-1, 3)[point_map.body[on_body]]
-    positions = to_global(frames, point_map.local)
-    return dict(zip(point_map.names, map(tuple, positions.tolist())))
+    if len(mechanism.points) <= NAMED_CANDIDATES:
+        names = list(point_map.names)
+    else:
+        names = list(dict.fromkeys(point for b in bodies for point in mechanism.bodies[b].points))
+    located = [point_map.locate(name) for name in names]
+    body = np.array([b for b, _ in located], dtype=np.int64).reshape(-1)
+    local = np.array([point for _, point in located], dtype=float).reshape(-1, 2)
+    frames = np.zeros((body.size, 3))  # ground points: the identity frame
+    frames[body >= 0] = coordinates.reshape(-1, 3)[body[body >= 0]]
+    positions = to_global(frames, local)
+    return dict(zip(names, map(tuple, positions.tolist())))
 
 
 def _named_point(points: dict[str, tuple[float, float]], where: tuple[float, float], scale: float):

@@ -12,12 +12,14 @@ registries `JOINT_KINDS` and `DRIVER_KINDS`:
 ``equation_names``     one name per equation, in row order (their number is
                        ``n_equations``)
 ``equations``          classmethod: its equations as blocks of the primitives of
-                       `sparsekin.primitives`, for all elements of the kind at once
+                       `sparsekin.primitives`, for all elements of the kind at once,
+                       read from their `Columns`
 ``output_names``       its own coordinate and two derivatives (``joints.csv`` column
                        suffixes), or ``()`` if it has none
 ``outputs``            classmethod: the primitive that measures its own coordinate
-``body_fields``,       fields naming bodies and points, which the mechanism checks
-``point_fields``
+``body_fields``,       fields naming bodies, points and joints, which the mechanism
+``point_fields``,      checks (and which a unit's copies rename)
+``joint_fields``
 ``check``              method: checks that need the whole mechanism (optional)
 ``describe``           method: a few words for messages
 ``draw``               method: its drawing, on a `sparsekin.plotting.Canvas`
@@ -27,11 +29,12 @@ registries `JOINT_KINDS` and `DRIVER_KINDS`:
 
 The guide ``docs/adding-an-element.md`` walks through adding a kind.
 
-Equation builders receive the elements of their kind, the first row of each (an int
-array) and a `DrawnModel`: the drawn positions of points, the stored index of each body
-(the ground is ``model.ground``), the drawn body frames, and joints by name.  Blocks are
-written in the global coordinates of the drawn configuration; joints hold the values
-their equations have there.
+Equation builders receive the elements of one kind as `Columns`: one array per field,
+an entry per element (the model's own elements, or a unit's over all its copies at once;
+`sparsekin.columns`), with the first row of each element, the stored index of each body
+named (the ground is ``columns.ground``), the drawn positions of points and the drawn
+body frames.  Blocks are written in the global coordinates of the drawn configuration;
+joints hold the values their equations have there.
 """
 
 from __future__ import annotations
@@ -84,19 +87,28 @@ DRIVER_KINDS: dict[str, type] = {}
 _DECLARATION = ("type_name", "file_keys", "equation_names", "equations", "describe", "draw")
 
 
-class DrawnModel(Protocol):
-    """What an equation builder may ask of the mechanism (built by `sparsekin.pattern`)."""
+class Columns(Protocol):
+    """The elements of one kind as arrays, an entry per element (`sparsekin.columns`)."""
 
-    ground: int
+    rows: np.ndarray  # (k,): the first row of each element
+    ground: int  # the stored index of the ground
     frames: np.ndarray  # (n_bodies + 1, 3): drawn (x, y, angle) of each body, the ground last
 
-    def bodies(self, names) -> np.ndarray: ...  # stored index of each body name
+    def pair(self, field: str = "bodies") -> tuple[np.ndarray, np.ndarray]: ...  # the two bodies' indices
 
-    def pairs(self, elements) -> tuple[np.ndarray, np.ndarray]: ...  # indices of each `bodies` pair
+    def body(self, field: str) -> np.ndarray: ...  # (k,) the body's index
 
-    def points(self, references) -> np.ndarray: ...  # (k, 2) drawn positions
+    def point(self, field: str, item: int | None = None) -> np.ndarray: ...  # (k, 2) drawn position; NaN if None
 
-    def joint(self, name: str): ...  # the joint with that name
+    def number(self, field: str) -> np.ndarray: ...  # (k,)
+
+    def vector(self, field: str) -> np.ndarray: ...  # (k, 2)
+
+    def given(self, field: str) -> np.ndarray: ...  # (k,) bool: the field is not None
+
+    def choice(self, field: str, choices) -> np.ndarray: ...  # (k,) index of the value in `choices`
+
+    def joints(self, field: str) -> Columns: ...  # the joints named by the field, with these rows
 
 
 def _register(registry: dict[str, type], kind: type) -> type:
@@ -136,6 +148,7 @@ class _Element:
     output_names: tuple[str, ...] = ()
     body_fields: tuple[str, ...] = ("bodies",)
     point_fields: tuple[str, ...] = ()
+    joint_fields: tuple[str, ...] = ()
 
     def check(self, mechanism, where: str) -> None:
         """Checks that need the mechanism (`where` is ``joints[3]``); none by default."""
@@ -187,14 +200,13 @@ class Revolute(Joint):
         return f"revolute {self.bodies[0]}–{self.bodies[1]} at {shown_point(self.at)}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        i, j = model.pairs(joints)
-        at = model.points([joint.at for joint in joints])
-        return [Coincidence(rows, i, j, at, at)]
+    def equations(cls, joints: Columns):
+        at = joints.point("at")
+        return [Coincidence(joints.rows, *joints.pair(), at, at)]
 
     @classmethod
-    def outputs(cls, joints, rows, model):
-        return [_angle_difference(rows, *model.pairs(joints))]
+    def outputs(cls, joints: Columns):
+        return [_angle_difference(joints.rows, *joints.pair())]
 
     def draw(self, canvas) -> None:
         canvas.pin(canvas.point(self.bodies[0], self.at), grounded=GROUND in self.bodies)
@@ -265,35 +277,35 @@ class Translational(Joint):
         return f"translational {self.bodies[0]}–{self.bodies[1]} {where}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        i, j = model.pairs(joints)
-        start, end, axis = cls.geometry(joints, model)
+    def equations(cls, joints: Columns):
+        i, j = joints.pair()
+        start, end, axis = cls.geometry(joints)
+        rows = joints.rows
         return [_angle_difference(rows, i, j), Projection(rows + 1, i, j, start, end, _normal(axis), _zeros(rows))]
 
     @classmethod
-    def outputs(cls, joints, rows, model):
-        return [cls.stroke(joints, rows, model)]
+    def outputs(cls, joints: Columns):
+        return [cls.stroke(joints)]
 
     @classmethod
-    def stroke(cls, joints, rows, model) -> Projection:
-        """The stroke of each joint, as a projection on its axis (also what drives it)."""
-        start, end, axis = cls.geometry(joints, model)
-        return Projection(rows, *model.pairs(joints), start, end, axis, _zeros(rows))
+    def stroke(cls, joints: Columns, rows: np.ndarray | None = None) -> Projection:
+        """The stroke of each joint, as a projection on its axis (also what drives it), on
+        `rows` (default the joints' own)."""
+        start, end, axis = cls.geometry(joints)
+        rows = joints.rows if rows is None else rows
+        return Projection(rows, *joints.pair(), start, end, axis, _zeros(rows))
 
     @classmethod
-    def geometry(cls, joints, model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def geometry(cls, joints: Columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Start points, end points and unit axes, drawn, global, each shape (k, 2).
 
         For the ``at`` / ``direction`` form the start and the end are both ``at``.
         """
-        references = [p for joint in joints for p in (joint.axis if joint.axis is not None else (joint.at, joint.at))]
-        ends = model.points(references).reshape(-1, 4)
-        start, end = ends[:, :2], ends[:, 2:]
-        axis = end - start
-        at_form = np.array([joint.axis is None for joint in joints], dtype=bool)
-        if at_form.any():
-            axis[at_form] = [joint.direction for joint in joints if joint.axis is None]
-        return start, end, _unit(axis)
+        axis_form = joints.given("axis")[:, None]
+        at = joints.point("at")
+        start = np.where(axis_form, joints.point("axis", 0), at)
+        end = np.where(axis_form, joints.point("axis", 1), at)
+        return start, end, _unit(np.where(axis_form, end - start, joints.vector("direction")))
 
     def draw(self, canvas) -> None:
         """A guide on ``bodies[0]`` and a slider on it; one-point bodies (a hydraulic
@@ -323,10 +335,10 @@ class Rigid(Joint):
         return f"rigid {self.bodies[0]}–{self.bodies[1]}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        i, j = model.pairs(joints)
-        origin = model.frames[j, :2]  # the frame origin of bodies[1], welded to bodies[0]
-        return [Coincidence(rows, i, j, origin, origin), _angle_difference(rows + 2, i, j)]
+    def equations(cls, joints: Columns):
+        i, j = joints.pair()
+        origin = joints.frames[j, :2]  # the frame origin of bodies[1], welded to bodies[0]
+        return [Coincidence(joints.rows, i, j, origin, origin), _angle_difference(joints.rows + 2, i, j)]
 
     def draw(self, canvas) -> None:
         canvas.weld(canvas.origin(self.bodies[1]))
@@ -363,18 +375,18 @@ class PinInSlot(Joint):
         return f"pin in slot {self.bodies[0]}–{self.bodies[1]} at {shown_point(self.at)} along {self.direction}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        return [cls._along(joints, rows, model, normal=True)]
+    def equations(cls, joints: Columns):
+        return [cls._along(joints, normal=True)]
 
     @classmethod
-    def outputs(cls, joints, rows, model):
-        return [cls._along(joints, rows, model, normal=False)]
+    def outputs(cls, joints: Columns):
+        return [cls._along(joints, normal=False)]
 
     @classmethod
-    def _along(cls, joints, rows, model, normal: bool) -> Projection:
-        at = model.points([joint.at for joint in joints])
-        along = _unit(np.array([joint.direction for joint in joints], dtype=float).reshape(-1, 2))
-        return Projection(rows, *model.pairs(joints), at, at, _normal(along) if normal else along, _zeros(rows))
+    def _along(cls, joints: Columns, normal: bool) -> Projection:
+        at = joints.point("at")
+        along = _unit(joints.vector("direction"))
+        return Projection(joints.rows, *joints.pair(), at, at, _normal(along) if normal else along, _zeros(joints.rows))
 
     def draw(self, canvas) -> None:
         centre = canvas.point(self.bodies[0], self.at)
@@ -422,12 +434,11 @@ class Gear(Joint):
         return f"gear {self.bodies[0]}–{self.bodies[1]}{carrier}, ratio {self.ratio:g}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        i, j = model.pairs(joints)
-        k = model.bodies([joint.carrier for joint in joints])
-        ratio = np.array([joint.ratio for joint in joints], dtype=float)
+    def equations(cls, joints: Columns):
+        i, j = joints.pair()
+        ratio = joints.number("ratio")
         return [Combination(
-            rows, np.stack([i, j, k], axis=1), np.full((rows.size, 3), 2),
+            joints.rows, np.stack([i, j, joints.body("carrier")], axis=1), np.full((ratio.size, 3), 2),
             np.stack([np.ones_like(ratio), ratio, -1.0 - ratio], axis=1),
         )]  # fmt: skip
 
@@ -477,11 +488,9 @@ class RackPinion(Joint):
         return f"rack {self.bodies[0]} and pinion {self.bodies[1]} at {shown_point(self.at)}, radius {self.radius:g}"
 
     @classmethod
-    def equations(cls, joints, rows, model):
-        at = model.points([joint.at for joint in joints])
-        along = _unit(np.array([joint.direction for joint in joints], dtype=float).reshape(-1, 2))
-        radius = np.array([joint.radius for joint in joints], dtype=float)
-        return [Projection(rows, *model.pairs(joints), at, at, along, radius)]
+    def equations(cls, joints: Columns):
+        at = joints.point("at")
+        return [Projection(joints.rows, *joints.pair(), at, at, _unit(joints.vector("direction")), joints.number("radius"))]
 
     def draw(self, canvas) -> None:
         centre = canvas.point(self.bodies[1], self.at)
@@ -511,6 +520,7 @@ class TranslationalDriver(Driver):
     equation_names = ("driven value",)
     output_names = ("value", "rate", "accel")
     body_fields = ()
+    joint_fields = ("joint",)
 
     def __post_init__(self) -> None:
         _validate.name(self.joint, "joint")
@@ -536,8 +546,8 @@ class TranslationalDriver(Driver):
 
 
     @classmethod
-    def equations(cls, drivers, rows, model):
-        return [Translational.stroke([model.joint(driver.joint) for driver in drivers], rows, model)]
+    def equations(cls, drivers: Columns):
+        return [Translational.stroke(drivers.joints("joint"), drivers.rows)]
 
     outputs = equations
 
@@ -568,8 +578,8 @@ class RotationalDriver(Driver):
 
 
     @classmethod
-    def equations(cls, drivers, rows, model):
-        return [_angle_difference(rows, *model.pairs(drivers))]
+    def equations(cls, drivers: Columns):
+        return [_angle_difference(drivers.rows, *drivers.pair())]
 
     outputs = equations
 
@@ -605,10 +615,10 @@ class AbsoluteDriver(Driver):
 
 
     @classmethod
-    def equations(cls, drivers, rows, model):
-        body = model.bodies([driver.body for driver in drivers])[:, None]
-        coordinate = np.array([COORDINATE_NAMES.index(driver.coordinate) for driver in drivers], dtype=np.int64)
-        return [Combination(rows, body, coordinate[:, None], np.ones((rows.size, 1)))]
+    def equations(cls, drivers: Columns):
+        rows = drivers.rows
+        coordinate = drivers.choice("coordinate", COORDINATE_NAMES)[:, None]
+        return [Combination(rows, drivers.body("body")[:, None], coordinate, np.ones((rows.size, 1)))]
 
     outputs = equations
 
@@ -657,9 +667,8 @@ class DistanceDriver(Driver):
 
 
     @classmethod
-    def equations(cls, drivers, rows, model):
-        ends = model.points([p for driver in drivers for p in driver.points]).reshape(-1, 4)
-        return [Distance(rows, *model.pairs(drivers), ends[:, :2], ends[:, 2:])]
+    def equations(cls, drivers: Columns):
+        return [Distance(drivers.rows, *drivers.pair(), drivers.point("points", 0), drivers.point("points", 1))]
 
     outputs = equations
 
@@ -704,11 +713,11 @@ class PathDriver(Driver):
 
 
     @classmethod
-    def equations(cls, drivers, rows, model):
-        body = model.bodies([driver.body for driver in drivers])
-        point = model.points([driver.point for driver in drivers])
-        ground = np.full_like(body, model.ground)
-        return [Coincidence(rows, body, ground, point, np.zeros_like(point))]  # minus the ground's origin
+    def equations(cls, drivers: Columns):
+        body = drivers.body("body")
+        point = drivers.point("point")
+        ground = np.full_like(body, drivers.ground)
+        return [Coincidence(drivers.rows, body, ground, point, np.zeros_like(point))]  # minus the ground's origin
 
     def draw(self, canvas) -> None:
         canvas.target(canvas.point(self.body, self.point))

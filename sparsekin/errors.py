@@ -23,6 +23,7 @@ __all__ = [
     "SingularConfigurationError",
     "RedundantConstraintWarning",
     "LimitWarning",
+    "AnalysisInterrupted",
 ]
 
 
@@ -149,3 +150,24 @@ class LimitWarning(UserWarning):
     Issued once per element and run, naming the element, the first time outside and the
     value then.
     """
+
+
+class AnalysisInterrupted(KeyboardInterrupt):
+    """The user interrupted an analysis (Ctrl-C): the samples solved so far are in `result`.
+
+    A `KeyboardInterrupt`, so that an interrupt still stops a program that does not look
+    for it::
+
+        try:
+            result = solve_kinematics(mechanism, times)
+        except AnalysisInterrupted as interrupt:
+            result = interrupt.result  # every sample solved before the interrupt
+
+    Attributes
+    ----------
+    result : KinematicsResult
+    """
+
+    def __init__(self, result: Any) -> None:
+        super().__init__(f"interrupted after {result.n_times} samples")
+        self.result = result

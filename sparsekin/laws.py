@@ -19,6 +19,7 @@ and a `LawTable` holds the packed laws of all drivers, grouped by kind.
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, runtime_checkable
 
@@ -31,7 +32,7 @@ from ._jit import JIT
 from ._validate import FileKeys
 from .errors import ModelError
 
-__all__ = ["Law", "Harmonic", "Linear", "Polynomial", "Spline", "BUILT_IN_LAWS", "LawTable", "pack_laws"]
+__all__ = ["Law", "Harmonic", "Linear", "Polynomial", "Spline", "BUILT_IN_LAWS", "LawTable", "LawPacker", "pack_laws"]
 
 
 @runtime_checkable
@@ -212,21 +213,71 @@ def pack_laws(laws, initial: np.ndarray) -> tuple[LawTable, list[tuple[int, Law]
     initial : ndarray, shape (len(laws),)
         The drawn value of each driven quantity (the default offsets).
     """
-    groups: list[list[int]] = [[] for _ in BUILT_IN_LAWS]
-    others = []
+    packer = LawPacker()
     for k, law in enumerate(laws):
-        if type(law) in BUILT_IN_LAWS:  # not a subclass: its evaluate may differ
-            groups[BUILT_IN_LAWS.index(type(law))].append(k)
+        packer.add(law, np.array([k]), np.array([float(initial[k])]))
+    return packer.table(), packer.others
+
+
+class LawPacker:
+    """Builds a `LawTable` from laws given one by one or as a law repeated over many targets.
+
+    `add` takes one law object for several targets (a unit's law over its copies), with
+    per-target values of some of its parameters (`varied`): the parameters of every target
+    are computed as arrays, without a law object per target.
+    """
+
+    def __init__(self) -> None:
+        self._groups: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in BUILT_IN_LAWS]
+        self.others: list[tuple[int, Law]] = []
+
+    def add(self, law, targets: np.ndarray, initial: np.ndarray, varied: dict | None = None) -> None:
+        """`law` for each of `targets`, whose drawn values are `initial`; `varied` maps a
+        parameter name to its value for each target."""
+        varied = varied or {}
+        if type(law) not in BUILT_IN_LAWS:  # not a subclass either: its evaluate may differ
+            for k, target in enumerate(targets.tolist()):
+                changed = dataclasses.replace(law, **{key: float(v[k]) for key, v in varied.items()}) if varied else law
+                self.others.append((target, changed))
+            return
+        if type(law) in (Harmonic, Linear):  # parameters are the fields, and the offset may be `initial`
+            fields = {Harmonic: ("offset", "amplitude", "omega", "phase"), Linear: ("start", "rate")}[type(law)]
+            columns = []
+            for name in fields:
+                value = getattr(law, name)
+                column = varied.get(name)
+                if column is None:
+                    column = initial if value is None else np.full(targets.size, value)
+                columns.append(np.asarray(column, dtype=float))
+            parameters = np.stack(columns, axis=1)
+        elif varied:  # a polynomial or a spline whose parameters vary: one law object per target
+            parameters = np.stack([
+                dataclasses.replace(law, **{key: v[k] for key, v in varied.items()}).parameters(float(initial[k]))
+                for k in range(targets.size)
+            ])  # fmt: skip
         else:
-            others.append((k, law))
-    order = [k for group in groups for k in group]
-    chunks = [laws[k].parameters(float(initial[k])) for k in order]
-    return LawTable(
-        kind_first=np.cumsum([0] + [len(group) for group in groups]).astype(np.int64),
-        target=np.array(order, dtype=np.int64),
-        start=np.cumsum([0] + [chunk.size for chunk in chunks]).astype(np.int64),
-        data=np.concatenate(chunks) if chunks else np.zeros(0),
-    ), others
+            parameters = np.repeat(law.parameters(0.0)[None], targets.size, axis=0)
+            if type(law) is Polynomial and law.coefficients[0] is None:
+                parameters[:, 0] = initial  # c0 is the drawn value
+        self._groups[BUILT_IN_LAWS.index(type(law))].append((np.asarray(targets, dtype=np.int64), parameters))
+
+    def table(self) -> LawTable:
+        targets, sizes, data, counts = [], [], [], []
+        for groups in self._groups:
+            counts.append(sum(t.size for t, _ in groups))
+            for group_targets, parameters in groups:
+                targets.append(group_targets)
+                sizes.append(np.full(group_targets.size, parameters.shape[1], dtype=np.int64))
+                data.append(parameters.ravel())
+        sizes_all = np.concatenate(sizes) if sizes else np.zeros(0, dtype=np.int64)
+        start = np.zeros(sizes_all.size + 1, dtype=np.int64)
+        np.cumsum(sizes_all, out=start[1:])
+        return LawTable(
+            kind_first=np.cumsum([0] + counts).astype(np.int64),
+            target=np.concatenate(targets) if targets else np.zeros(0, dtype=np.int64),
+            start=start,
+            data=np.concatenate(data) if data else np.zeros(0),
+        )
 
 
 # ---------------------------------------------------------------------- the kernels

@@ -259,6 +259,7 @@ class RefactorSolver:
         self._factored = False
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
+        self._suggested = None
 
     # ------------------------------------------------------------------ public
     @property
@@ -284,6 +285,15 @@ class RefactorSolver:
         """Entries of L and U in the structural patterns, diagonal counted once."""
         self._require_analysis()
         return int(self._l_indptr[-1] + self._u_indptr[-1] + self._n)
+
+    def suggest(self, perm_r: np.ndarray, perm_c: np.ndarray) -> None:
+        """A pivot order for the next new pattern, instead of SuperLU's (`sparsekin.ordering`).
+
+        The next `factor` of a pattern not analysed yet factors on it, under the usual
+        guard; if the guard rejects it, SuperLU decides as usual.  The permutations follow
+        `perm_r` and `perm_c`'s convention, for ``A = jacobian.T``.
+        """
+        self._suggested = (np.asarray(perm_r, dtype=np.int64), np.asarray(perm_c, dtype=np.int64))
 
     def factor(self, jacobian: csr_array) -> None:
         """Factor `jacobian` (square CSR): refactor if its pattern is the analysed one.
@@ -405,12 +415,27 @@ class RefactorSolver:
         self._indptr, self._indices = matrix.indptr, matrix.indices
         self._n, self._nnz = matrix.shape[0], matrix.nnz
         self._perm_c = None
+        suggested, self._suggested = self._suggested, None
+        if suggested is not None and suggested[0].size == self._n and self._factor_on(matrix, *suggested):
+            return
+        self._perm_c = None
         try:
             self._fresh_factor(matrix)
         except BaseException:
             if self._perm_c is None:  # the analysis did not complete
                 self._indptr = self._indices = None
             raise
+
+    def _factor_on(self, matrix: csc_array, perm_r: np.ndarray, perm_c: np.ndarray) -> bool:
+        """Analyse and factor with a given pivot order; False if a pivot is bad (guard)."""
+        self.n_factorizations += 1
+        data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
+        self._analyse(perm_r, perm_c, 2 * self._nnz)
+        if self._numeric(data, self._gather) and self._guard_accepts():
+            self._factored = True
+            return True
+        self.n_fallbacks += 1
+        return False
 
     def _fresh_factor(self, matrix: csc_array) -> None:
         """SuperLU with new pivoting, the structural analysis, then the numeric factors."""

@@ -30,6 +30,7 @@ from . import _validate
 from ._validate import FileKeys
 from .elements import COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, Driver, Joint, PointRef
 from .errors import ModelError
+from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step
 
 __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
 
@@ -104,6 +105,11 @@ class Mechanism:
         Name of the model (the default output folder of ``sparsekin run``).
     analysis : Analysis
         Defaults for the command line.
+    repeats : sequence of Repeat
+        Units repeated into chains (`sparsekin.units`).  Their copies come after the
+        model's own bodies, joints and drivers, copy by copy; `points`, `bodies`,
+        `joints` and `drivers` then read the whole model (an `~sparsekin.units.ElementList`
+        builds a copy's element only when asked), while the arguments are the model's own.
     """
 
     points: Mapping[str, tuple[float, float]]
@@ -112,19 +118,25 @@ class Mechanism:
     drivers: tuple[Driver, ...] = ()
     name: str = "mechanism"
     analysis: Analysis = field(default_factory=Analysis)
+    repeats: tuple[Repeat, ...] = ()
     _body_index: dict[str, int] = field(init=False, repr=False, compare=False)
     _joint_index: dict[str, int] = field(init=False, repr=False, compare=False)
+    _copies: list[Copies] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
-        if not isinstance(self.points, Mapping):
-            raise ModelError(f"expected a mapping of name to [x, y], got {type(self.points).__name__}", element="points")
-        _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in self.points.items()})
-        _set(self, "bodies", _tuple_of(self.bodies, (Body,), "bodies"))
-        _set(self, "joints", _tuple_of(self.joints, tuple(JOINT_KINDS.values()), "joints"))
-        _set(self, "drivers", _tuple_of(self.drivers, tuple(DRIVER_KINDS.values()), "drivers"))
+        points = self.points.own if isinstance(self.points, PointTable) else self.points
+        if not isinstance(points, Mapping):
+            raise ModelError(f"expected a mapping of name to [x, y], got {type(points).__name__}", element="points")
+        _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in points.items()})
+        for kind, kinds in (("bodies", (Body,)), ("joints", tuple(JOINT_KINDS.values())),
+                            ("drivers", tuple(DRIVER_KINDS.values()))):  # fmt: skip
+            given = getattr(self, kind)
+            _set(self, kind, _tuple_of(given.own if isinstance(given, ElementList) else given, kinds, kind))
         if not isinstance(self.analysis, Analysis):
             raise ModelError(f"expected an Analysis, got {type(self.analysis).__name__}", element="analysis")
+        _set(self, "repeats", _tuple_of(self.repeats, (Repeat,), "repeats"))
+        self._lay_out_copies()
         body_index: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
             if body.name == GROUND:
@@ -140,9 +152,27 @@ class Mechanism:
         _set(self, "_body_index", body_index)
         _set(self, "_joint_index", self._check_elements("joints", self.joints))
         self._check_elements("drivers", self.drivers)
+        self._check_copies()
         if self.analysis.points is not None:
             for k, point in enumerate(self.analysis.points):
                 self._check_point(point, "analysis.points[{}]", k)
+        if self._copies:  # the whole model: own elements, then the copies'
+            for kind in ("bodies", "joints", "drivers"):
+                _set(self, kind, ElementList(kind, getattr(self, kind), self._copies))
+
+    def _lay_out_copies(self) -> None:
+        """Where each repeat's copies start among the bodies, joints and drivers."""
+        copies: list[Copies] = []
+        first = [len(self.bodies), len(self.joints), len(self.drivers)]
+        own_points = self.points
+        table = PointTable(own_points, copies)  # filled below: the copies may name each other's points
+        for index, repeat in enumerate(self.repeats):
+            copies.append(Copies(repeat, index, *first, model_position=table.__getitem__))
+            unit = repeat.unit
+            first = [start + repeat.count * len(part) for start, part in zip(first, (unit.bodies, unit.joints, unit.drivers))]
+        _set(self, "_copies", copies)
+        if copies:  # the points of the whole model, for every check below
+            _set(self, "points", table)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -158,15 +188,77 @@ class Mechanism:
     @property
     def n_equations(self) -> int:
         """Number of constraint equations, joints and drivers."""
-        return sum(element.n_equations for element in (*self.joints, *self.drivers))
+        total = sum(element.n_equations for element in (*self.own("joints"), *self.own("drivers")))
+        for copies in self._copies:
+            unit = copies.unit
+            total += copies.count * sum(element.n_equations for element in (*unit.joints, *unit.drivers))
+        return total
 
     @property
-    def body_names(self) -> tuple[str, ...]:
-        return tuple(body.name for body in self.bodies)
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def n_drivers(self) -> int:
+        return len(self.drivers)
+
+    def declared(self, kind: str):
+        """The joints or drivers (`kind`) as declared: the model's own, then each repeated
+        unit's once (not once per copy).  Enough to know which kinds and laws the model uses."""
+        yield from self.own(kind)
+        for copies in self._copies:
+            yield from getattr(copies.unit, kind)
+
+    def expanded(self) -> Mechanism:
+        """The same mechanism without repeats: every copy's points and elements written out,
+        as one would by hand (for small models: each copy becomes Python objects)."""
+        if not self._copies:
+            return self
+        return Mechanism(
+            points=dict(self.points), bodies=tuple(self.bodies), joints=tuple(self.joints),
+            drivers=tuple(self.drivers), name=self.name, analysis=self.analysis,
+        )  # fmt: skip
+
+    @property
+    def copies(self) -> tuple[Copies, ...]:
+        """Each repeat resolved in this mechanism (empty without repeats)."""
+        return tuple(self._copies)
+
+    def own(self, kind: str):
+        """The model's own bodies, joints, drivers or points (`kind`), without the repeats' copies."""
+        elements = getattr(self, kind)
+        return elements.own if isinstance(elements, (ElementList, PointTable)) else elements
+
+    @property
+    def body_names(self) -> Sequence[str]:
+        """The name of every body, in coordinate order (built on demand for copies)."""
+        if not self._copies:
+            return tuple(body.name for body in self.bodies)
+        return _BodyNames(self)
+
+    def body_name(self, index: int) -> str:
+        """The name of body `index` (its position in `bodies`)."""
+        own = self.own("bodies")
+        if index < len(own):
+            return own[index].name
+        for copies in self._copies:
+            within = index - copies.first_body
+            if 0 <= within < copies.count * copies.n_bodies:
+                return copies.name(within // copies.n_bodies, copies.unit.bodies[within % copies.n_bodies].name)
+        raise IndexError(f"body index {index} out of range")
 
     def body_index(self, name: str) -> int:
         """Position of body `name` in `bodies`; -1 for the ground."""
-        return -1 if name == GROUND else self._body_index[name]
+        if name == GROUND:
+            return -1
+        index = self._body_index.get(name)
+        if index is not None:
+            return index
+        for copies in self._copies:
+            split = copies.split(name)
+            if split is not None and split[1] in copies.body_index:
+                return copies.first_body + split[0] * copies.n_bodies + copies.body_index[split[1]]
+        raise KeyError(name)
 
     def position(self, reference: PointRef) -> tuple[float, float]:
         """Global initial coordinates of a point name or an ``(x, y)`` pair, m."""
@@ -175,7 +267,9 @@ class Mechanism:
     def body_indices(self, names: Iterable[str]) -> np.ndarray:
         """`body_index` of each name, as an int64 array (-1 for the ground)."""
         index = self._body_index
-        return np.fromiter((-1 if name == GROUND else index[name] for name in names), dtype=np.int64)
+        if not self._copies:
+            return np.fromiter((-1 if name == GROUND else index[name] for name in names), dtype=np.int64)
+        return np.fromiter((index[name] if name in index else self.body_index(name) for name in names), dtype=np.int64)
 
     def positions(self, references: Iterable[PointRef]) -> np.ndarray:
         """`position` of each reference, as an array of shape (n, 2), m."""
@@ -187,20 +281,39 @@ class Mechanism:
         """Initial ``(x, y, angle)`` of the frame of `body`; zeros for the ground."""
         if body == GROUND:
             return (0.0, 0.0, 0.0)
-        b = self.bodies[self._body_index[body]]
+        b = self.bodies[self.body_index(body)]
         x, y = self.position(b.origin)
         return (x, y, b.angle)
 
     def frames(self) -> np.ndarray:
         """Initial frames ``(x, y, angle)`` of every body, shape (n_bodies, 3)."""
-        frames = np.zeros((self.n_bodies, 3))
-        frames[:, :2] = self.positions([body.origin for body in self.bodies])
-        frames[:, 2] = [body.angle for body in self.bodies]
-        return frames
+        own = self.own("bodies")
+        frames = np.zeros((len(own), 3))
+        frames[:, :2] = self.positions([body.origin for body in own])
+        frames[:, 2] = [body.angle for body in own]
+        return np.concatenate([frames, *(copies.frames() for copies in self._copies)])
 
     def joint_named(self, name: str) -> Joint:
         """The joint called `name`; KeyError if there is none."""
-        return self.joints[self._joint_index[name]]
+        index = self._joint_index.get(name)
+        if index is not None:
+            return self.own("joints")[index]
+        for copies in self._copies:
+            split = copies.split(name)
+            if split is not None and split[1] in copies.joint_index:
+                return copies.element("joints", split[0], copies.joint_index[split[1]])
+        raise KeyError(name)
+
+    def joint_index(self, name: str) -> int:
+        """Position of the joint called `name` in `joints`; KeyError if there is none."""
+        index = self._joint_index.get(name)
+        if index is not None:
+            return index
+        for copies in self._copies:
+            split = copies.split(name)
+            if split is not None and split[1] in copies.joint_index:
+                return copies.first_joint + split[0] * copies.n_joints + copies.joint_index[split[1]]
+        raise KeyError(name)
 
     def element_label(self, kind: str, index: int) -> str:
         """``joints[3] "pivot" (revolute c3–c4 at I)``: a label for messages."""
@@ -219,9 +332,71 @@ class Mechanism:
             )
 
     def _check_body(self, body: str, where: str, *where_arguments) -> None:
-        if body != GROUND and body not in self._body_index:
+        if body != GROUND and body not in self._body_index and not self._is_copy_body(body):
             known = _validate.known_list([*self._body_index, GROUND])
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))
+
+    def _is_copy_body(self, name: str) -> bool:
+        for copies in self._copies:
+            split = copies.split(name)
+            if split is not None and split[1] in copies.body_index:
+                return True
+        return False
+
+    def _check_copies(self) -> None:
+        """Each repeat's names are its own, its references resolve, its copies are sound.
+
+        The unit's elements were checked as a unit; here their references to the model
+        (bodies, points, joints), what ``prev.NAME`` means for copy 0, and the copies
+        whose drawing differs (varied points: the first ones of a cycle, and the last) are
+        checked through copies built as objects — a handful, not every copy.
+        """
+        copies = self._copies
+        prefixes = [c.prefix for c in copies]
+        for a, first in enumerate(prefixes):
+            for b, second in enumerate(prefixes):
+                if a != b and second.startswith(first) and (second == first or second[len(first) :][:1].isdigit()):
+                    raise ModelError(f'prefix "{second}" of repeat[{b}] cannot be told from prefix "{first}" of '
+                                     f"repeat[{a}] in names like {first}12.NAME", element=f"repeat[{b}].prefix")  # fmt: skip
+        for c in copies:
+            own_names = [*self.own("points"), *self._body_index, *self._joint_index,
+                         *(d.name for d in self.own("drivers") if d.name)]  # fmt: skip
+            for name in own_names:
+                split = c.split(name)
+                if split is not None and (split[1] in c.point_index or split[1] in c.body_index
+                                          or split[1] in c.joint_index or split[1] in c.driver_index):  # fmt: skip
+                    raise ModelError(f'"{name}" is also the name of copy {split[0]}\'s {split[1]}',
+                                     element=f"{c.label}.prefix")
+            for target in c.repeat.first.values():
+                self._check_body(target, "{}.first", c.label)
+            for k in _copies_to_check(c):
+                where = f"{c.label} copy {k}: units.{c.unit.name}"
+                for kind in ("bodies", "joints", "drivers"):
+                    for e in range(len(getattr(c.unit, kind))):
+                        self._check_copy_element(c, kind, k, e, where)
+
+    def _check_copy_element(self, copies: Copies, kind: str, k: int, e: int, where: str) -> None:
+        element = copies.element(kind, k, e)
+        label = f"{where}.{kind}[{e}]"
+        if kind == "bodies":
+            self._check_point(element.origin, "{}.origin", label)
+            for n, point in enumerate(element.points):
+                self._check_point(point, "{}.points[{}]", label, n)
+            return
+        declaration = type(element)
+        for field_name in declaration.body_fields:
+            value = getattr(element, field_name)
+            for n, body in enumerate([value] if type(value) is str else value):
+                self._check_body(body, "{}.{}" + ("" if type(value) is str else f"[{n}]"), label, field_name)
+        for field_name in declaration.point_fields:
+            value = getattr(element, field_name)
+            if type(value) is str:
+                self._check_point(value, "{}.{}", label, field_name)
+            elif value is not None and type(value[0]) is not float:
+                for n, reference in enumerate(value):
+                    self._check_point(reference, "{}.{}[{}]", label, field_name, n)
+        if type(element).check is not Joint.check:
+            element.check(self, label)
 
     def _check_elements(self, kind: str, elements) -> dict[str, int]:
         """Check the body and point references each element's kind declares, names unique,
@@ -252,6 +427,32 @@ class Mechanism:
             if type(element).check is not Joint.check:
                 element.check(self, f"{kind}[{index}]")
         return names
+
+
+def _copies_to_check(copies: Copies) -> list[int]:
+    """The copies whose elements are checked as objects: the first, those whose drawing a
+    cycle changes (up to 64), and the last."""
+    cycles = [len(v.values) for v in copies.repeat.vary.values() if isinstance(v, Cycle)]
+    stepped = any(isinstance(v, Step) for v in copies.repeat.vary.values())
+    period = min(int(np.lcm.reduce(cycles)) if cycles else 1, 64)
+    return sorted({*range(min(period + stepped, copies.count)), copies.count - 1})
+
+
+class _BodyNames(Sequence):
+    """The body names of a mechanism with repeats, built on demand."""
+
+    def __init__(self, mechanism: Mechanism) -> None:
+        self._mechanism = mechanism
+
+    def __len__(self) -> int:
+        return self._mechanism.n_bodies
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        if index < 0:
+            index += len(self)
+        return self._mechanism.body_name(index)
 
 
 def _point_pair(name: str, value: object) -> tuple[float, float]:

@@ -31,6 +31,7 @@ from .elements import DRIVER_KINDS, JOINT_KINDS
 from .errors import ModelError
 from .laws import BUILT_IN_LAWS, Spline
 from .model import Analysis, Body, Mechanism
+from .units import Cycle, Repeat, Step, Unit
 
 __all__ = ["load_model", "save_model"]
 
@@ -81,7 +82,11 @@ def _spline(file: Spline | None = None, **samples: Any) -> Spline:
     return file if file is not None else Spline(**samples)
 
 
-_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "analysis")
+_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "analysis", "units", "repeat")
+#: The sections of a unit: those of a model but `[analysis]` and nested units.
+_UNIT_KEYS = ("points", "bodies", "joints", "drivers")
+#: The keys of a `[[repeat]]` entry.
+_REPEAT_KEYS = ("unit", "count", "prefix", "offset", "first", "vary")
 _BODY = _Spec(Body)
 _JOINTS = {type_name: _Spec(kind) for type_name, kind in JOINT_KINDS.items()}
 _DRIVERS = {type_name: _Spec(kind) for type_name, kind in DRIVER_KINDS.items()}
@@ -151,21 +156,16 @@ class _Reader:
     def mechanism(self, document: dict[str, Any], default_name: str) -> Mechanism:
         """The `Mechanism` of a whole document."""
         _check_keys(document, "", _TOP_LEVEL_KEYS)
-        body_tables = _table(document.get("bodies", {}), "bodies", "tables [bodies.NAME]")
-        bodies = [
-            self.element(table, f"bodies.{name}", _BODY, f"a table [bodies.{name}]", name=name)
-            for name, table in body_tables.items()
-        ]
-        joints = [
-            self.typed(table, f"joints[{index}]", _JOINTS, "a table [[joints]]")
-            for index, table in enumerate(_array(document.get("joints", []), "joints"))
-        ]
-        drivers = [
-            self.typed(table, f"drivers[{index}]", _DRIVERS, "a table [[drivers]]")
-            for index, table in enumerate(_array(document.get("drivers", []), "drivers"))
-        ]
+        points, bodies, joints, drivers, body_names = self.parts(document, "")
         analysis = self.element(document.get("analysis", {}), "analysis", _ANALYSIS, "a table [analysis]")
-        points = _table(document.get("points", {}), "points", "a table [points] of name = [x, y]")
+        units = {
+            name: self.unit(table, name)
+            for name, table in _table(document.get("units", {}), "units", "tables [units.NAME]").items()
+        }
+        repeats = [
+            self.repeat(table, f"repeat[{index}]", units)
+            for index, table in enumerate(_array(document.get("repeat", []), "repeat"))
+        ]
         try:
             return Mechanism(
                 points=points,
@@ -174,9 +174,61 @@ class _Reader:
                 drivers=drivers,
                 name=document.get("name", default_name),
                 analysis=analysis,
+                repeats=repeats,
             )
         except ModelError as error:
-            raise _body_by_name(error, list(body_tables)) from None
+            raise _body_by_name(error, body_names) from None
+
+    def parts(self, document: dict[str, Any], prefix: str):
+        """Points, bodies, joints and drivers of a model (`prefix` "") or a unit ("units.NAME.")."""
+        body_tables = _table(document.get("bodies", {}), f"{prefix}bodies", f"tables [{prefix}bodies.NAME]")
+        bodies = [
+            self.element(table, f"{prefix}bodies.{name}", _BODY, f"a table [{prefix}bodies.{name}]", name=name)
+            for name, table in body_tables.items()
+        ]
+        joints = [
+            self.typed(table, f"{prefix}joints[{index}]", _JOINTS, f"a table [[{prefix}joints]]")
+            for index, table in enumerate(_array(document.get("joints", []), f"{prefix}joints"))
+        ]
+        drivers = [
+            self.typed(table, f"{prefix}drivers[{index}]", _DRIVERS, f"a table [[{prefix}drivers]]")
+            for index, table in enumerate(_array(document.get("drivers", []), f"{prefix}drivers"))
+        ]
+        points = _table(document.get("points", {}), f"{prefix}points", f"a table [{prefix}points] of name = [x, y]")
+        return points, bodies, joints, drivers, list(body_tables)
+
+    def unit(self, value: object, name: str) -> Unit:
+        """The `Unit` of a table ``[units.NAME]``."""
+        where = f"units.{name}"
+        table = _table(value, where, f"a table [{where}]")
+        _check_keys(table, where, _UNIT_KEYS)
+        points, bodies, joints, drivers, body_names = self.parts(table, f"{where}.")
+        try:
+            return Unit(name, points=points, bodies=bodies, joints=joints, drivers=drivers)
+        except ModelError as error:
+            raise _body_by_name(error, body_names).within(where) from None
+
+    def repeat(self, value: object, where: str, units: dict[str, Unit]) -> Repeat:
+        """The `Repeat` of a table ``[[repeat]]``."""
+        table = _table(value, where, "a table [[repeat]]")
+        _check_keys(table, where, _REPEAT_KEYS)
+        for key in ("unit", "count"):
+            if key not in table:
+                raise ModelError(f'missing key "{key}"', element=where)
+        unit_name = _validate.name(table["unit"], f"{where}.unit")
+        if unit_name not in units:
+            known = _validate.known_list(list(units)) or "none: define [units.NAME]"
+            raise ModelError(f'unknown unit "{unit_name}" (known: {known})', element=f"{where}.unit")
+        vary = {}
+        for path, variation in _table(table.get("vary", {}), f"{where}.vary", "a table of path = { step = … }").items():
+            vary[path] = _variation(variation, f'{where}.vary."{path}"')
+        try:
+            return Repeat(
+                units[unit_name], count=table["count"], prefix=table.get("prefix"), offset=table.get("offset", (0.0, 0.0)),
+                first=_table(table.get("first", {}), f"{where}.first", 'a table { "prev.NAME" = "BODY" }'), vary=vary,
+            )  # fmt: skip
+        except ModelError as error:
+            raise error.within(where) from None
 
     def element(self, value: object, element: str, spec: _Spec, expected: str, **fixed: Any) -> Any:
         """The element described by the table `value`.
@@ -391,6 +443,23 @@ def _axis(value: object, element: str) -> object:
     return value
 
 
+def _variation(value: object, element: str) -> Step | Cycle:
+    """``{ step = x }`` or ``{ cycle = [v0, v1, ...] }``."""
+    table = _table(value, element, "{ step = … } or { cycle = […] }")
+    if set(table) == {"step"}:
+        return Step(table["step"] if not isinstance(table["step"], list) else tuple(table["step"]))
+    if set(table) == {"cycle"}:
+        values = table["cycle"]
+        if not isinstance(values, list):
+            raise ModelError(f"expected a list of values, got {_kind(values)}", element=f"{element}.cycle")
+        try:
+            return Cycle(tuple(tuple(v) if isinstance(v, list) else v for v in values))
+        except ModelError as error:
+            raise error.within(element) from None
+    raise ModelError(f"expected {{ step = … }} or {{ cycle = […] }}, got keys {', '.join(table) or 'none'}",
+                     element=element)  # fmt: skip
+
+
 def _csv_samples(text: str, shown: str) -> tuple[list[float], list[float]]:
     """The columns t and value of a spline CSV file (a header line, then one sample a line)."""
     lines = text.splitlines()
@@ -478,22 +547,56 @@ def save_model(mechanism: Mechanism, path: str | os.PathLike) -> None:
 
 
 def _model_text(mechanism: Mechanism) -> str:
-    """The TOML text of `mechanism`, one blank-line-separated block per table."""
+    """The TOML text of `mechanism`, one blank-line-separated block per table.
+
+    Repeated units are written as units and ``[[repeat]]`` entries, never copy by copy.
+    """
     blocks = [f"name = {_string(mechanism.name)}"]
-    if mechanism.points:
-        points = [(name, _value(xy, f"points.{name}")) for name, xy in mechanism.points.items()]
-        blocks.append(_block("[points]", points))
-    for body in mechanism.bodies:
-        blocks.append(_block(f"[bodies.{_key(body.name)}]", _pairs(body, _BODY, f"bodies.{body.name}")))
-    for kind, specs in (("joints", _JOINTS), ("drivers", _DRIVERS)):
-        for index, item in enumerate(getattr(mechanism, kind)):
-            element = f"{kind}[{index}]"
-            type_name = _type_name(item, specs, element)
-            blocks.append(_block(f"[[{kind}]]", _pairs(item, specs[type_name], element, type_name)))
+    blocks += _parts_text(mechanism.own("points"), *(mechanism.own(kind) for kind in ("bodies", "joints", "drivers")), "")
     analysis = _pairs(mechanism.analysis, _ANALYSIS, "analysis")
     if analysis:
         blocks.append(_block("[analysis]", analysis))
+    units: dict[str, Unit] = {}
+    for index, repeat in enumerate(mechanism.repeats):
+        if units.setdefault(repeat.unit.name, repeat.unit) is not repeat.unit:
+            raise ModelError(f'two different units are called "{repeat.unit.name}"', element=f"repeat[{index}].unit")
+    for name, unit in units.items():
+        blocks += _parts_text(unit.points, unit.bodies, unit.joints, unit.drivers, f"units.{_key(name)}.")
+    for repeat in mechanism.repeats:
+        pairs = [("unit", _string(repeat.unit.name)), ("count", str(repeat.count)), ("prefix", _string(repeat.prefix))]
+        if repeat.offset != (0.0, 0.0):
+            pairs.append(("offset", _value(repeat.offset, "repeat.offset")))
+        if repeat.first:
+            pairs.append(("first", "{ " + ", ".join(f"{_key(k)} = {_string(v)}" for k, v in repeat.first.items()) + " }"))
+        blocks.append(_block("[[repeat]]", pairs))
+        if repeat.vary:  # a sub-table of this entry, one variation a line (long cycles: one value a line)
+            blocks.append("\n".join(["[repeat.vary]", *(_variation_line(path, v) for path, v in repeat.vary.items())]))
     return "\n\n".join(blocks) + "\n"
+
+
+def _parts_text(points, bodies, joints, drivers, prefix: str) -> list[str]:
+    """The blocks of the points, bodies, joints and drivers of a model or a unit."""
+    blocks = []
+    if points:
+        blocks.append(_block(f"[{prefix}points]", [(name, _value(xy, f"points.{name}")) for name, xy in points.items()]))
+    for body in bodies:
+        blocks.append(_block(f"[{prefix}bodies.{_key(body.name)}]", _pairs(body, _BODY, f"bodies.{body.name}")))
+    for kind, specs, items in (("joints", _JOINTS, joints), ("drivers", _DRIVERS, drivers)):
+        for index, item in enumerate(items):
+            element = f"{prefix}{kind}[{index}]"
+            type_name = _type_name(item, specs, element)
+            blocks.append(_block(f"[[{prefix}{kind}]]", _pairs(item, specs[type_name], element, type_name)))
+    return blocks
+
+
+def _variation_line(path: str, variation: Step | Cycle) -> str:
+    """``"points.M".step = [0.1, 0]`` or a cycle, its values one a line when there are many."""
+    if isinstance(variation, Step):
+        return f"{_key(path)}.step = {_value(variation.value, 'step')}"
+    values = [_value(value, "cycle") for value in variation.values]
+    if len(values) <= 4:
+        return f"{_key(path)}.cycle = [{', '.join(values)}]"
+    return f"{_key(path)}.cycle = [\n" + "".join(f"    {value},\n" for value in values) + "]"
 
 
 def _block(header: str, pairs: list[tuple[str, str]]) -> str:

@@ -15,10 +15,12 @@ relative angle, a cylinder's stroke), which the results evaluate with the same k
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from .columns import ObjectColumns, Resolver, TiledColumns
 from .geometry import to_local
 from .model import Mechanism
 from .primitives import PackedEquations, Primitives, pack
@@ -123,31 +125,6 @@ class OutputPattern:
     row_is_angle: np.ndarray
 
 
-class _DrawnModel:
-    """What element kinds may ask of the mechanism while they build their equations."""
-
-    def __init__(self, mechanism: Mechanism) -> None:
-        self._mechanism = mechanism
-        self.ground = mechanism.n_bodies
-        self.frames = np.zeros((self.ground + 1, 3))  # the ground last, with zero coordinates
-        self.frames[:-1] = mechanism.frames()
-
-    def bodies(self, names) -> np.ndarray:
-        index = self._mechanism.body_indices(names)
-        index[index < 0] = self.ground
-        return index
-
-    def pairs(self, elements) -> tuple[np.ndarray, np.ndarray]:
-        both = self.bodies([body for element in elements for body in element.bodies]).reshape(-1, 2)
-        return both[:, 0].copy(), both[:, 1].copy()
-
-    def points(self, references) -> np.ndarray:
-        return self._mechanism.positions(references)
-
-    def joint(self, name: str):
-        return self._mechanism.joint_named(name)
-
-
 def _by_kind(elements) -> dict[type, list[int]]:
     """Indices of the elements of each kind, kinds in order of first appearance."""
     groups: dict[type, list[int]] = {}
@@ -156,14 +133,37 @@ def _by_kind(elements) -> dict[type, list[int]]:
     return groups
 
 
-def _blocks(elements, first_rows: np.ndarray, model: _DrawnModel, method: str) -> list:
-    """The blocks of every element, asked of each kind once for all its elements."""
+def _blocks(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver, method: str) -> list:
+    """The blocks of every joint or driver (`kind`), asked of each element kind once for the
+    model's own elements and once per repeat for all its copies.
+
+    `first_rows` gives the first row of each element of `kind` in model order (-1 for an
+    element without rows, which `method` then does not produce).
+    """
     blocks = []
-    for kind, indices in _by_kind(elements).items():
-        build = getattr(kind, method, None)
+    own = mechanism.own(kind)
+    for element_kind, indices in _by_kind(own).items():
+        build = getattr(element_kind, method, None)
         if build is not None:
-            blocks += build([elements[k] for k in indices], first_rows[indices], model)
+            blocks += build(ObjectColumns([own[k] for k in indices], first_rows[indices], resolver))
+    for copies in mechanism.copies:
+        unit_elements = getattr(copies.unit, kind)
+        first = copies.first_joint if kind == "joints" else copies.first_driver
+        grid = first_rows[first : first + copies.count * len(unit_elements)].reshape(copies.count, -1)
+        for element_kind, indices in _by_kind(unit_elements).items():
+            build = getattr(element_kind, method, None)
+            if build is not None:
+                columns = TiledColumns(copies, [unit_elements[k] for k in indices], grid[:, indices].ravel(), resolver)
+                blocks += build(columns)
     return blocks
+
+
+def _per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
+    """``value(element)`` for every joint or driver, in model order: the own elements', then
+    each repeat's unit values tiled over its copies."""
+    own = [value(element) for element in mechanism.own(kind)]
+    tiled = [np.tile([value(element) for element in getattr(c.unit, kind)], c.count) for c in mechanism.copies]
+    return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
 
 
 def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
@@ -171,28 +171,33 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
 
     The system need not be square: a mechanism with free motions or redundant
     equations has a pattern too (the solvers refuse it, the diagnostics study it).
-    Each kind builds the equations of all its elements at once, so the cost is a few
-    array operations per kind: linear in the model size.
+    Each kind builds the equations of all its elements at once — the model's own, then
+    a repeated unit's over all its copies — so the cost is a few array operations per
+    kind: linear in the model size, without an object per copy.
     """
-    model = _DrawnModel(mechanism)
-    joints, drivers = mechanism.joints, mechanism.drivers
-    counts = [element.n_equations for element in (*joints, *drivers)]
-    element_first_row = np.zeros(len(counts) + 1, dtype=np.int64)
+    resolver = Resolver(mechanism)
+    joint_counts = _per_element(mechanism, "joints", lambda element: element.n_equations)
+    driver_counts = _per_element(mechanism, "drivers", lambda element: element.n_equations)
+    counts = np.concatenate([joint_counts, driver_counts])
+    element_first_row = np.zeros(counts.size + 1, dtype=np.int64)
     np.cumsum(counts, out=element_first_row[1:])
     n_equations = int(element_first_row[-1])
-    n_joints = len(joints)
-    blocks = _blocks(joints, element_first_row[:n_joints], model, "equations")
-    blocks += _blocks(drivers, element_first_row[n_joints:-1], model, "equations")
-    packed: PackedEquations = pack(blocks, n_equations, model.frames)
+    n_joints = joint_counts.size
+    blocks = _blocks(mechanism, "joints", element_first_row[:n_joints], resolver, "equations")
+    blocks += _blocks(mechanism, "drivers", element_first_row[n_joints:-1], resolver, "equations")
+    packed: PackedEquations = pack(blocks, n_equations, resolver.frames)
 
     first_driven = int(element_first_row[n_joints])
     driven_row = np.arange(first_driven, n_equations, dtype=np.int64)
-    driven_driver = np.repeat(np.arange(len(drivers), dtype=np.int64), counts[n_joints:])
+    driven_driver = np.repeat(np.arange(driver_counts.size, dtype=np.int64), driver_counts)
     target = packed.initial.copy()
     target[driven_row] = 0.0
-    all_points = np.array(list(mechanism.points.values()), dtype=float).reshape(-1, 2)
+    points = mechanism.points
+    all_points = points.all_positions() if hasattr(points, "all_positions") else np.array(list(points.values()))
     length_scale = max(
-        float(np.abs(all_points).max(initial=0.0)), float(np.abs(model.frames[:, :2]).max(initial=0.0)), 1e-3
+        float(np.abs(all_points.reshape(-1, 2)).max(initial=0.0)),
+        float(np.abs(resolver.frames[:, :2]).max(initial=0.0)),
+        1e-3,
     )
     return ConstraintPattern(
         n_bodies=mechanism.n_bodies,
@@ -206,63 +211,130 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
         driven_initial=packed.initial[driven_row].copy(),
         driven_driver=driven_driver,
         element_first_row=element_first_row,
-        initial_coordinates=model.frames[:-1].ravel().copy(),
+        initial_coordinates=resolver.frames[:-1].ravel().copy(),
         length_scale=length_scale,
     )
 
 
-def build_output_pattern(mechanism: Mechanism) -> OutputPattern:
-    """The own coordinate of every joint and driver whose kind declares one."""
-    model = _DrawnModel(mechanism)
-    has_output = [bool(type(element).output_names) for element in (*mechanism.joints, *mechanism.drivers)]
+def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> OutputPattern:
+    """The own coordinate of every joint and driver whose kind declares one, or of the
+    joints and drivers of the given indices only (`joints`, `drivers`), in that order."""
+    if joints is not None or drivers is not None:
+        return _selected_outputs(mechanism, joints or (), drivers or ())
+    resolver = Resolver(mechanism)
+    has_output = np.concatenate([
+        _per_element(mechanism, kind, lambda element: bool(type(element).output_names)) for kind in ("joints", "drivers")
+    ]).astype(bool)  # fmt: skip
     rows = np.cumsum(has_output, dtype=np.int64) - 1
-    rows[~np.array(has_output, dtype=bool)] = -1
-    n_joints = len(mechanism.joints)
+    rows[~has_output] = -1
+    n_joints = mechanism.n_joints
     row_of_joint, row_of_driver = rows[:n_joints], rows[n_joints:]
-    blocks = _blocks(mechanism.joints, row_of_joint, model, "outputs")
-    blocks += _blocks(mechanism.drivers, row_of_driver, model, "outputs")
-    n_rows = int(sum(has_output))
-    packed = pack(blocks, n_rows, model.frames)
+    blocks = _blocks(mechanism, "joints", row_of_joint, resolver, "outputs")
+    blocks += _blocks(mechanism, "drivers", row_of_driver, resolver, "outputs")
+    n_rows = int(has_output.sum())
+    packed = pack(blocks, n_rows, resolver.frames)
     return OutputPattern(
         n_rows, packed.primitives, packed.indptr, packed.indices, row_of_joint, row_of_driver, packed.row_is_angle
     )
 
 
-@dataclass(frozen=True, eq=False)
+def _selected_outputs(mechanism: Mechanism, joints, drivers) -> OutputPattern:
+    """Output rows for a few chosen elements, built from them as objects."""
+    resolver = Resolver(mechanism)
+    rows = {"joints": np.full(mechanism.n_joints, -1, dtype=np.int64),
+            "drivers": np.full(mechanism.n_drivers, -1, dtype=np.int64)}  # fmt: skip
+    blocks, n_rows = [], 0
+    for kind, indices in (("joints", joints), ("drivers", drivers)):
+        elements = [getattr(mechanism, kind)[k] for k in indices]
+        for k, element in zip(indices, elements):
+            if not type(element).output_names:
+                raise ValueError(f"{kind}[{k}] is {element.type_name}, which has no coordinate of its own")
+            rows[kind][k] = n_rows
+            n_rows += 1
+        for element_kind, group in _by_kind(elements).items():
+            selected_rows = rows[kind][[indices[g] for g in group]]
+            blocks += element_kind.outputs(ObjectColumns([elements[g] for g in group], selected_rows, resolver))
+    packed = pack(blocks, n_rows, resolver.frames)
+    return OutputPattern(n_rows, packed.primitives, packed.indptr, packed.indices, rows["joints"], rows["drivers"],
+                         packed.row_is_angle)  # fmt: skip
+
+
 class PointMap:
-    """Where each named point rides: its body (``-1`` for the ground) and local position.
+    """Where each named point rides: its body (-1 for the ground) and its local position.
+
+    A point rides on the first body that lists it; a point that no body lists is on the
+    ground (its local position is then its global one).  Points of a repeated unit's
+    copies are located by index arithmetic when asked, without a table of every point.
 
     Attributes
     ----------
-    names : tuple of str
-    body : ndarray of int, shape (n_points,)
-    local : ndarray, shape (n_points, 2)
-        Position in the body frame, m (global position for a ground point).
+    names : sequence of str
+        Every point name, in the model's order.
     """
 
-    names: tuple[str, ...]
-    body: np.ndarray
-    local: np.ndarray
-    _index: dict[str, int] = field(init=False, repr=False)
+    def __init__(self, mechanism: Mechanism) -> None:
+        self._mechanism = mechanism
+        self.names = mechanism.points if not mechanism.copies else _Names(mechanism.points)
+        self._carrier: dict[str, int] = {}
+        for index, body in enumerate(mechanism.own("bodies")):
+            for point in body.points:
+                self._carrier.setdefault(point, index)
+        self._unit_carriers = []
+        for copies in mechanism.copies:
+            carriers: dict[str, int] = {}
+            for index, body in enumerate(copies.unit.bodies):
+                for point in body.points:
+                    carriers.setdefault(point, index)
+            self._unit_carriers.append(carriers)
+        self._frames: np.ndarray | None = None
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_index", {name: k for k, name in enumerate(self.names)})
+    def locate(self, name: str) -> tuple[int, np.ndarray]:
+        """``(body, local)`` of point `name`; KeyError if the model has no such point."""
+        mechanism = self._mechanism
+        position = np.asarray(mechanism.points[name], dtype=float)  # KeyError for an unknown name
+        body = self._carrier.get(name, -1)
+        if body < 0 and mechanism.copies:
+            located = mechanism.points.locate(name)
+            if located is not None:
+                copies, k, p = located
+                unit_body = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], -1)
+                if unit_body >= 0:
+                    body = copies.first_body + k * copies.n_bodies + unit_body
+        if body < 0:
+            return -1, position
+        if self._frames is None:
+            self._frames = mechanism.frames()
+        return body, to_local(self._frames[body : body + 1], position[None])[0]
 
-    def index(self, name: str) -> int:
-        """Position of point `name` in `names`; KeyError if there is none."""
-        return self._index[name]
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(body, local)`` of every point, shapes (n_points,) and (n_points, 2)."""
+        located = [self.locate(name) for name in self.names]
+        return (np.array([body for body, _ in located], dtype=np.int64),
+                np.array([local for _, local in located], dtype=float).reshape(-1, 2))  # fmt: skip
+
+
+class _Names(Sequence):
+    """The point names of a mechanism with repeats, as a sequence built on demand."""
+
+    def __init__(self, points) -> None:
+        self._points = points
+
+    def __len__(self) -> int:
+        return len(self._points)
+
+    def __getitem__(self, index):
+        for k, name in enumerate(self._points):
+            if k == index:
+                return name
+        raise IndexError(index)
+
+    def __iter__(self):
+        return iter(self._points)
+
+    def __contains__(self, name) -> bool:
+        return name in self._points
 
 
 def build_point_map(mechanism: Mechanism) -> PointMap:
-    """Each named point on the first body that lists it; unlisted points on the ground."""
-    carrier: dict[str, int] = {}
-    for index, body in enumerate(mechanism.bodies):
-        for point in body.points:
-            carrier.setdefault(point, index)
-    names = tuple(mechanism.points)
-    body = np.fromiter((carrier.get(point, -1) for point in names), dtype=np.int64, count=len(names))
-    frames = np.zeros((len(names), 3))
-    on_body = body >= 0
-    if on_body.any():
-        frames[on_body] = mechanism.frames()[body[on_body]]
-    return PointMap(names=names, body=body, local=to_local(frames, mechanism.positions(names)))
+    """Where each named point of `mechanism` rides (see `PointMap`)."""
+    return PointMap(mechanism)

@@ -35,7 +35,7 @@ import numpy as np
 
 from .geometry import rotate, to_global, to_local
 from .model import GROUND, Mechanism
-from .pattern import PointMap, build_point_map
+from .pattern import build_point_map
 from .results import KinematicsResult
 
 __all__ = [
@@ -154,7 +154,7 @@ def plot_point_paths(result: KinematicsResult, point_names, directory) -> list[P
     return [_plot_one_path(result, name, Path(directory)) for name in point_names]
 
 
-def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) -> Path:
+def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory, *, bodies=None) -> Path:
     """Draw the mechanism at the first sample of `result` into ``<directory>/mechanism.png``.
 
     The drawing is `draw_configuration`'s: bodies as polygons or segments through their
@@ -170,6 +170,8 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
         Its analysis, with at least one sample.
     directory : str or Path
         Existing folder where ``mechanism.png`` is written.
+    bodies : sequence of str, optional
+        Draw only these bodies (`draw_configuration`).
 
     Returns
     -------
@@ -178,7 +180,7 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory) ->
     """
     figure, axes = _new_figure((8.0, 7.0))
     _dress(axes, f"{mechanism.name} at t = {result.times[0]:g} s")
-    draw_configuration(axes, mechanism, result.coordinates[0])
+    draw_configuration(axes, mechanism, result.coordinates[0], bodies=bodies)
     return _save(figure, Path(directory) / "mechanism.png")
 
 
@@ -224,7 +226,7 @@ def plot_actuators(result: KinematicsResult, directory) -> list[Path]:
 
 # ---------------------------------------------------------------------- one configuration
 def draw_configuration(axes, mechanism: Mechanism, coordinates, *, size: float | None = None,
-                       labels: bool = True) -> list:  # fmt: skip
+                       labels: bool = True, bodies=None) -> list:  # fmt: skip
     """Draw `mechanism` at `coordinates` on matplotlib `axes`: bodies, elements, labels.
 
     If the axes scale themselves (matplotlib's default), their limits are first set to
@@ -241,13 +243,16 @@ def draw_configuration(axes, mechanism: Mechanism, coordinates, *, size: float |
         Size of the symbols, m (default: `SYMBOL_SCALE` times the extent of the points).
     labels : bool
         Label every named point and every body (default True).
+    bodies : sequence of str, optional
+        Draw only these bodies, their points, and the joints and drivers between them
+        and the ground: a part of a large mechanism (default: all).
 
     Returns
     -------
     list of matplotlib.artist.Artist
         Everything drawn, to be removed before the next frame of an animation.
     """
-    drawer = _Drawer(mechanism)
+    drawer = _Drawer(mechanism, bodies)
     coordinates = np.asarray(coordinates, dtype=float)
     if size is None:
         size = SYMBOL_SCALE * _extent(drawer.positions(coordinates[None])[0])
@@ -258,23 +263,65 @@ class _Drawer:
     """Draws one mechanism at any number of configurations, and remembers the label places
     of the last one (an animation keeps a label where it was while it fits there)."""
 
-    def __init__(self, mechanism: Mechanism) -> None:
+    def __init__(self, mechanism: Mechanism, bodies=None) -> None:
         self.mechanism = mechanism
-        self.point_map: PointMap = build_point_map(mechanism)
+        self.point_map = build_point_map(mechanism)
+        names = list(self.point_map.names)
+        point_body, point_local = self.point_map.arrays()
+        elements = (*mechanism.joints, *mechanism.drivers)
+        if bodies is None:
+            self.body_indices = list(range(mechanism.n_bodies))
+            self.elements = elements
+            shown = np.ones(len(names), dtype=bool)
+        else:  # a part of the mechanism: these bodies, and the elements between them and the ground
+            self.body_indices = [self._index(name) for name in bodies]
+            allowed = {*bodies, GROUND}
+            self.elements = [element for element in elements if _element_bodies(element) <= allowed]
+            shown = np.isin(point_body, self.body_indices)
+        self.names = [name for name, keep in zip(names, shown) if keep]
+        self.point_body, self.point_local = point_body[shown], point_local[shown]
         self.kept_places: dict[tuple[str, str], int] = {}
         self.texts: dict | None = None  # label artists kept from frame to frame (animations)
 
+    def _index(self, name: str) -> int:
+        try:
+            index = self.mechanism.body_index(name)
+        except KeyError:
+            index = -1
+        if index < 0:
+            raise KeyError(f'unknown body "{name}" to draw (the ground is always drawn)')
+        return index
+
+    def origins(self, coordinates: np.ndarray) -> np.ndarray:
+        """Frame origins of the bodies drawn, shape (n_configurations, n_drawn, 2)."""
+        coordinates = np.asarray(coordinates, dtype=float)
+        return coordinates.reshape(coordinates.shape[0], -1, 3)[:, self.body_indices, :2]
+
+    def traced(self, names, coordinates: np.ndarray) -> np.ndarray:
+        """Positions of the points `names` (any of the model), shape (n_configurations, len(names), 2)."""
+        located = []
+        for name in names:
+            try:
+                located.append(self.point_map.locate(name))
+            except KeyError:
+                raise KeyError(f'unknown point "{name}" to trace') from None
+        body = np.array([b for b, _ in located], dtype=np.int64)
+        local = np.array([p for _, p in located], dtype=float).reshape(-1, 2)
+        return _point_positions(body, local, coordinates)
+
     def positions(self, coordinates: np.ndarray) -> np.ndarray:
         """Global positions of the named points, shape (n_configurations, n_points, 2)."""
-        return point_positions(self.point_map, coordinates)
+        return _point_positions(self.point_body, self.point_local, coordinates)
 
     def draw(self, axes, coordinates: np.ndarray, size: float, labels: bool = True, extra_obstacles=()) -> list:
         before = set(axes.get_children())
-        positions = dict(zip(self.point_map.names, self.positions(coordinates[None])[0]))
+        positions = dict(zip(self.names, self.positions(coordinates[None])[0]))
         canvas = Canvas(axes, self.mechanism, coordinates, size)
-        for element in (*self.mechanism.joints, *self.mechanism.drivers):
+        for element in self.elements:
             element.draw(canvas)
-        for index, body in enumerate(self.mechanism.bodies):
+        bodies = self.mechanism.bodies
+        for index in self.body_indices:
+            body = bodies[index]
             if body.name not in canvas.drawn_bodies:
                 _draw_body(canvas, body, positions, coordinates[3 * index : 3 * index + 3])
         if labels:
@@ -289,6 +336,15 @@ class _Drawer:
             self.kept_places = {(label.kind, label.text): choice for label, choice in placed}
         kept = set(self.texts.values()) if self.texts else set()
         return [artist for artist in axes.get_children() if artist not in before and artist not in kept]
+
+
+def _element_bodies(element) -> set[str]:
+    """The bodies a joint or driver names, from its kind's ``body_fields``."""
+    names = set()
+    for field_name in type(element).body_fields:
+        value = getattr(element, field_name)
+        names |= {value} if isinstance(value, str) else set(value)
+    return names
 
 
 def _fit_limits(axes) -> None:
@@ -314,26 +370,18 @@ def _freeze_limits(axes) -> None:
     axes.set_aspect("equal", adjustable="box")
 
 
-def point_positions(point_map: PointMap, coordinates: np.ndarray) -> np.ndarray:
-    """Global positions of the points of `point_map` at each configuration.
-
-    Parameters
-    ----------
-    point_map : PointMap
-    coordinates : ndarray, shape (n_configurations, 3 * n_bodies)
-
-    Returns
-    -------
-    ndarray, shape (n_configurations, n_points, 2)
-    """
+def _point_positions(body: np.ndarray, local: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
+    """Global positions of points on `body` (-1: the ground) at `local` positions in its
+    frame, at each configuration `coordinates` (n_configurations, 3 · n_bodies); shape
+    (n_configurations, n_points, 2)."""
     coordinates = np.asarray(coordinates, dtype=float)
     frames = coordinates.reshape(coordinates.shape[0], -1, 3)
-    positions = np.empty((coordinates.shape[0], len(point_map.names), 2))
-    on_ground = point_map.body < 0
-    positions[:, on_ground] = point_map.local[on_ground]
+    positions = np.empty((coordinates.shape[0], len(body), 2))
+    on_ground = body < 0
+    positions[:, on_ground] = local[on_ground]
     if (~on_ground).any():
-        carried = frames[:, point_map.body[~on_ground]]  # (n, k, 3)
-        positions[:, ~on_ground] = carried[..., :2] + rotate(point_map.local[~on_ground], carried[..., 2])
+        carried = frames[:, body[~on_ground]]  # (n, k, 3)
+        positions[:, ~on_ground] = carried[..., :2] + rotate(local[~on_ground], carried[..., 2])
     return positions
 
 
@@ -666,7 +714,7 @@ def interpolate_coordinates(result: KinematicsResult, times) -> np.ndarray:
 
 
 def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = None, duration: float | None = None,
-            labels: bool = True, stopped: str | None = None) -> Animation:  # fmt: skip
+            labels: bool = True, stopped: str | None = None, bodies=None) -> Animation:  # fmt: skip
     """Write an animation of `result`: a GIF (Pillow) or an MP4 (imageio-ffmpeg), by suffix.
 
     Each frame is `draw_configuration` at the frame's time, with the paths of the traced
@@ -696,6 +744,9 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
     stopped : str, optional
         The mark of an analysis that stopped, written on the last frame (default
         "analysis stopped after t = … s" when ``result.complete`` is False).
+    bodies : sequence of str, optional
+        Draw only these bodies (`draw_configuration`); the axes hold them and the traced
+        paths.
 
     Returns
     -------
@@ -718,7 +769,7 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
     if stopped is None and not result.complete:
         stopped = f"analysis stopped after t = {result.times[-1]:.6g} s"
     times = frame_times(result, fps, duration)
-    scene = _Scene(result, trace, times, labels, stopped)
+    scene = _Scene(result, trace, times, labels, stopped, bodies)
     frames = (scene.frame(k) for k in range(times.size))
     hold = STOP_HOLD if stopped else 0.0
     if suffix == ".gif":
@@ -729,7 +780,7 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
 
 
 def save_frame(result: KinematicsResult, path, time: float | None = None, *, trace=(), labels: bool = True,
-               stopped: str | None = None) -> Path:  # fmt: skip
+               stopped: str | None = None, bodies=None) -> Path:  # fmt: skip
     """Write one frame of the animation of `result` as a PNG file.
 
     The frame at `time` (default: the last sample) is drawn as in `animate`, with the
@@ -747,7 +798,7 @@ def save_frame(result: KinematicsResult, path, time: float | None = None, *, tra
     if stopped is None and not result.complete and time == end:
         stopped = f"analysis stopped after t = {end:.6g} s"
     times = np.union1d(frame_times(result, DEFAULT_FPS[".gif"]), [time])
-    scene = _Scene(result, trace, times, labels, stopped if time == end else None)
+    scene = _Scene(result, trace, times, labels, stopped if time == end else None, bodies)
     scene.draw(int(np.searchsorted(times, time)))
     path = Path(path)
     scene.figure.savefig(path, dpi=FRAME_DPI)
@@ -757,22 +808,20 @@ def save_frame(result: KinematicsResult, path, time: float | None = None, *, tra
 class _Scene:
     """The figure of an animation: fixed axes, and what changes from frame to frame."""
 
-    def __init__(self, result: KinematicsResult, trace, times: np.ndarray, labels: bool, stopped: str | None):
+    def __init__(self, result: KinematicsResult, trace, times: np.ndarray, labels: bool, stopped: str | None,
+                 bodies=None):  # fmt: skip
+        if result.coordinates is None:
+            raise ValueError("`result` has no coordinates to draw: solve with coordinates=True (the default)")
         mechanism = result.mechanism
         self.times, self.labels, self.stopped = times, labels, stopped
-        self.drawer = _Drawer(mechanism)
+        self.drawer = _Drawer(mechanism, bodies)
         self.coordinates = interpolate_coordinates(result, times)
-        everywhere = self.drawer.positions(result.coordinates).reshape(-1, 2)
-        origins = result.coordinates.reshape(result.n_times, -1, 3)[..., :2].reshape(-1, 2)
-        extent_points = np.vstack([everywhere, origins])
-        self.size = SYMBOL_SCALE * _extent(extent_points)
-        names = list(self.drawer.point_map.names)
-        for name in trace:
-            if name not in names:
-                raise KeyError(f'unknown point "{name}" to trace; the model has {", ".join(names)}')
-        columns = [names.index(name) for name in trace]
-        self.traces = self.drawer.positions(self.coordinates)[:, columns]  # (n_frames, n_traced, 2)
         self.trace_names = tuple(trace)
+        self.traces = self.drawer.traced(self.trace_names, self.coordinates)  # (n_frames, n_traced, 2)
+        extent_points = np.vstack([self.drawer.positions(result.coordinates).reshape(-1, 2),
+                                   self.drawer.origins(result.coordinates).reshape(-1, 2),
+                                   self.traces.reshape(-1, 2)])  # fmt: skip
+        self.size = SYMBOL_SCALE * _extent(extent_points)
         self.figure, self.axes = _new_figure(FRAME_SIZE)
         self.figure.set_dpi(FRAME_DPI)
         axes = self.axes

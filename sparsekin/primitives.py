@@ -30,7 +30,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
+from ._jit import JIT
 from .geometry import rotate, to_local
 
 __all__ = [
@@ -232,15 +234,11 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
     columns = np.concatenate([c_columns.ravel(), p_columns.ravel(), term_column, d_columns.ravel()])
 
     n_coordinates = 3 * n
-    kept = columns < n_coordinates  # the ground's entries go to the discard slot
-    order = _row_major_order(rows[kept], columns[kept])
-    nnz = order.size
-    slots = np.full(rows.size, nnz, dtype=np.int64)
-    slots[np.flatnonzero(kept)[order]] = np.arange(nnz)
-    index_type = np.int32 if max(n_coordinates, nnz) < 2**31 - 1 else np.int64
-    indices = columns[kept][order].astype(index_type)
-    indptr = np.zeros(n_rows + 1, dtype=index_type)
-    np.cumsum(np.bincount(rows[kept], minlength=n_rows), out=indptr[1:])
+    indptr = np.zeros(n_rows + 1, dtype=np.int64)
+    slots = np.empty(rows.size, dtype=np.int64)
+    indices = _csr_pattern(rows, columns, n_coordinates, indptr, slots)
+    if max(n_coordinates, indices.size) < 2**31 - 1:  # int32 when every index fits: half the memory traffic
+        indices, indptr = indices.astype(np.int32), indptr.astype(np.int32)
     ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
 
     primitives = Primitives(
@@ -312,14 +310,44 @@ def _pair_columns(body_i: np.ndarray, body_j: np.ndarray) -> np.ndarray:
     return np.concatenate([3 * body_i[:, None] + np.arange(3), 3 * body_j[:, None] + np.arange(3)], axis=1)
 
 
-def _row_major_order(rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
-    """The permutation that sorts entries by row, then column, in linear time.
+@njit(**JIT)
+def _csr_pattern(rows, columns, n_columns, indptr, slots):
+    """CSR pattern of the entries (rows[e], columns[e]) with columns below `n_columns`.
 
-    Two stable counting sorts (by column, then by row) in place of one comparison sort:
-    numpy's stable argsort of small-range integers is a radix sort.
+    Fills `indptr` (n_rows + 1) and, for every entry, its position in the CSR values
+    (`slots`; entries in a column from `n_columns` on — the ground's — get the discard
+    position nnz); returns `indices`, sorted within rows.  Linear time: a counting sort by
+    row, then an insertion sort of each row's few entries by column.
     """
-    by_column = np.argsort(columns, kind="stable")
-    return by_column[np.argsort(rows[by_column], kind="stable")]
+    n_rows = indptr.size - 1
+    for e in range(rows.size):
+        if columns[e] < n_columns:
+            indptr[rows[e] + 1] += 1
+    for r in range(n_rows):
+        indptr[r + 1] += indptr[r]
+    nnz = indptr[n_rows]
+    indices = np.empty(nnz, dtype=np.int64)
+    entry = np.empty(nnz, dtype=np.int64)  # the entry at each position
+    fill = indptr[:n_rows].copy()
+    for e in range(rows.size):
+        if columns[e] < n_columns:
+            position = fill[rows[e]]
+            indices[position] = columns[e]
+            entry[position] = e
+            fill[rows[e]] += 1
+        else:
+            slots[e] = nnz
+    for r in range(n_rows):
+        for position in range(indptr[r] + 1, indptr[r + 1]):
+            column, moved = indices[position], entry[position]
+            before = position - 1
+            while before >= indptr[r] and indices[before] > column:
+                indices[before + 1], entry[before + 1] = indices[before], entry[before]
+                before -= 1
+            indices[before + 1], entry[before + 1] = column, moved
+    for position in range(nnz):
+        slots[entry[position]] = position
+    return indices
 
 
 def _ints(array) -> np.ndarray:

@@ -13,13 +13,14 @@ derivatives.  From them it derives, on request:
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
-from . import _kernels
+from . import _kernels, _validate
 from .geometry import carried_motion
 from .model import Mechanism
 from .pattern import OutputPattern, PointMap, build_output_pattern
@@ -52,10 +53,11 @@ class KinematicsResult:
     ----------
     times : ndarray, shape (n_times,)
         Sample times, s.
-    coordinates, velocities, accelerations : ndarray, shape (n_times, 3 * n_bodies)
+    coordinates, velocities, accelerations : array, shape (n_times, 3 * n_bodies), or None
         ``(x, y, angle)`` of each body frame, body order as in the model (m, rad), and
-        their first and second time derivatives.
-    body_names : tuple of str
+        their first and second time derivatives; None when the run did not keep them
+        (``coordinates=False``).  Zarr arrays, read when sliced, for a run streamed to a
+        store.
     newton_iterations : ndarray of int, shape (n_times,)
         Newton corrections at each time (over all its sub-steps when the step to it was
         subdivided).
@@ -77,13 +79,22 @@ class KinematicsResult:
         way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
         ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
         much fill-in after the first sample) or ``"superlu"``.
+    recorded_points : tuple of str
+        Points whose motion the run recorded (`point_tracks`).
+    point_tracks : array, shape (n_times, n_recorded_points, 6), or None
+        x, y, vx, vy, ax, ay of each recorded point.
+    recorded_joints : tuple of int
+        Indices of the joints whose own coordinate the run recorded (`joint_tracks`).
+    joint_tracks : array, shape (n_times, n_recorded_joints, 3), or None
+        Value, rate and acceleration of each recorded joint's own coordinate.
+    store : str or None
+        The Zarr store the run was streamed to.
     """
 
     times: np.ndarray
-    coordinates: np.ndarray
-    velocities: np.ndarray
-    accelerations: np.ndarray
-    body_names: tuple[str, ...]
+    coordinates: np.ndarray | None
+    velocities: np.ndarray | None
+    accelerations: np.ndarray | None
     newton_iterations: np.ndarray
     n_factorizations: int
     n_solves: int
@@ -94,23 +105,41 @@ class KinematicsResult:
     redundant_equations: tuple[str, ...] = ()
     n_refactorizations: int = 0
     linear_solver: str = "superlu"
+    recorded_points: tuple[str, ...] = ()
+    point_tracks: np.ndarray | None = None
+    recorded_joints: tuple[int, ...] = ()
+    joint_tracks: np.ndarray | None = None
+    store: str | None = None
 
     @property
     def n_times(self) -> int:
-        return self.times.size
+        return len(self.times)
+
+    @property
+    def body_names(self):
+        """The name of every body, in coordinate order."""
+        return self.mechanism.body_names
 
     @property
     def point_names(self) -> tuple[str, ...]:
         return self.point_map.names
 
     def point(self, name: str) -> PointMotion:
-        """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`."""
+        """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`.
+
+        A recorded point, or any point when the coordinates were kept.
+        """
+        if name in self.recorded_points:
+            tracks = np.asarray(self.point_tracks[:, self.recorded_points.index(name), :])
+            return PointMotion(tracks[:, 0:2], tracks[:, 2:4], tracks[:, 4:6])
+        if self.coordinates is None:
+            raise KeyError(f'point "{name}" was not recorded: the run kept '
+                           f"{', '.join(self.recorded_points) or 'no point'} and not the coordinates")  # fmt: skip
         try:
-            k = self.point_map.index(name)
+            body, local = self.point_map.locate(name)
         except KeyError:
-            raise KeyError(f'unknown point "{name}"; the model has {", ".join(self.point_map.names)}') from None
-        local = self.point_map.local[k]
-        body = int(self.point_map.body[k])
+            known = _validate.known_list(list(itertools.islice(self.point_map.names, 40)), limit=8)
+            raise KeyError(f'unknown point "{name}"; the model has {known}') from None
         if body < 0:
             position = np.tile(local, (self.n_times, 1))
             return PointMotion(position, np.zeros_like(position), np.zeros_like(position))
@@ -153,6 +182,11 @@ class KinematicsResult:
 
     def _own_coordinate(self, kind: str, name: str) -> CoordinateMotion:
         index = element_index(self.mechanism, kind, name)
+        if kind == "joints" and index in self.recorded_joints:
+            tracks = np.asarray(self.joint_tracks[:, self.recorded_joints.index(index), :])
+            return CoordinateMotion(tracks[:, 0], tracks[:, 1], tracks[:, 2])
+        if self.coordinates is None:
+            raise KeyError(f"{kind}[{index}] was not recorded, and the run did not keep the coordinates")
         rows = self._outputs_pattern.row_of_joint if kind == "joints" else self._outputs_pattern.row_of_driver
         row = int(rows[index])
         if row < 0:
@@ -187,10 +221,11 @@ class KinematicsResult:
         Parameters
         ----------
         points : sequence of str, optional
-            The points (default: every named point).
+            The points (default: every named point; the recorded points of a run that did
+            not keep the coordinates).
         joints : sequence of str or int, optional
             The joints, by name, ``"joints[i]"`` or index (default: every joint that has an
-            own coordinate).
+            own coordinate; the recorded joints of a run that did not keep the coordinates).
 
         Returns
         -------
@@ -213,8 +248,14 @@ class KinematicsResult:
             import pandas as pd
         except ImportError:
             raise ImportError('to_dataframe needs pandas: pip install "sparsekin[pandas]"') from None
-        point_names = self.point_names if points is None else tuple(points)
-        if joints is None:
+        kept = self.coordinates is not None
+        if points is None:
+            point_names = tuple(self.point_names) if kept else self.recorded_points
+        else:
+            point_names = tuple(points)
+        if joints is None and not kept:
+            joint_indices = list(self.recorded_joints)
+        elif joints is None:
             joint_indices = [index for index in range(len(self.mechanism.joints))
                              if self._outputs_pattern.row_of_joint[index] >= 0]  # fmt: skip
         else:
@@ -230,13 +271,32 @@ class KinematicsResult:
         values = np.vstack(columns).T if columns else np.empty((self.n_times, 0))
         return pd.DataFrame(values, index=pd.Index(self.times, name="t"), columns=_sorted_columns(pd, labels))
 
-    def limit_crossings(self) -> list[LimitState]:
-        """The elements whose own coordinate leaves its ``limits``, each at its first sample outside."""
-        crossings = []
-        for state in limit_states(self.mechanism, self._outputs_pattern, self._outputs[0], self.times):
-            if not state.within:
-                crossings.append(state)
-        return crossings
+    def to_xarray(self):
+        """The results as an `xarray.Dataset` (the layout of `sparsekin.recording`).
+
+        A run streamed to a store opens it lazily; an in-memory run is copied.
+        """
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError('to_xarray needs xarray: pip install "sparsekin[zarr]"') from None
+        if self.store is not None:
+            return xr.open_zarr(self.store)
+        from .recording import JOINT_DERIVATIVES, POINT_COMPONENTS
+
+        variables, coords = {}, {"t": ("time", np.asarray(self.times))}
+        if self.coordinates is not None:
+            coords["coordinate"] = [f"{b}.{c}" for b in self.body_names for c in ("x", "y", "angle")]
+            for key, array in (("q", self.coordinates), ("qd", self.velocities), ("qdd", self.accelerations)):
+                variables[key] = (("time", "coordinate"), np.asarray(array))
+        if self.recorded_points:
+            coords |= {"point": list(self.recorded_points), "component": list(POINT_COMPONENTS)}
+            variables["points"] = (("time", "point", "component"), np.asarray(self.point_tracks))
+        if self.recorded_joints:
+            labels = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
+            coords |= {"joint": labels, "derivative": list(JOINT_DERIVATIVES)}
+            variables["joints"] = (("time", "joint", "derivative"), np.asarray(self.joint_tracks))
+        return xr.Dataset(variables, coords=coords)
 
 
 def _sorted_columns(pd, labels):

@@ -34,11 +34,12 @@ import warnings
 import numpy as np
 
 from ._compiled import solve_compiled, supports_compiled
-from .errors import ConvergenceError, LimitWarning
+from .errors import AnalysisInterrupted, ConvergenceError, LimitWarning
 from .laws import Spline
 from .model import Mechanism
 from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
 from .pattern import build_pattern, build_point_map
+from .recording import MemorySink, Recorder, Selection, ZarrSink
 from .results import KinematicsResult, PointMotion
 from .stepper import (
     COMPILED_MAX_COORDINATES,
@@ -59,6 +60,11 @@ def solve_kinematics(
     tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = NEWTON_MAXITER,
     linear_solver: str = "auto",
+    coordinates: bool = True,
+    points=None,
+    joints=None,
+    store=None,
+    progress=None,
 ) -> KinematicsResult:
     """Positions, velocities and accelerations of `mechanism` at `times`.
 
@@ -82,6 +88,20 @@ def solve_kinematics(
         ``"refactor"`` above, unless the refactorization's fill-in exceeds
         `~sparsekin.stepper.MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every
         choice gives the same results to rounding.
+    coordinates : bool
+        Keep every body's coordinates, velocities and accelerations (the default); then
+        any point's motion and any joint's coordinate can be derived from the result.
+    points : None, "all" or sequence of str
+        Points whose motion is recorded while the run goes on (needed when `coordinates`
+        is False: a long run of a large model keeps only what it needs).
+    joints : None, "all" or sequence of str
+        Joints whose own coordinate (angle, stroke, slide) is recorded while the run goes on.
+    store : str or path-like, optional
+        Stream what is recorded to this Zarr store, chunk by chunk (``pip install
+        "sparsekin[zarr]"``): memory then holds a chunk, not the run.  The result reads
+        from the store; ``result.to_xarray()`` opens it lazily.
+    progress : callable, optional
+        Called as ``progress(samples_done, n_times)`` while the run goes on.
 
     Returns
     -------
@@ -91,6 +111,9 @@ def solve_kinematics(
     ------
     TypeError, ValueError
         If an argument is not of the expected type, shape or range.
+    AnalysisInterrupted
+        On Ctrl-C (a `KeyboardInterrupt`): ``interrupt.result`` holds the samples solved,
+        all written to the store if there is one.
     ModelError
         If the mechanism's equations do not control every coordinate at the first sample
         (free motions, a driver that the joints already fix, a drawing at a singular
@@ -131,117 +154,159 @@ def solve_kinematics(
     max_iterations = checked_max_iterations(max_iterations)
     if linear_solver not in LINEAR_SOLVERS:
         raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
+    if progress is not None and not callable(progress):
+        raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
+    selection = Selection(mechanism, coordinates, points, joints)
     pattern = build_pattern(mechanism)
-    n, n_times = pattern.n_coordinates, times.size
-    if pattern.n_equations == 0 and n == 0:  # nothing to solve
-        empty = np.zeros((n_times, 0))
-        return KinematicsResult(
-            times=times, coordinates=empty, velocities=empty.copy(), accelerations=empty.copy(), body_names=(),
-            newton_iterations=np.zeros(n_times, dtype=np.int64), n_factorizations=0, n_solves=0, complete=True,
-            point_map=build_point_map(mechanism), mechanism=mechanism,
-        )  # fmt: skip
-    stepper = KinematicStepper(
-        mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern
-    )
-    run = _Run(stepper, times)
+    n = pattern.n_coordinates
+    if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
+        stepper = None
+    else:
+        stepper = KinematicStepper(
+            mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern
+        )
+    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
+    run = _Run(mechanism, stepper, times, Recorder(selection, sink), progress)
     compiled = (
-        (linear_solver == "dense" or (linear_solver == "auto" and n <= COMPILED_MAX_COORDINATES))
+        stepper is not None
+        and (linear_solver == "dense" or (linear_solver == "auto" and n <= COMPILED_MAX_COORDINATES))
         and pattern.n_equations == n
         and supports_compiled(mechanism)
     )
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # non-finite values are checked
             result = run.solve(compiled)
-    except ConvergenceError as error:
-        _warn_of_limits(error.result)
-        raise
-    _warn_of_limits(result)
-    return result
-
-
-def _warn_of_limits(result: KinematicsResult) -> None:
-    """A `LimitWarning` for each element that left its ``limits`` during the run."""
-    mechanism = result.mechanism
-    if any(getattr(element, "limits", None) is not None for element in (*mechanism.joints, *mechanism.drivers)):
-        for state in result.limit_crossings():
+    finally:
+        for state in run.recorder.limit_crossings:
             warnings.warn(f"{state.label} left its limits: {state.quantity} {state.value:.6g} {state.unit} at "
                           f"t = {state.time:.6g} s, outside [{state.limits[0]:g}, {state.limits[1]:g}]",
                           LimitWarning, stacklevel=3)  # fmt: skip
+    return result
 
 
 class _Run:
-    """The arrays of one run's results, filled by the compiled loop and the stepper."""
+    """One run: the stepper (or the compiled loop, chunk by chunk) feeding a recorder."""
 
-    def __init__(self, stepper: KinematicStepper, times: np.ndarray) -> None:
-        self.stepper, self.times = stepper, times
-        shape = (times.size, stepper.pattern.n_coordinates)
-        self.coordinates, self.velocities, self.accelerations = np.empty(shape), np.empty(shape), np.empty(shape)
+    def __init__(self, mechanism, stepper: KinematicStepper | None, times: np.ndarray, recorder: Recorder,
+                 progress) -> None:  # fmt: skip
+        self.mechanism, self.stepper, self.times, self.recorder = mechanism, stepper, times, recorder
+        self.progress = progress
         self.iterations = np.zeros(times.size, dtype=np.int64)
-        self.compiled_counts = (0, 0)  # factorizations and solves of the compiled loop
-        self.path = stepper.path
+        self.compiled_counts = np.zeros(2, dtype=np.int64)  # factorizations and solves of the compiled loop
+        self.path = stepper.path if stepper is not None else "none"
+        self._first = None  # (t, q) of the first sample: the reference of the lock-up diagnosis
+        self._last = None  # (t, q, qd, qdd) of the last sample solved by the compiled loop
+        self._result = None
 
     def solve(self, compiled: bool) -> KinematicsResult:
         stepper, times = self.stepper, self.times
-        first = self._solve_compiled() if compiled else 0
-        k = first
+        k = 0
         try:
-            if first == 0:
+            if stepper is None:
+                empty = np.zeros(0)
+                for k in range(times.size):
+                    self.recorder.add(times[k], empty, empty, empty)
+                return self.result(times.size)
+            if compiled:
+                k = self._solve_compiled()
+            if k == 0:
                 self.iterations[0] = stepper.start(times[0])
-                self._store(0)
-                first = 1
-            elif first < times.size:
-                previous = first - 1
-                stepper.resume(times[previous], self.coordinates[previous], self.velocities[previous],
-                               self.accelerations[previous], first=(times[0], self.coordinates[0]))  # fmt: skip
-            for k in range(first, times.size):
+                self._first = (times[0], stepper.coordinates.copy())
+                self._record(0)
+                k = 1
+            elif k < times.size:
+                stepper.resume(*self._last, first=self._first)
+            for k in range(k, times.size):
                 self.iterations[k] = stepper.advance(times[k])
-                self._store(k)
+                self._record(k)
         except ConvergenceError as error:
             error.result = self.result(k)
             raise
+        except KeyboardInterrupt:
+            raise AnalysisInterrupted(self.result(k)) from None
         return self.result(times.size)
 
-    def _store(self, k: int) -> None:
+    def _record(self, k: int) -> None:
         stepper = self.stepper
-        self.coordinates[k], self.velocities[k], self.accelerations[k] = (
-            stepper.coordinates, stepper.velocities, stepper.accelerations
-        )
+        self.recorder.add(self.times[k], stepper.coordinates, stepper.velocities, stepper.accelerations)
+        if self.progress is not None:
+            self.progress(k + 1, self.times.size)
 
     def _solve_compiled(self) -> int:
-        """Run the compiled loop; the number of samples it solved that pass the branch guard."""
-        stepper = self.stepper
-        outcome = solve_compiled(
-            stepper.mechanism, stepper.pattern, self.times, stepper.tolerance, stepper.max_iterations,
-            self.coordinates, self.velocities, self.accelerations, self.iterations,
-        )  # fmt: skip
-        self.compiled_counts = (outcome.n_factorizations, outcome.n_solves)
-        solved = first_branch_jump(
-            self.times, self.coordinates, self.velocities, self.accelerations, stepper.pattern.coordinate_weights,
-            outcome.n_solved,
-        )
-        self.path = "compiled" if solved == self.times.size else "compiled+dense"
-        return solved
+        """Run the compiled loop chunk by chunk; the samples it solved that pass the branch guard.
+
+        Each chunk starts from the last sample of the one before (row 0 of its arrays), so
+        that the progress is reported and an interrupt is taken between chunks.
+        """
+        stepper, times = self.stepper, self.times
+        size = min(self.recorder.size, times.size)
+        n = stepper.pattern.n_coordinates
+        rows = [np.empty((size + 1, n)) for _ in range(3)]
+        iterations = np.zeros(size + 1, dtype=np.int64)
+        chunk_times = np.empty(size + 1)
+        done = 0
+        while done < times.size:
+            start = 0 if done == 0 else 1  # row 0: the previous sample
+            m = min(size + 1 - start, times.size - done)
+            chunk_times[start : start + m] = times[done : done + m]
+            if start:
+                chunk_times[0] = self._last[0]
+                for array, state in zip(rows, self._last[1:]):
+                    array[0] = state
+            stop = start + m
+            outcome = solve_compiled(
+                stepper.mechanism, stepper.pattern, chunk_times[:stop], stepper.tolerance, stepper.max_iterations,
+                rows[0][:stop], rows[1][:stop], rows[2][:stop], iterations[:stop], start=start,
+            )  # fmt: skip
+            self.compiled_counts += (outcome.n_factorizations, outcome.n_solves)
+            solved = first_branch_jump(chunk_times, *rows, stepper.pattern.coordinate_weights, outcome.n_solved)
+            new = solved - start
+            if new > 0:
+                self.iterations[done : done + new] = iterations[start:solved]
+                self.recorder.add_block(chunk_times[start:solved], *(array[start:solved] for array in rows))
+                if done == 0:
+                    self._first = (chunk_times[0], rows[0][0].copy())
+                self._last = (chunk_times[solved - 1], *(array[solved - 1].copy() for array in rows))
+                done += new
+                if self.progress is not None:
+                    self.progress(done, times.size)
+            if solved < stop:  # the Python loop takes over (and diagnoses)
+                self.path = "compiled+dense"
+                return done
+        self.path = "compiled"
+        return done
 
     def result(self, n_solved: int) -> KinematicsResult:
-        stepper = self.stepper
-        path = self.path if self.path.startswith("compiled") else stepper.path
-        return KinematicsResult(
-            times=self.times[:n_solved],
-            coordinates=self.coordinates[:n_solved],
-            velocities=self.velocities[:n_solved],
-            accelerations=self.accelerations[:n_solved],
-            body_names=stepper.mechanism.body_names,
+        """The result of the samples solved (once: it closes the recorder)."""
+        if self._result is not None:
+            return self._result
+        arrays = self.recorder.finish()
+        stepper, mechanism = self.stepper, self.mechanism
+        selection = self.recorder.selection
+        counts = (0, 0, 0) if stepper is None else (stepper.n_factorizations, stepper.n_solves, stepper.n_refactorizations)
+        path = self.path if self.path.startswith("compiled") or stepper is None else stepper.path
+        self._result = KinematicsResult(
+            times=np.asarray(arrays["t"]),
+            coordinates=arrays.get("q"),
+            velocities=arrays.get("qd"),
+            accelerations=arrays.get("qdd"),
             newton_iterations=self.iterations[:n_solved],
-            n_factorizations=stepper.n_factorizations + self.compiled_counts[0],
-            n_solves=stepper.n_solves + self.compiled_counts[1],
+            n_factorizations=counts[0] + int(self.compiled_counts[0]),
+            n_solves=counts[1] + int(self.compiled_counts[1]),
             complete=n_solved == self.times.size,
-            point_map=build_point_map(stepper.mechanism),
-            mechanism=stepper.mechanism,
-            n_subdivisions=stepper.n_subdivisions,
-            redundant_equations=tuple(stepper.diagnosis.label(row) for row in stepper.redundant_rows),
-            n_refactorizations=stepper.n_refactorizations,
+            point_map=build_point_map(mechanism),
+            mechanism=mechanism,
+            n_subdivisions=0 if stepper is None else stepper.n_subdivisions,
+            redundant_equations=() if stepper is None else tuple(stepper.diagnosis.label(r) for r in stepper.redundant_rows),
+            n_refactorizations=counts[2],
             linear_solver=path,
+            recorded_points=selection.point_names,
+            point_tracks=arrays.get("points"),
+            recorded_joints=selection.joint_indices,
+            joint_tracks=arrays.get("joints"),
+            store=getattr(self.recorder.sink, "path", None),
         )
+        return self._result
 
 
 def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
@@ -255,14 +320,14 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
         raise ValueError("`times` must be finite.")
     if np.any(np.diff(array) <= 0.0):
         raise ValueError("`times` must be strictly increasing.")
-    for k, driver in enumerate(mechanism.drivers):
+    for driver in mechanism.declared("drivers"):
         for field_name in driver.law_fields:
             law = getattr(driver, field_name)
             if isinstance(law, Spline):
                 first, last = law.time_range
                 if array[0] < first or array[-1] > last:
                     raise ValueError(
-                        f"`times` span [{array[0]:g}, {array[-1]:g}] s but drivers[{k}].{field_name}, a spline, "
-                        f"is defined on [{first:g}, {last:g}] s."
+                        f"`times` span [{array[0]:g}, {array[-1]:g}] s but the {field_name} of driver "
+                        f"{driver.describe()!r}, a spline, is defined on [{first:g}, {last:g}] s."
                     )
     return array

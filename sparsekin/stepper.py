@@ -42,6 +42,7 @@ from .failures import Diagnosis
 from .linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from .model import Mechanism
 from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER, Factorizer, NoConvergence, solve_positions
+from .ordering import MIN_TILED_COORDINATES, tiled_ordering
 from .pattern import ConstraintPattern, build_pattern
 from .reduced import ReducedSystem
 
@@ -225,6 +226,7 @@ class KinematicStepper:
             self._leave_out_redundant(t, drawn)
         q, velocity, acceleration = self._next
         q[:] = drawn
+        self._suggest_ordering(t)
         self.system.set_time(t)
         try:
             corrections = self._solve_positions(q, chord=False)
@@ -237,6 +239,16 @@ class KinematicStepper:
         if self.auto and fill_is_heavy(self.linear_solver, self.pattern):
             self.use_linear_solver(SuperLUSolver(), path="superlu-chord")
         return corrections
+
+    def _suggest_ordering(self, t: float) -> None:
+        """A chain of many repeated units: the refactorization's first pivot order tiled from
+        a short chain (`sparsekin.ordering`), not from SuperLU on the whole chain."""
+        solver = getattr(self.linear_solver, "_target", self.linear_solver)  # also under a timing wrapper
+        if (isinstance(solver, RefactorSolver) and self.mechanism.copies and self.system is self.assembler
+                and self.pattern.n_coordinates >= MIN_TILED_COORDINATES):  # fmt: skip
+            ordering = tiled_ordering(self.mechanism, self.pattern, t)
+            if ordering is not None:
+                solver.suggest(*ordering)
 
     def resume(self, t: float, coordinates, velocities, accelerations, first: tuple[float, np.ndarray]) -> None:
         """Continue from a sample solved elsewhere (the compiled loop), at time `t`.

@@ -11,6 +11,10 @@ known independently of the solver:
 * `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
   its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
   the horizontal bars translate.
+
+The two chains are a unit repeated (`sparsekin.units.Repeat`), as their model files
+``examples/task5_chain.toml`` and ``examples/four_bar_chain.toml`` write them: a million
+bodies are a few arrays, not a million objects.
 """
 
 from __future__ import annotations
@@ -18,14 +22,16 @@ from __future__ import annotations
 import gc
 import math
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 
 from .laws import Harmonic, Linear
 from .elements import Revolute, RotationalDriver, Translational, TranslationalDriver
 from .model import Body, Mechanism
+from .units import Cycle, Repeat, Unit
 
-__all__ = ["TASK5_POINTS", "task5", "task5_chain", "four_bar_chain", "lattice", "task5_unit_phases"]
+__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -130,60 +136,67 @@ def _task5_points_at_phases(amplitude: float) -> np.ndarray:
     return np.stack([result.point(name).position[rows] for name in TASK5_POINTS], axis=1)
 
 
-@_collection_paused()
+def task5_chain_unit(amplitude: float = 0.03) -> Unit:
+    """One Task 5 as a unit: its ground pivots L, N and H ride on ``prev.c10``.
+
+    Drawn at phase 0; `task5_chain` draws copy k at its phase (a cycle of the points).
+    Both strokes follow ``L0 + amplitude · sin(1.5 t + phase)``, L0 their length at phase 0.
+    """
+    bodies, joints, drivers = _task5_unit(TASK5_POINTS, "", "prev.c10", 0.0, amplitude)
+    drivers = [replace(driver, law=replace(driver.law, offset=length)) for driver, length in zip(drivers, _stroke_lengths())]
+    return Unit("task5", points=TASK5_POINTS, bodies=bodies, joints=joints, drivers=drivers)
+
+
 def task5_chain(n_units: int, amplitude: float = 0.03) -> Mechanism:
     """`n_units` Task 5 units in series: 10·n bodies, 2·n actuators.
 
-    Unit k sits `TASK5_CHAIN_SPACING`·k m to the right of unit 0, assembled at its phase
-    (`task5_unit_phases`); its pivots L, N and H ride on the cylinder c10 of unit k-1
-    (unit 0's on the ground).  Its strokes follow L0 + amplitude · sin(1.5 t + phase).
-    With amplitude 0.03 m (instead of Task 5's 0.05 m) every unit stays well clear of the
-    near dead centre at full stroke; with the phases spread evenly, the rotations of the
-    bases cancel over every 11 units, so the chain wiggles but does not curl up.
+    Unit k (names ``u{k}.NAME``) sits `TASK5_CHAIN_SPACING`·k m to the right of unit 0,
+    assembled at its phase (`task5_unit_phases`); its pivots L, N and H ride on the
+    cylinder c10 of unit k-1 (unit 0's on the ground).  Its strokes follow
+    L0 + amplitude · sin(1.5 t + phase).  With amplitude 0.03 m (instead of Task 5's
+    0.05 m) every unit stays well clear of the near dead centre at full stroke; with the
+    phases spread evenly, the rotations of the bases cancel over every 11 units, so the
+    chain wiggles but does not curl up.
     """
     if isinstance(n_units, bool) or not isinstance(n_units, (int, np.integer)) or n_units < 1:
         raise ValueError(f"`n_units` must be a whole number >= 1, got {n_units!r}.")
-    assembled = _task5_points_at_phases(amplitude).tolist()
-    phases = task5_unit_phases(n_units).tolist()
-    names = list(TASK5_POINTS)
-    points, bodies, joints, drivers = {}, [], [], []
-    for k in range(n_units):
-        suffix = f"_{k}"
-        shift = TASK5_CHAIN_SPACING * k
-        for name, (x, y) in zip(names, assembled[k % TASK5_CHAIN_PHASES]):
-            points[name + suffix] = (x + shift, y)
-        base = "ground" if k == 0 else f"c10_{k - 1}"
-        unit_bodies, unit_joints, unit_drivers = _task5_unit(points, suffix, base, phases[k], amplitude)
-        bodies += unit_bodies
-        joints += unit_joints
-        drivers += unit_drivers
-    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"task5_chain_{n_units}")
+    assembled = _task5_points_at_phases(amplitude)  # (phases, points, 2)
+    phases = task5_unit_phases(TASK5_CHAIN_PHASES).tolist()
+    vary = {f"points.{name}": Cycle([tuple(xy) for xy in assembled[:, p].tolist()]) for p, name in enumerate(TASK5_POINTS)}
+    vary |= {f"drivers[{d}].law.phase": Cycle(phases) for d in range(len(_TASK5_ACTUATORS))}
+    repeat = Repeat(task5_chain_unit(amplitude), count=int(n_units), prefix="u",
+                    offset=(TASK5_CHAIN_SPACING, 0.0), vary=vary)  # fmt: skip
+    return Mechanism(points={}, bodies=[], repeats=[repeat], name=f"task5_chain_{n_units}")
 
 
-@_collection_paused()
 def four_bar_chain(n_loops: int, initial_angle: float = math.pi / 4, rate: float = 1.0) -> Mechanism:
     """The IFToMM N-four-bar benchmark: n_loops parallelograms side by side, 2·n+1 bodies.
 
-    Crank i (i = 0 … n) turns about the ground pivot (i, 0); coupler i joins the tips of
-    cranks i and i+1.  Cranks and couplers are 1 m long.  Crank 0 is driven at `rate`
-    rad/s from `initial_angle`; every crank turns with it and the couplers translate.
-    Keep the crank angle away from 0 and π, where the parallelograms can fold.
+    ``crank0`` turns about O0 = (0, 0), driven at `rate` rad/s from `initial_angle`; copy
+    k of the unit (names ``u{k}.NAME``) adds the crank ``u{k}.crank`` about P = (k + 1, 0)
+    and the coupler ``u{k}.coupler`` from the previous crank's tip T to this crank's tip Q.
+    Cranks and couplers are 1 m long; every crank turns with crank0 and the couplers
+    translate.  Keep the crank angle away from 0 and π, where the parallelograms can fold.
     """
     if isinstance(n_loops, bool) or not isinstance(n_loops, (int, np.integer)) or n_loops < 1:
         raise ValueError(f"`n_loops` must be a whole number >= 1, got {n_loops!r}.")
-    cosine, sine = math.cos(initial_angle), math.sin(initial_angle)
-    points = {}
-    for i in range(n_loops + 1):
-        points[f"O{i}"] = (float(i), 0.0)
-        points[f"T{i}"] = (i + cosine, sine)
-    cranks = [Body(f"crank{i}", origin=f"O{i}", angle=initial_angle, points=(f"O{i}", f"T{i}")) for i in range(n_loops + 1)]
-    couplers = [Body(f"coupler{i}", origin=f"T{i}", points=(f"T{i}", f"T{i + 1}")) for i in range(n_loops)]
-    joints = [Revolute((f"crank{i}", "ground"), at=f"O{i}") for i in range(n_loops + 1)]
-    for i in range(n_loops):
-        joints.append(Revolute((f"coupler{i}", f"crank{i}"), at=f"T{i}"))
-        joints.append(Revolute((f"coupler{i}", f"crank{i + 1}"), at=f"T{i + 1}"))
-    drivers = [RotationalDriver(("crank0", "ground"), law=Linear(rate=rate))]
-    return Mechanism(points=points, bodies=cranks + couplers, joints=joints, drivers=drivers, name=f"four_bar_chain_{n_loops}")
+    tip = (math.cos(initial_angle), math.sin(initial_angle))
+    loop = Unit(
+        "loop",
+        points={"T": tip, "P": (1.0, 0.0), "Q": (1.0 + tip[0], tip[1])},
+        bodies=[Body("crank", origin="P", angle=initial_angle, points=("P", "Q")),
+                Body("coupler", origin="T", points=("T", "Q"))],
+        joints=[Revolute(("crank", "ground"), at="P"), Revolute(("crank", "coupler"), at="Q"),
+                Revolute(("coupler", "prev.crank"), at="T")],
+    )  # fmt: skip
+    return Mechanism(
+        points={"O0": (0.0, 0.0), "A0": tip},
+        bodies=[Body("crank0", origin="O0", angle=initial_angle, points=("O0", "A0"))],
+        joints=[Revolute(("crank0", "ground"), at="O0")],
+        drivers=[RotationalDriver(("crank0", "ground"), law=Linear(rate=rate))],
+        repeats=[Repeat(loop, count=int(n_loops), prefix="u", offset=(1.0, 0.0), first={"prev.crank": "crank0"})],
+        name=f"four_bar_chain_{n_loops}",
+    )
 
 
 #: Amplitude (rad) and angular frequency (rad/s) of the row actuators of `lattice`.

@@ -65,3 +65,14 @@ def test_without_pandas_the_error_names_the_extra(result, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)
     with pytest.raises(ImportError, match=r'pip install "sparsekin\[pandas\]"'):
         result.to_dataframe()
+
+
+def test_a_run_without_coordinates_gives_what_it_recorded():
+    times = np.linspace(0.0, 1.0, 11)
+    kept = solve_kinematics(task5(), times)
+    recorded = solve_kinematics(task5(), times, coordinates=False, points=["K"], joints=[12])
+    table = recorded.to_dataframe()
+    assert table.columns.get_level_values("name").unique().tolist() == ["K", "actuator1"]
+    np.testing.assert_allclose(table["point", "K"].to_numpy(), np.column_stack(kept.point("K")), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(table["joint", "actuator1"].to_numpy(), np.column_stack(kept.joint("actuator1")),
+                               rtol=0, atol=1e-12)  # fmt: skip

@@ -85,6 +85,7 @@ def subspace_gap(basis: np.ndarray, reference: np.ndarray) -> float:
 
 
 def without_joint_at(mechanism: Mechanism, point: str) -> Mechanism:
+    mechanism = mechanism.expanded()  # every joint an object, to leave one out
     joints = tuple(joint for joint in mechanism.joints if getattr(joint, "at", None) != point)
     assert len(joints) == len(mechanism.joints) - 1
     return dataclasses.replace(mechanism, joints=joints)
@@ -217,7 +218,7 @@ def test_a_chain_of_1e5_bodies_has_full_rank_found_in_seconds(chain):
 
 def test_a_chain_of_1e5_bodies_without_one_joint_names_its_free_motions(chain):
     mechanism, _ = chain
-    broken = without_joint_at(mechanism, "E_5000")
+    broken = without_joint_at(mechanism, "u5000.E")
     jacobian = jacobian_at(broken)
     start = time.perf_counter()
     analysis = analyse_jacobian(jacobian)
@@ -225,7 +226,7 @@ def test_a_chain_of_1e5_bodies_without_one_joint_names_its_free_motions(chain):
     assert analysis.rank == 299_998 and analysis.n_free == 2 and analysis.n_redundant == 0
     assert np.max(np.abs(jacobian @ analysis.free_motions)) < 1e-12
     moving = {broken.bodies[c // 3].name for c in analysis.free_coordinates}
-    assert moving <= {f"c{k}_5000" for k in range(1, 11)}
+    assert moving <= {f"u5000.c{k}" for k in range(1, 11)}
     assert elapsed < 60.0  # about 3 s on the project's machine
 
 

@@ -115,7 +115,7 @@ def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
     coordinates = mechanism.frames().ravel()[None]
     drawn = KinematicsResult(
         times=np.zeros(1), coordinates=coordinates, velocities=0 * coordinates, accelerations=0 * coordinates,
-        body_names=mechanism.body_names, newton_iterations=np.zeros(1, dtype=int), n_factorizations=0,
+        newton_iterations=np.zeros(1, dtype=int), n_factorizations=0,
         n_solves=0, complete=True, point_map=build_point_map(mechanism), mechanism=mechanism,
     )  # fmt: skip
     assert draw_mechanism(mechanism, drawn, tmp_path).is_file()
@@ -273,3 +273,21 @@ def test_labels_do_not_overlap(matplotlib_image, example):
                 overlap_y = min(first.y1, second.y1) - max(first.y0, second.y0)
                 assert overlap_x <= 0.5 or overlap_y <= 0.5, (example, sample)
             assert axes.bbox.x0 <= first.x0 and first.x1 <= axes.bbox.x1
+
+
+def test_a_part_of_a_long_chain_is_drawn_alone(matplotlib_image):
+    """`bodies=` draws those bodies, the points they carry and the elements between them
+    and the ground, on axes that fit them: the first 12 bodies of the 2001-body chain."""
+    from sparsekin.plotting import _new_figure, draw_configuration
+
+    chain = load_model(TASK5.with_name("four_bar_chain.toml"))
+    result = solve_kinematics(chain, np.linspace(0.0, 0.2, 3))
+    first = [chain.body_names[k] for k in range(12)]
+    figure, axes = _new_figure((8.0, 7.0))
+    draw_configuration(axes, chain, result.coordinates[-1], bodies=first)
+    carried = {point for name in first for point in chain.bodies[chain.body_index(name)].points}
+    assert sorted(text.get_text() for text in axes.texts) == sorted([*carried, *first])
+    x_min, x_max = axes.get_xlim()
+    assert x_max < 10.0  # 6 loops of 1 m, not the 1000 of the chain
+    with pytest.raises(KeyError, match='unknown body "nope" to draw'):
+        draw_configuration(axes, chain, result.coordinates[-1], bodies=["nope"])

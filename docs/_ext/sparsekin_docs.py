@@ -40,14 +40,8 @@ EXAMPLES = ROOT / "examples"
 GENERATED = (DOCS / "gallery", DOCS / "generated", DOCS / "reference" / "cli.md")
 #: Gallery pages first in this order, then any other example by name.
 GALLERY_ORDER = (
-    "task5",
-    "slider_crank",
-    "four_bar",
-    "watt_six_bar",
-    "quick_return",
-    "excavator",
-    "planetary_gear",
-)
+    "task5", "slider_crank", "four_bar", "watt_six_bar", "quick_return", "excavator", "four_bar_chain", "planetary_gear",
+)  # fmt: skip
 #: Titles of the gallery pages (default: the file name in words).
 GALLERY_TITLES = {
     "task5": "Task 5 linkage",
@@ -58,6 +52,8 @@ GALLERY_TITLES = {
     "excavator": "Excavator front",
     "planetary_gear": "Planetary gear train",
     "task5_distance": "Task 5 with distance drivers",
+    "four_bar_chain": "Four-bar chain (1000 loops)",
+    "task5_chain": "Task 5 chain (1000 units)",
 }
 #: Model files put into the scratch folder of the command examples: a file of the
 #: repository, or a Python expression of sparsekin saved as a model file (the pages say
@@ -68,6 +64,8 @@ DOC_MODELS = {
 }
 #: Where an animation frame of a gallery example is taken, as a fraction of its run.
 FRAME_AT = 0.4
+#: A larger example (a chain of repeated units) is drawn by its first this many bodies.
+GALLERY_MAX_BODIES = 20
 
 DIRECTIVE = re.compile(r"^<!-- sparsekin(?: \(exit (\d+)\))?: (.+?) -->$", re.MULTILINE)
 
@@ -113,6 +111,10 @@ def gallery_names() -> list[str]:
     ]
 
 
+def _count(number: int, word: str, plural: str | None = None) -> str:
+    return f"{number} {word if number == 1 else plural or word + 's'}"
+
+
 def opening_comment(text: str) -> str:
     """The comment lines at the top of a model file, as one paragraph."""
     lines = []
@@ -128,6 +130,7 @@ def make_gallery(folder: Path) -> None:
     import numpy as np
 
     import sparsekin as sk
+    from sparsekin.pattern import build_point_map
     from sparsekin.plotting import draw_mechanism, save_frame
 
     (folder / "images").mkdir(parents=True)
@@ -153,9 +156,16 @@ def make_gallery(folder: Path) -> None:
         analysis = mechanism.analysis
         result = sk.solve_kinematics(mechanism, np.linspace(0.0, analysis.t_end, analysis.steps))
         trace = analysis.points or ()
-        draw_mechanism(mechanism, result, folder / "images").rename(folder / "images" / f"{name}.png")
+        shown, part = None, ""
+        if mechanism.n_bodies > GALLERY_MAX_BODIES:
+            shown = [mechanism.body_names[k] for k in range(GALLERY_MAX_BODIES)]
+            point_map = build_point_map(mechanism)
+            trace = [point for point in trace if 0 <= point_map.locate(point)[0] < GALLERY_MAX_BODIES]
+            part = f" The pictures show its first {GALLERY_MAX_BODIES} bodies."
+        drawing = draw_mechanism(mechanism, result, folder / "images", bodies=shown)
+        drawing.rename(folder / "images" / f"{name}.png")
         frame_time = round(FRAME_AT * analysis.t_end, 3)
-        save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace)
+        save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown)
         title = GALLERY_TITLES.get(name, name.replace("_", " "))
         traced = f", the paths of {', '.join(trace)} traced" if trace else ""
         page = [
@@ -164,8 +174,9 @@ def make_gallery(folder: Path) -> None:
             opening_comment(text),
             "",
             (
-                f"{mechanism.n_bodies} bodies, {len(mechanism.joints)} joints, {len(mechanism.drivers)} drivers; "
-                f"analysed over {analysis.t_end:g} s in {analysis.steps} samples."
+                f"{_count(mechanism.n_bodies, 'body', 'bodies')}, {_count(mechanism.n_joints, 'joint')}, "
+                f"{_count(mechanism.n_drivers, 'driver')}; "
+                f"analysed over {analysis.t_end:g} s in {analysis.steps} samples.{part}"
             ),
             "",
             f"![{title} at t = 0](images/{name}.png)",
