@@ -48,7 +48,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
-    others = []
+    others, large = [], []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -56,9 +56,11 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             steps[(info["family"], info["bodies"])][info["solver"]] = dict(info, seconds_per_step=per_step)
         elif record["name"].startswith("test_setup_and_memory"):
             setups[(info["family"], info["bodies"])] = info
+        elif record["name"].startswith("test_large_file"):
+            large.append(info)
         else:
             others.append(record)
-    document["others"] = others
+    document["others"], document["large"] = others, large
     return steps, setups, document
 
 
@@ -165,6 +167,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
     for (family, name), exponent in exponents.items():
         if exponent is not None:
             lines.append(f"- {family}, {name}: {exponent:.3f}")
+    if document["large"]:
+        lines += ["", *_large_files(document["large"])]
     if document["others"]:
         lines += [
             "",
@@ -196,6 +200,36 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _large_files(records: list[dict]) -> list[str]:
+    """The table of `test_large_files.py`: ``sparsekin run`` on chains written as small files."""
+    lines = [
+        "## Large models from small files (`test_large_files.py`)",
+        "",
+        "Each row is one fresh process (`benchmarks/measure_file_run.py`): the example file with another",
+        "`count`, read and its pattern built (`setup`), or run through `sparsekin run --quiet` (the time to",
+        "the first sample counts from the start of the process, imports included; per sample: after the",
+        "first). Peak memory: the process's peak resident set, everything included.",
+        "",
+        "| case | bodies | file | samples | options | read | pattern | first sample | per sample | peak memory |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for info in records:
+        cells = [
+            info["case"],
+            f"{info['bodies']:,}",
+            f"{info['file_bytes'] / 1000:.1f} kB",
+            str(info.get("samples", "—")),
+            f"`{info['options']}`" if info.get("options") else "",
+            _seconds(info["read_seconds"]),
+            _seconds(info["pattern_seconds"]) if "pattern_seconds" in info else "—",
+            _seconds(info["first_sample_seconds"]) if "first_sample_seconds" in info else "—",
+            _seconds(info["seconds_per_sample"]) if "seconds_per_sample" in info else "—",
+            f"{info['peak_rss_bytes'] / 2**30:.2f} GB",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
 
 
 def main(argv: list[str]) -> None:

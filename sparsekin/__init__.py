@@ -11,8 +11,10 @@ The modules follow the data flow:
 `laws`             motion laws of drivers: `Harmonic`, `Linear`, ... (and their kernels)
 `primitives`       the four primitive equations every element is made of
 `elements`         every kind of joint and driver, declared once (the registry)
+`units`            units repeated into chains: `Unit`, `Repeat`, resolved by arithmetic
 `model`            frozen description: `Mechanism`, `Body`
 `modelfile`        the TOML model file: `load_model`, `save_model`
+`columns`          elements as arrays for the equation builders (tiled over copies)
 `pattern`          Mechanism -> packed equations, CSR pattern and slots (once)
 `_kernels`         numba kernels that refill residual, Jacobian and gamma
 `assembly`         `Assembler`: owns the arrays and calls the kernels
@@ -23,9 +25,11 @@ The modules follow the data flow:
 `reduced`          square systems without redundant equations, or with coordinates held
 `describe`         words for messages: equations, coordinates, motions
 `failures`         what went wrong: model errors, lock-up and convergence errors
+`ordering`         a long chain's first pivot order, tiled from a short chain
 `stepper`          `KinematicStepper`: the time loop, one sample at a time
 `_compiled`        the whole time loop of a small model in one numba call
 `results`          `KinematicsResult`: points, joint and driver coordinates
+`recording`        what a run keeps, in chunks, in memory or in a Zarr store
 `solvers`          `solve_kinematics`: validate, run the loop, return the result
 `check`            `check_model`: degrees of freedom, rank, redundancy, free motions
 `cli`              the ``sparsekin`` command; `plotting` its figures
@@ -61,6 +65,7 @@ True
 
 from .check import ModelReport, check_model
 from .errors import (
+    AnalysisInterrupted,
     ConvergenceError,
     LimitWarning,
     ModelError,
@@ -89,14 +94,17 @@ from .rank import JacobianAnalysis, analyse_jacobian
 from .results import CoordinateMotion, KinematicsResult, PointMotion
 from .solvers import solve_kinematics
 from .stepper import KinematicStepper
+from .units import Cycle, Repeat, Step, Unit
 
 __all__ = [
     "GROUND",
     "AbsoluteDriver",
+    "AnalysisInterrupted",
     "Analysis",
     "Body",
     "ConvergenceError",
     "CoordinateMotion",
+    "Cycle",
     "DistanceDriver",
     "Gear",
     "Harmonic",
@@ -115,6 +123,7 @@ __all__ = [
     "Polynomial",
     "RackPinion",
     "RedundantConstraintWarning",
+    "Repeat",
     "Revolute",
     "Rigid",
     "RotationalDriver",
@@ -122,8 +131,10 @@ __all__ = [
     "SingularJacobianError",
     "SparsekinError",
     "Spline",
+    "Step",
     "Translational",
     "TranslationalDriver",
+    "Unit",
     "analyse_jacobian",
     "check_model",
     "load_model",

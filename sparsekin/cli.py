@@ -208,7 +208,9 @@ def run_command(arguments: argparse.Namespace) -> int:
         For a bad argument, a bad model file or an output folder that cannot be written;
         `main` reports them.
     """
+    timeline = _Timeline()
     mechanism = load_model(arguments.model)
+    timeline.read = time.perf_counter()
     settings = resolve_run_settings(arguments, mechanism)
     if settings.plot:
         _require_matplotlib()
@@ -217,9 +219,8 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         _report(f"note: {note}")
-    start = time.perf_counter()
     try:
-        with _progress_bar(settings) as progress:
+        with _Progress(settings, timeline) as progress:
             result = _solve(mechanism, settings, arguments.model, progress)
     except ConvergenceError as error:
         written = write_outputs(mechanism, error.result, settings)
@@ -232,9 +233,9 @@ def run_command(arguments: argparse.Namespace) -> int:
         _report(f"interrupted: wrote {_count_samples(interrupt.result)} of {settings.times.size} samples to "
                 f"{settings.directory}: {', '.join(path.name for path in written)}")
         return EXIT_INTERRUPTED
-    wall_time = time.perf_counter() - start
+    timeline.solved = time.perf_counter()
     written = write_outputs(mechanism, result, settings)
-    print(_summary(mechanism, result, wall_time, written))
+    print(_summary(mechanism, result, timeline, written))
     return EXIT_SUCCESS
 
 
@@ -362,26 +363,37 @@ def _require_zarr() -> None:
         raise CommandError('--format zarr needs zarr and xarray: pip install "sparsekin[zarr]"') from None
 
 
-class _progress_bar:
-    """A tqdm bar on stderr, shown once a run has lasted `PROGRESS_DELAY` (not with --quiet,
-    nor when stderr is not a terminal, nor without tqdm); a callable (done, total)."""
+class _Timeline:
+    """When ``run`` started, read its model, solved its first sample and its last."""
 
-    def __init__(self, settings: RunSettings) -> None:
-        self._bar = None
+    def __init__(self) -> None:
+        self.start = time.perf_counter()
+        self.read = self.first = self.solved = None
+        self.first_done = 0  # samples solved at `first` (a chunk of the compiled loop, or one)
+
+
+class _Progress:
+    """The run's progress callable: notes the first sample's time and moves a tqdm bar on
+    stderr, shown once a run has lasted `PROGRESS_DELAY` (not with --quiet, nor when stderr
+    is not a terminal)."""
+
+    def __init__(self, settings: RunSettings, timeline: _Timeline) -> None:
+        self._timeline, self._bar = timeline, None
         if settings.quiet or not sys.stderr.isatty():
             return
-        try:
-            from tqdm import tqdm
-        except ImportError:
-            return
+        from tqdm import tqdm  # here: importing it costs a start-up that does not draw a bar
+
         self._bar = tqdm(total=settings.times.size, unit="sample", delay=PROGRESS_DELAY, file=sys.stderr,
                          dynamic_ncols=True, leave=False)  # fmt: skip
 
     def __enter__(self):
-        return None if self._bar is None else self
+        return self
 
     def __call__(self, done: int, total: int) -> None:
-        self._bar.update(done - self._bar.n)
+        if self._timeline.first is None:
+            self._timeline.first, self._timeline.first_done = time.perf_counter(), done
+        if self._bar is not None:
+            self._bar.update(done - self._bar.n)
 
     def __exit__(self, *exc) -> None:
         if self._bar is not None:
@@ -563,15 +575,23 @@ def _count_samples(result: KinematicsResult | None) -> int:
     return 0 if result is None else result.n_times
 
 
-def _summary(mechanism: Mechanism, result: KinematicsResult, wall_time: float, written: list[Path]) -> str:
-    """A few lines: samples, Newton corrections per step, factorizations, time, files."""
+def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline, written: list[Path]) -> str:
+    """A few lines: samples, Newton corrections per step, factorizations, times, files."""
     corrections = result.newton_iterations
+    if timeline.first is None:  # nothing was solved sample by sample (a model without bodies)
+        timeline.first, timeline.first_done = timeline.solved, result.n_times
+    first = timeline.first - timeline.start
+    later = result.n_times - timeline.first_done
+    per_sample = (timeline.solved - timeline.first) / later if later else (timeline.solved - timeline.read) / result.n_times
+    which = "first sample" if timeline.first_done == 1 else f"first {timeline.first_done} samples"
     lines = [
-        f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s",
+        f"{mechanism.name}: {mechanism.n_bodies} bodies, {result.n_times} samples, t = 0 … {result.times[-1]:g} s",
         f"Newton corrections per step: mean {corrections.mean():.2f}, max {corrections.max()}",
         f"linear solver: {result.linear_solver}; factorizations: {result.n_factorizations}"
         + (f" (+ {result.n_refactorizations} refactorizations)" if result.n_refactorizations else "")
-        + f", linear solves: {result.n_solves}, wall time: {wall_time:.3g} s",
+        + f", linear solves: {result.n_solves}, wall time: {timeline.solved - timeline.read:.3g} s",
+        f"times: model read in {timeline.read - timeline.start:.3g} s, {which} solved {first:.3g} s after the "
+        f"start, {per_sample:.3g} s a sample",
         "wrote:",
         *(f"  {path}" for path in written),
     ]

@@ -389,7 +389,7 @@ class Copies:
         bad = ~(np.isfinite(values) & (np.abs(values) <= _validate.MAX_MAGNITUDE))
         if bad.any():
             k = int(np.flatnonzero(bad.reshape(self.count, -1).any(axis=1))[0])
-            raise ModelError(f"the varied value is not a finite number of sensible magnitude",
+            raise ModelError("the varied value is not a finite number of sensible magnitude",
                              element=f'{self.label} copy {k}: vary."{path}"')
 
     # ------------------------------------------------------------------ elements on demand
