@@ -62,6 +62,9 @@ DEFAULT_RULE = "points ≤ 100, joints ≤ 100, coordinates ≤ 2e7 values"
 MAX_DEFAULT_POINTS = 100
 MAX_DEFAULT_JOINTS = 100
 MAX_DEFAULT_VALUES = 20_000_000
+#: ``--plot`` draws at most this many bodies (the first) in ``mechanism.png``: more make no
+#: readable picture (a 1000-body chain took 8.2 s to draw: `sparsekin.plotting.MAX_PLACED_LABELS`).
+MAX_DRAWN_BODIES = 100
 #: A progress bar appears once a run has lasted this long, s.
 PROGRESS_DELAY = 2.0
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
@@ -499,8 +502,15 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
 
         written += plot_point_motion(result, settings.point_names, directory)
         written += plot_point_paths(result, settings.point_names, directory)
+        if result.coordinates is None:
+            _report("note: actuators.png and mechanism.png need every body's coordinates: give --coordinates")
+            return written
         written += plot_actuators(result, directory)
-        written.append(draw_mechanism(mechanism, result, directory))
+        shown = None
+        if mechanism.n_bodies > MAX_DRAWN_BODIES:
+            shown = [mechanism.body_names[k] for k in range(MAX_DRAWN_BODIES)]
+            _report(f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of {mechanism.n_bodies} bodies")
+        written.append(draw_mechanism(mechanism, result, directory, bodies=shown))
     return written
 
 

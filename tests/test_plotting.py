@@ -291,3 +291,26 @@ def test_a_part_of_a_long_chain_is_drawn_alone(matplotlib_image):
     assert x_max < 10.0  # 6 loops of 1 m, not the 1000 of the chain
     with pytest.raises(KeyError, match='unknown body "nope" to draw'):
         draw_configuration(axes, chain, result.coordinates[-1], bodies=["nope"])
+
+
+def test_plot_option_without_the_coordinates_draws_what_was_recorded(tmp_path, capsys, matplotlib_image):
+    from sparsekin.cli import main
+
+    out = tmp_path / "out"
+    assert main(["run", str(TASK5), "--t-end", "1", "--steps", "11", "--points", "K", "--no-coordinates", "--plot",
+                 "--out", str(out)]) == 0  # fmt: skip
+    assert (out / "point_K.png").is_file() and (out / "path_K.png").is_file()
+    assert not (out / "mechanism.png").exists() and not (out / "actuators.png").exists()
+    assert "note: actuators.png and mechanism.png need every body's coordinates: give --coordinates" in (
+        capsys.readouterr().err
+    )
+
+
+def test_plot_option_draws_the_first_bodies_of_a_long_chain(tmp_path, capsys, matplotlib_image):
+    from sparsekin.cli import MAX_DRAWN_BODIES, main
+
+    out = tmp_path / "out"
+    chain = TASK5.with_name("four_bar_chain.toml")
+    assert main(["run", str(chain), "--t-end", "0.1", "--steps", "3", "--points", "A0", "--plot", "--out", str(out)]) == 0
+    assert f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of 2001 bodies" in capsys.readouterr().err
+    assert matplotlib_image.imread(out / "mechanism.png")[..., :3].std() > 0.05
