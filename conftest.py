@@ -1,6 +1,7 @@
 """Shared by tests/ and benchmarks/: helper modules, a seeded random generator, and the
 benchmarks' ``--sizes`` option (``smoke``, the default, or ``full``)."""
 
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -25,3 +26,15 @@ def pytest_addoption(parser):
 def rng():
     """A fresh, seeded random generator per test."""
     return np.random.default_rng(20261121)
+
+
+#: Doctests that need an optional dependency, and the extra that installs it: skipped
+#: (with that reason) when it is missing.
+OPTIONAL_DOCTESTS = {"sparsekin.results.KinematicsResult.to_dataframe": ("pandas", "pandas")}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        module, extra = OPTIONAL_DOCTESTS.get(item.name, (None, None))
+        if module and importlib.util.find_spec(module) is None:
+            item.add_marker(pytest.mark.skip(reason=f'needs {module}: pip install "sparsekin[{extra}]"'))

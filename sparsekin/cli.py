@@ -8,6 +8,10 @@ on stderr for runs longer than two seconds.  Exit status: 0 on success, 2 on a b
 or bad arguments (one line on stderr, no traceback), 3 when the analysis stops and 130 on
 Ctrl-C (in both cases the samples solved so far are still written).
 
+``sparsekin animate MODEL.toml`` runs the same analysis and writes an animation (GIF or
+MP4, `sparsekin.plotting.animate`) or one frame of it (PNG).  Exit status as for ``run``;
+when the analysis stops, the clip runs up to the stop and marks it.
+
 ``sparsekin check MODEL.toml`` assembles the model and prints its degrees of freedom, the
 rank of its Jacobian, its redundant equations and its free motions
 (`sparsekin.check.check_model`).  Exit status: 0 for a sound model, 1 when it has
@@ -40,7 +44,7 @@ import numpy as np
 
 from . import _validate
 from .check import check_model
-from .errors import AnalysisInterrupted, ConvergenceError, ModelError
+from .errors import AnalysisInterrupted, ConvergenceError, ModelError, SingularConfigurationError
 from .model import Mechanism
 from .modelfile import load_model
 from .results import KinematicsResult
@@ -65,6 +69,9 @@ MAX_DEFAULT_POINTS = 100
 MAX_DEFAULT_JOINTS = 100
 MAX_DEFAULT_VALUES = 20_000_000
 MAX_DEFAULT_FORCE_ELEMENTS = 100
+#: ``--plot`` draws at most this many bodies (the first) in ``mechanism.png``: more make no
+#: readable picture (a 1000-body chain took 8.2 s to draw: `sparsekin.plotting.MAX_PLACED_LABELS`).
+MAX_DRAWN_BODIES = 100
 #: A progress bar appears once a run has lasted this long, s.
 PROGRESS_DELAY = 2.0
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
@@ -270,11 +277,8 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
         If no end time is given, a number is out of range or a point is unknown.
     """
     analysis = mechanism.analysis
-    t_end = arguments.t_end if arguments.t_end is not None else analysis.t_end
-    if t_end is None:
-        raise CommandError("no end time: give --t-end T or [analysis].t_end in the model file")
-    steps = arguments.steps if arguments.steps is not None else (analysis.steps or DEFAULT_STEPS)
-    _check_times(t_end, steps)
+    times = resolve_times(arguments, mechanism)
+    steps = times.size
     notes = []
     if getattr(arguments, "points", None) is not None:
         point_names = parse_point_names(arguments.points, mechanism)
@@ -312,10 +316,27 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
         notes.append(f"{n_elements} drivers and joints: no forces written (give --forces D1,J2 or all)")
     directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
     return RunSettings(
-        np.linspace(0.0, t_end, steps), tuple(point_names), directory, arguments.plot, joint_indices, coordinates,
+        times, tuple(point_names), directory, arguments.plot, joint_indices, coordinates,
         getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces,
         bool(getattr(arguments, "quasi_static", False)),
     )  # fmt: skip
+
+
+def resolve_times(arguments: argparse.Namespace, mechanism: Mechanism) -> np.ndarray:
+    """The sample times from ``--t-end`` and ``--steps``, else the model's ``[analysis]``.
+
+    Raises
+    ------
+    CommandError
+        If no end time is given or a number is out of range.
+    """
+    analysis = mechanism.analysis
+    t_end = arguments.t_end if arguments.t_end is not None else analysis.t_end
+    if t_end is None:
+        raise CommandError("no end time: give --t-end T or [analysis].t_end in the model file")
+    steps = arguments.steps if arguments.steps is not None else (analysis.steps or DEFAULT_STEPS)
+    _check_times(t_end, steps)
+    return np.linspace(0.0, t_end, steps)
 
 
 def _check_times(t_end: float, steps: int) -> None:
@@ -328,7 +349,7 @@ def _check_times(t_end: float, steps: int) -> None:
         raise CommandError(f"t_end = 0 s gives one sample, not {steps}: give --t-end > 0 or --steps 1")
 
 
-def parse_point_names(text: str, mechanism: Mechanism) -> tuple[str, ...]:
+def parse_point_names(text: str, mechanism: Mechanism, option: str = "--points") -> tuple[str, ...]:
     """The point names in the comma-separated `text`, each checked against the model.
 
     Examples
@@ -347,10 +368,10 @@ def parse_point_names(text: str, mechanism: Mechanism) -> tuple[str, ...]:
     names = tuple(dict.fromkeys(name.strip() for name in text.split(",")))
     for name in names:
         if not name:
-            raise CommandError(f"--points: empty name in {text!r}: expected names separated by commas")
+            raise CommandError(f"{option}: empty name in {text!r}: expected names separated by commas")
         if name not in mechanism.points:
             known = _validate.known_list(list(mechanism.points), limit=LISTED_POINTS)
-            raise CommandError(f'--points: unknown point "{name}" (known: {known})')
+            raise CommandError(f'{option}: unknown point "{name}" (known: {known})')
     return names
 
 
@@ -826,12 +847,20 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
         if settings.coordinates:
             written.append(write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"))
     if settings.plot and _count_samples(result) > 0:
-        from .plotting import draw_mechanism, plot_actuators, plot_driver_forces, plot_point_motion
+        from .plotting import draw_mechanism, plot_actuators, plot_driver_forces, plot_point_motion, plot_point_paths
 
         written += plot_point_motion(result, settings.point_names, directory)
+        written += plot_point_paths(result, settings.point_names, directory)
+        if result.coordinates is None:
+            _report("note: actuators.png and mechanism.png need every body's coordinates: give --coordinates")
+            return written
         written += plot_actuators(result, directory)
         written += plot_driver_forces(result, directory)
-        written.append(draw_mechanism(mechanism, result, directory))
+        shown = None
+        if mechanism.n_bodies > MAX_DRAWN_BODIES:
+            shown = [mechanism.body_names[k] for k in range(MAX_DRAWN_BODIES)]
+            _report(f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of {mechanism.n_bodies} bodies")
+        written.append(draw_mechanism(mechanism, result, directory, bodies=shown))
     return written
 
 
@@ -943,5 +972,130 @@ def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline
     return "\n".join(lines)
 
 
+# ---------------------------------------------------------------------- animate
+def add_animate_command(subparsers) -> None:
+    """Add ``animate MODEL.toml [--out FILE] [--trace K,W] [--t-end T] [--steps N] [--fps F] [--duration D]
+    [--at T]``."""
+    parser = subparsers.add_parser(
+        "animate",
+        help="analyse a model and write an animation (GIF or MP4) or one frame of it (PNG)",
+        description="Solve the motion as run does and write it as an animation: bodies, joints and "
+        "actuators, the paths of the traced points and a time stamp, on axes that hold the whole motion. "
+        "Frames are equally spaced in time and interpolated between the samples, so the clip plays in real "
+        "time (or lasts --duration) whatever the number of samples. When the analysis stops (a lock-up), "
+        "the clip runs up to the stop and marks it, and the exit status is 3.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="run.gif, run.mp4, or frame.png for one frame (default: "
+        f"./{DEFAULT_OUTPUT_ROOT}/<model name>/animation.gif)"
+    )
+    parser.add_argument(
+        "--trace", metavar="K,W", help="points whose paths are drawn, separated by commas, or none (default: "
+        "[analysis].points, else none)"
+    )
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument(
+        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
+        f"[analysis].steps, else {DEFAULT_STEPS})"
+    )
+    parser.add_argument("--fps", type=float, metavar="F", help="frames per second (default 20 for a GIF, at most "
+                        "50; 30 for an MP4)")  # fmt: skip
+    parser.add_argument("--duration", type=float, metavar="D",
+                        help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
+    parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
+    parser.set_defaults(handler=animate_command)
+
+
+def animate_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin animate``; returns the exit status.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+        For a bad argument, a bad model file, a missing optional dependency or a file
+        that cannot be written; `main` reports them.
+    """
+    mechanism = load_model(arguments.model)
+    times = resolve_times(arguments, mechanism)
+    if arguments.trace is None:
+        trace = mechanism.analysis.points or ()
+    elif arguments.trace.strip().lower() == "none":
+        trace = ()
+    else:
+        trace = parse_point_names(arguments.trace, mechanism, option="--trace")
+    path = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name / "animation.gif"
+    _check_animation_options(arguments, path, times)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
+    settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
+    start = time.perf_counter()
+    try:
+        result = _solve(mechanism, settings, arguments.model, None)
+    except AnalysisInterrupted as interrupt:
+        solved = _count_samples(interrupt.result)
+        if solved:
+            mark = f"interrupted at t = {interrupt.result.times[-1]:.6g} s"
+            written = _write_animation(interrupt.result, path, arguments, trace, mark)
+            _report(f"interrupted: animated {solved} of {times.size} samples: {written}")
+        return EXIT_INTERRUPTED
+    except ConvergenceError as error:
+        _report(f"analysis stopped: {error}")
+        solved = _count_samples(error.result)
+        if solved == 0:
+            _report(f"no sample solved: nothing to animate, {path} not written")
+            return EXIT_STOPPED
+        reason = "lock-up" if isinstance(error, SingularConfigurationError) else "no convergence"
+        mark = f"analysis stopped: {reason} at t = {error.time:.6g} s"
+        written = _write_animation(error.result, path, arguments, trace, mark)
+        _report(f"animated {solved} of {times.size} samples (t = 0 … {error.result.times[-1]:g} s): {written}")
+        return EXIT_STOPPED
+    written = _write_animation(result, path, arguments, trace, None)
+    print(f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s\n{written}\n"
+          f"wall time: {time.perf_counter() - start:.3g} s\nwrote:\n  {path}")  # fmt: skip
+    return EXIT_SUCCESS
+
+
+def _check_animation_options(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> None:
+    """The file type and its optional dependencies, and the numbers, before any solving."""
+    from .plotting import DEFAULT_FPS, MAX_GIF_FPS
+
+    suffix = path.suffix.lower()
+    if suffix not in (*DEFAULT_FPS, ".png"):
+        raise CommandError(f"--out must end in .gif, .mp4 or .png, got {str(path)!r}")
+    needed = {".gif": ("PIL", "Pillow"), ".mp4": ("imageio_ffmpeg", "imageio-ffmpeg"), ".png": (None, None)}
+    module, package = needed[suffix]
+    for name, shown in (("matplotlib", "matplotlib"), (module, package)):
+        if name is None:
+            continue
+        try:
+            __import__(name)
+        except ImportError:
+            raise CommandError(f'{path.name} needs {shown}: pip install "sparsekin[animate]"') from None
+    if arguments.fps is not None and not (math.isfinite(arguments.fps) and 0.0 < arguments.fps):
+        raise CommandError(f"--fps must be a number > 0, got {arguments.fps!r}")
+    if arguments.fps is not None and suffix == ".gif" and arguments.fps > MAX_GIF_FPS:
+        raise CommandError(f"--fps must be at most {MAX_GIF_FPS:g} for a GIF (browsers slow faster GIFs "
+                           f"down), got {arguments.fps!r}")  # fmt: skip
+    if arguments.duration is not None and not (math.isfinite(arguments.duration) and arguments.duration > 0.0):
+        raise CommandError(f"--duration must be a number of seconds > 0, got {arguments.duration!r}")
+    if arguments.at is not None and not (math.isfinite(arguments.at) and 0.0 <= arguments.at <= times[-1]):
+        raise CommandError(f"--at must be a time within the analysis, 0 … {times[-1]:g} s, got {arguments.at!r}")
+    if arguments.at is not None and suffix != ".png":
+        raise CommandError("--at chooses the time of one frame: give --out FILE.png with it")
+
+
+def _write_animation(result: KinematicsResult, path: Path, arguments, trace, stopped: str | None) -> str:
+    """Write the clip or the frame; a line saying what was written."""
+    from .plotting import animate, save_frame
+
+    if path.suffix.lower() == ".png":
+        at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
+        save_frame(result, path, at, trace=trace, stopped=stopped)
+        return f"frame at t = {result.times[-1] if at is None else at:g} s"
+    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped)
+    return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"
+
+
 #: The subcommands: each adds its parser and sets ``handler`` to the function running it.
-SUBCOMMANDS = (add_run_command, add_check_command, add_sweep_command, add_workspace_command)
+SUBCOMMANDS = (add_run_command, add_check_command, add_sweep_command, add_workspace_command, add_animate_command)

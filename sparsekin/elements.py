@@ -352,12 +352,12 @@ class Translational(Joint):
         return start, end, _unit(np.where(axis_form, end - start, joints.vector("direction")))
 
     def draw(self, canvas) -> None:
+        """A guide on ``bodies[0]`` and a slider on it; one-point bodies (a hydraulic
+        cylinder and its rod, a slider block) drawn along the axis (`Canvas.slide`)."""
         if self.axis is not None:
-            canvas.slider(canvas.point(self.bodies[0], self.axis[0]), canvas.point(self.bodies[1], self.axis[1]))
+            canvas.slide(*self.bodies, self.axis[0], self.axis[1], limits=self.limits)
         else:
-            at = canvas.point(self.bodies[0], self.at)
-            along = canvas.direction(self.bodies[0], self.direction)
-            canvas.slider(at - 8.0 * canvas.size * along, at + 8.0 * canvas.size * along)
+            canvas.slide(*self.bodies, self.at, self.at, direction=self.direction, limits=self.limits)
 
 
 @joint_kind
@@ -441,7 +441,10 @@ class PinInSlot(Joint):
         centre = canvas.point(self.bodies[0], self.at)
         along = canvas.direction(self.bodies[0], self.direction)
         canvas.slot(centre, along, self.limits)
-        canvas.pin(canvas.point(self.bodies[1], self.at), grounded=False)
+        pin = canvas.point(self.bodies[1], self.at)
+        if canvas.single_point(self.bodies[1]):  # a block sliding in the slot
+            canvas.block(self.bodies[1], pin, along)
+        canvas.pin(pin, grounded=False)
 
 
 @joint_kind
@@ -726,7 +729,8 @@ class DistanceDriver(Driver):
 
     def draw(self, canvas) -> None:
         ends = [canvas.point(body, point) for body, point in zip(self.bodies, self.points)]
-        canvas.actuator(*ends)
+        drawn = [canvas.drawn_point(point) for point in self.points]
+        canvas.actuator(*ends, drawn_length=float(np.hypot(*(drawn[1] - drawn[0]))))
         for body, end in zip(self.bodies, ends):
             canvas.pin(end, grounded=body == GROUND)
 

@@ -292,6 +292,73 @@ class KinematicsResult:
         """Every element's own coordinate at every sample, shape (n_times, n_rows) each."""
         return own_coordinates(self._outputs_pattern, self.coordinates, self.velocities, self.accelerations)
 
+    def to_dataframe(self, points=None, joints=None):
+        """The motion as a pandas DataFrame: one row per sample, one column per quantity.
+
+        A wide table, as ``points.csv`` and ``joints.csv`` side by side: the index is the
+        time ``t`` (s); the columns have three levels, ``kind`` (``"point"`` or
+        ``"joint"``), ``name`` and ``quantity``: ``x, y, vx, vy, ax, ay`` for a point (m,
+        m/s, m/s²), the joint's own coordinate and its two derivatives for a joint
+        (``angle, rate, accel`` in rad for a revolute, ``stroke, speed, accel`` in m for a
+        translational joint, ...).  ``df["point", "K"]`` is the table of point K,
+        ``df["joint", "actuator1", "stroke"]`` one column, and
+        ``df["point"].stack("name", future_stack=True)`` the tidy table of the points
+        (one row per time and point).  pandas is an optional dependency:
+        ``pip install "sparsekin[pandas]"``.
+
+        Parameters
+        ----------
+        points : sequence of str, optional
+            The points (default: every named point; the recorded points of a run that did
+            not keep the coordinates).
+        joints : sequence of str or int, optional
+            The joints, by name, ``"joints[i]"`` or index (default: every joint that has an
+            own coordinate; the recorded joints of a run that did not keep the coordinates).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Shape (n_times, 6 · n_points + 3 · n_joints).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sparsekin import solve_kinematics
+        >>> from sparsekin.testset import task5
+        >>> result = solve_kinematics(task5(), np.linspace(0.0, 1.0, 11))
+        >>> table = result.to_dataframe(points=["K"], joints=["actuator1"])
+        >>> table.columns.tolist()[:2], table.shape
+        ([('point', 'K', 'x'), ('point', 'K', 'y')], (11, 9))
+        >>> float(table["point", "K", "x"].iloc[0])  # K as drawn
+        -1.2
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError('to_dataframe needs pandas: pip install "sparsekin[pandas]"') from None
+        kept = self.coordinates is not None
+        if points is None:
+            point_names = tuple(self.point_names) if kept else self.recorded_points
+        else:
+            point_names = tuple(points)
+        if joints is None and not kept:
+            joint_indices = list(self.recorded_joints)
+        elif joints is None:
+            joint_indices = [index for index in range(len(self.mechanism.joints))
+                             if self._outputs_pattern.row_of_joint[index] >= 0]  # fmt: skip
+        else:
+            joint_indices = [element_index(self.mechanism, "joints", name) for name in joints]
+        columns, labels = [], []
+        for name in point_names:
+            columns.extend(array.T for array in self.point(name))  # (2, n_times) each: x, y
+            labels.extend(("point", name, quantity) for quantity in ("x", "y", "vx", "vy", "ax", "ay"))
+        for index in joint_indices:
+            joint = self.mechanism.joints[index]
+            columns.append(np.stack(self.joint(index)))
+            labels.extend(("joint", joint.name or f"joints[{index}]", suffix) for suffix in type(joint).output_names)
+        values = np.vstack(columns).T if columns else np.empty((self.n_times, 0))
+        return pd.DataFrame(values, index=pd.Index(self.times, name="t"), columns=_sorted_columns(pd, labels))
+
     def to_xarray(self):
         """The results as an `xarray.Dataset` (the layout of `sparsekin.recording`).
 
@@ -321,6 +388,30 @@ class KinematicsResult:
             coords |= {"force": list(self.force_labels), "force_unit": ("force", list(self.force_units))}
             variables["forces"] = (("time", "force"), np.asarray(self.force_tracks))
         return xr.Dataset(variables, coords=coords)
+
+
+def _sorted_columns(pd, labels):
+    """A MultiIndex of `labels` whose level values are ordered so that its codes follow the
+    columns' order: pandas then knows it is sorted (lexsorted), and selecting by all three
+    levels neither copies nor warns, while every column keeps its place."""
+    from graphlib import CycleError, TopologicalSorter
+    from itertools import pairwise
+
+    levels = []
+    for depth in range(3):
+        if depth < 2:
+            levels.append(list(dict.fromkeys(label[depth] for label in labels)))
+            continue
+        before: dict[str, set[str]] = {label[2]: set() for label in labels}  # quantity -> those before it
+        for previous, label in pairwise(labels):
+            if previous[:2] == label[:2]:
+                before[label[2]].add(previous[2])
+        try:
+            levels.append(list(TopologicalSorter(before).static_order()))
+        except CycleError:  # no order fits every element: pandas will say it is not sorted
+            levels.append(list(dict.fromkeys(label[2] for label in labels)))
+    codes = [[level.index(label[depth]) for label in labels] for depth, level in enumerate(levels)]
+    return pd.MultiIndex(levels=levels, codes=codes, names=["kind", "name", "quantity"])
 
 
 class LimitState(NamedTuple):

@@ -8,13 +8,13 @@ known independently of the solver:
   actuator-2 cylinder c10 of unit k-1.  Drivers are relative, so each unit moves relative
   to its base exactly as a single Task 5 with its phase.
 * `four_bar_chain` — the IFToMM "N four-bar" benchmark: the couplers translate rigidly.
+* `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
+  its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
+  the horizontal bars translate.
 
 The two chains are a unit repeated (`sparsekin.units.Repeat`), as their model files
 ``examples/task5_chain.toml`` and ``examples/four_bar_chain.toml`` write them: a million
 bodies are a few arrays, not a million objects.
-* `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
-  its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
-  the horizontal bars translate.
 """
 
 from __future__ import annotations

@@ -237,3 +237,13 @@ def test_joints_csv_holds_each_joint_coordinate(task5_run):
     result = solve_kinematics(load_model(TASK5), np.linspace(0.0, 1.0, 11))
     assert np.array_equal(rows[:, -6:-3], np.column_stack(result.joint("actuator1")))  # repr: bit for bit
     assert np.array_equal(rows[:, 1:4], np.column_stack(result.joint(0)))
+
+
+def test_a_model_without_bodies_runs_and_says_so(tmp_path, capsys):
+    """Nothing to solve sample by sample: the summary still gives its times (found by the
+    hostile-input fuzzing in a run without a hypothesis database: an empty file)."""
+    model = tmp_path / "empty.toml"
+    model.write_text('name = "empty"\n')
+    assert main(["run", str(model), "--t-end", "0.02", "--steps", "3", "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == "" and "empty: 0 bodies, 3 samples" in captured.out

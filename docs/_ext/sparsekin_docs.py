@@ -1,0 +1,292 @@
+"""Sphinx extension of the sparsekin site: what the pages show is made from the code at build time.
+
+* **Gallery.** A page per model file of ``examples/``: its opening comment as the text,
+  the drawing at t = 0 (`sparsekin.plotting.draw_mechanism`), a frame of its animation
+  with the ``[analysis].points`` traced (`sparsekin.plotting.save_frame`) and the file
+  itself; and an index with every frame, written to ``docs/gallery/``.  A new example is
+  a new file in ``examples/`` (and its test in ``tests/test_gallery.py``);
+  ``GALLERY_ORDER`` only sets the order.
+* **Command line reference**, ``docs/reference/cli.md``, from `sparsekin.cli.build_parser`.
+* **Command output.** A line ``<!-- sparsekin: check examples/task5.toml -->`` in a page
+  is replaced by the command and what it printed, run in a scratch folder that holds
+  ``examples/`` and the models of ``DOC_MODELS``; the files it writes are copied to
+  ``docs/generated/`` (``generated/sparsekin-out/task5/point_K.png``).  The exit status
+  must be 0, or the one written as ``<!-- sparsekin (exit 3): ... -->``: otherwise the
+  build fails.
+* **Element reference.** ``docs/elements.md`` must be what ``make_element_reference.py``
+  writes, or the build fails.
+
+Everything written is listed in ``GENERATED`` (and in ``.gitignore``); a build rewrites it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from sphinx.errors import ExtensionError
+
+DOCS = Path(__file__).resolve().parents[1]
+ROOT = DOCS.parent
+EXAMPLES = ROOT / "examples"
+#: What a build writes into docs/ (and .gitignore lists).
+GENERATED = (DOCS / "gallery", DOCS / "generated", DOCS / "reference" / "cli.md")
+#: Gallery pages first in this order, then any other example by name.
+GALLERY_ORDER = (
+    "task5", "slider_crank", "four_bar", "watt_six_bar", "quick_return", "excavator", "four_bar_chain", "planetary_gear",
+)  # fmt: skip
+#: Titles of the gallery pages (default: the file name in words).
+GALLERY_TITLES = {
+    "task5": "Task 5 linkage",
+    "slider_crank": "Slider-crank",
+    "four_bar": "Four-bar (crank-rocker)",
+    "watt_six_bar": "Watt six-bar",
+    "quick_return": "Quick-return (crank and slotted lever)",
+    "excavator": "Excavator front",
+    "planetary_gear": "Planetary gear train",
+    "task5_distance": "Task 5 with distance drivers",
+    "four_bar_chain": "Four-bar chain (1000 loops)",
+    "task5_chain": "Task 5 chain (1000 units)",
+}
+#: Model files put into the scratch folder of the command examples: a file of the
+#: repository, or a Python expression of sparsekin saved as a model file (the pages say
+#: how to make them).
+DOC_MODELS = {
+    "task5_stroke_006.toml": "sparsekin.testset.task5(amplitude=0.06)",
+    "triple_parallelogram.toml": ROOT / "tests" / "data" / "triple_parallelogram.toml",
+}
+#: Where an animation frame of a gallery example is taken, as a fraction of its run.
+FRAME_AT = 0.4
+#: A larger example (a chain of repeated units) is drawn by its first this many bodies.
+GALLERY_MAX_BODIES = 20
+
+DIRECTIVE = re.compile(r"^<!-- sparsekin(?: \(exit (\d+)\))?: (.+?) -->$", re.MULTILINE)
+
+
+def setup(app):
+    app.connect("builder-inited", generate)
+    app.connect("source-read", show_command_output)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
+
+
+def generate(app) -> None:
+    """Write the gallery, the command line reference and the command outputs into docs/."""
+    _check_element_reference()
+    for path in GENERATED:
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+    make_gallery(DOCS / "gallery")
+    (DOCS / "reference" / "cli.md").write_text(cli_reference(), encoding="utf-8")
+    app.sparsekin_outputs = run_commands(sorted(DOCS.rglob("*.md")), DOCS / "generated")
+
+
+def show_command_output(app, docname, source) -> None:
+    """Replace each command line in a page by the command and what it printed."""
+    outputs = app.sparsekin_outputs
+
+    def replace(match):
+        status, output = outputs[match.group(2)]
+        shown = f"$ sparsekin {match.group(2)}\n{output.rstrip()}"
+        if status:
+            shown += f"\n$ echo $?\n{status}"
+        return f"```console\n{shown}\n```"
+
+    source[0] = DIRECTIVE.sub(replace, source[0])
+
+
+# ---------------------------------------------------------------------- gallery
+def gallery_names() -> list[str]:
+    names = sorted(path.stem for path in EXAMPLES.glob("*.toml"))
+    return [name for name in GALLERY_ORDER if name in names] + [
+        name for name in names if name not in GALLERY_ORDER
+    ]
+
+
+def _count(number: int, word: str, plural: str | None = None) -> str:
+    return f"{number} {word if number == 1 else plural or word + 's'}"
+
+
+def opening_comment(text: str) -> str:
+    """The comment lines at the top of a model file, as one paragraph."""
+    lines = []
+    for line in text.splitlines():
+        if not line.startswith("#"):
+            break
+        lines.append(line[1:].strip())
+    return "\n".join(lines)
+
+
+def make_gallery(folder: Path) -> None:
+    """A page per example and an index, with the pictures, into `folder`."""
+    import numpy as np
+
+    import sparsekin as sk
+    from sparsekin.pattern import build_point_map
+    from sparsekin.plotting import draw_mechanism, save_frame
+
+    (folder / "images").mkdir(parents=True)
+    index = [
+        "# Gallery",
+        "",
+        (
+            "Each mechanism is a model file of `examples/` that the tests run and check against an "
+            "independent reference (`tests/test_gallery.py`). The pictures are drawn when this site is built."
+        ),
+        "",
+        "```{toctree}",
+        ":hidden:",
+        "",
+        *gallery_names(),
+        "```",
+        "",
+    ]
+    for name in gallery_names():
+        path = EXAMPLES / f"{name}.toml"
+        text = path.read_text(encoding="utf-8")
+        mechanism = sk.load_model(path)
+        analysis = mechanism.analysis
+        result = sk.solve_kinematics(mechanism, np.linspace(0.0, analysis.t_end, analysis.steps))
+        trace = analysis.points or ()
+        shown, part = None, ""
+        if mechanism.n_bodies > GALLERY_MAX_BODIES:
+            shown = [mechanism.body_names[k] for k in range(GALLERY_MAX_BODIES)]
+            point_map = build_point_map(mechanism)
+            trace = [point for point in trace if 0 <= point_map.locate(point)[0] < GALLERY_MAX_BODIES]
+            part = f" The pictures show its first {GALLERY_MAX_BODIES} bodies."
+        drawing = draw_mechanism(mechanism, result, folder / "images", bodies=shown)
+        drawing.rename(folder / "images" / f"{name}.png")
+        frame_time = round(FRAME_AT * analysis.t_end, 3)
+        save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown)
+        title = GALLERY_TITLES.get(name, name.replace("_", " "))
+        traced = f", the paths of {', '.join(trace)} traced" if trace else ""
+        page = [
+            f"# {title}",
+            "",
+            opening_comment(text),
+            "",
+            (
+                f"{_count(mechanism.n_bodies, 'body', 'bodies')}, {_count(mechanism.n_joints, 'joint')}, "
+                f"{_count(mechanism.n_drivers, 'driver')}; "
+                f"analysed over {analysis.t_end:g} s in {analysis.steps} samples.{part}"
+            ),
+            "",
+            f"![{title} at t = 0](images/{name}.png)",
+            "",
+            f"A frame of its animation at t = {frame_time:g} s{traced}:",
+            "",
+            f"![{title} at t = {frame_time:g} s](images/{name}-frame.png)",
+            "",
+            "```bash",
+            f"sparsekin check examples/{name}.toml",
+            f"sparsekin run examples/{name}.toml --plot",
+            f"sparsekin animate examples/{name}.toml --out {name}.gif",
+            "```",
+            "",
+            f"## The model file: `examples/{name}.toml`",
+            "",
+            "```toml",
+            text.rstrip(),
+            "```",
+            "",
+        ]
+        (folder / f"{name}.md").write_text("\n".join(page), encoding="utf-8")
+        first_sentence = opening_comment(text).replace("\n", " ").split(". ")[0].rstrip(".")
+        index += [f"## [{title}]({name}.md)", "", f"{first_sentence}.", "",
+                  f"[![{title}](images/{name}-frame.png)]({name}.md)", ""]  # fmt: skip
+    (folder / "index.md").write_text("\n".join(index), encoding="utf-8")
+
+
+# ---------------------------------------------------------------------- command line
+def cli_reference() -> str:
+    """The command line reference, from the argument parser."""
+    import argparse
+
+    from sparsekin.cli import build_parser
+
+    parser = build_parser()
+    lines = [
+        "# Command line",
+        "",
+        (
+            "Generated from `sparsekin.cli.build_parser()` when the site is built. Exit status of every "
+            "command: 0 on success, 2 on a bad model file or bad arguments (one line on stderr), "
+            "3 when the analysis stops (`run` and `animate` still write what was solved); "
+            "`check` exits with 1 for a model with a problem."
+        ),
+        "",
+        "```text",
+        parser.format_usage().strip(),
+        "```",
+        "",
+    ]
+    subparsers = next(action for action in parser._actions if isinstance(action, argparse._SubParsersAction))
+    for name, subparser in subparsers.choices.items():
+        lines += [f"## `sparsekin {name}`", "", subparser.description or "", "", "```text",
+                  subparser.format_usage().strip(), "```", "", "| argument | meaning |", "|---|---|"]  # fmt: skip
+        for action in subparser._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            if action.option_strings:
+                shown = ", ".join(action.option_strings) + (f" {action.metavar}" if action.metavar else "")
+            else:
+                shown = action.metavar or action.dest
+            lines.append(f"| `{shown}` | {(action.help or '').replace('|', '&#124;')} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def run_commands(pages, destination: Path) -> dict[str, tuple[int, str]]:
+    """Run every command named in `pages`, once each, in a scratch folder; copy what they
+    wrote to `destination`.  Returns the exit status and the output of each command."""
+    import sparsekin
+    import sparsekin.testset  # named in DOC_MODELS
+    from sparsekin.cli import main
+
+    outputs: dict[str, tuple[int, str]] = {}
+    with tempfile.TemporaryDirectory(prefix="sparsekin-docs-") as scratch_name:
+        scratch = Path(scratch_name)
+        for name, source in DOC_MODELS.items():
+            if isinstance(source, Path):
+                shutil.copy(source, scratch / name)
+            else:
+                sparsekin.save_model(eval(source, {"sparsekin": sparsekin}), scratch / name)
+        (scratch / "examples").symlink_to(EXAMPLES, target_is_directory=True)
+        inputs = set(scratch.iterdir())
+        for page in pages:
+            for match in DIRECTIVE.finditer(page.read_text(encoding="utf-8")):
+                expected, command = int(match.group(1) or 0), match.group(2)
+                if command in outputs:
+                    continue
+                printed = io.StringIO()
+                with (
+                    contextlib.chdir(scratch),
+                    contextlib.redirect_stdout(printed),
+                    contextlib.redirect_stderr(printed),
+                ):
+                    status = main(shlex.split(command))
+                if status != expected:
+                    raise ExtensionError(f"{page.relative_to(DOCS)}: `sparsekin {command}` exited with {status}, "
+                                         f"expected {expected}:\n{printed.getvalue()}")  # fmt: skip
+                outputs[command] = (status, printed.getvalue())
+        for path in scratch.iterdir():
+            if path not in inputs:
+                target = destination / path.name
+                target.parent.mkdir(parents=True, exist_ok=True)
+                (shutil.copytree if path.is_dir() else shutil.copy)(path, target)
+    return outputs
+
+
+def _check_element_reference() -> None:
+    check = subprocess.run([sys.executable, str(DOCS / "make_element_reference.py"), "--check"],
+                           capture_output=True, text=True, check=False)  # fmt: skip
+    if check.returncode:
+        raise ExtensionError(check.stderr.strip())
