@@ -135,7 +135,9 @@ def supports_compiled(mechanism: Mechanism) -> bool:
 @njit(inline="always", **JIT)
 def _factor(indptr, indices, jac_data, lu, pivots):
     """Scatter the CSR values into the dense `lu` and factor it; False if singular."""
-    lu[:] = 0.0
+    for r in range(lu.shape[0]):
+        for c in range(lu.shape[1]):
+            lu[r, c] = 0.0
     for r in range(lu.shape[0]):
         for s in range(indptr[r], indptr[r + 1]):
             lu[r, indices[s]] = jac_data[s]

@@ -45,7 +45,8 @@ def _add_force(out, body, arm_x, arm_y, fx, fy):
 def fill_applied_forces(loads, q, qd, qdd, turns, law_values, inertial, out):
     """``out`` (3 · (n_bodies + 1)) = gravity and loads, minus the inertial forces if
     `inertial` (else the quasi-static right-hand side); the ground's entries are discarded."""
-    out[:] = 0.0
+    for c in range(out.size):
+        out[c] = 0.0
     masses = loads.masses
     gx, gy = loads.gravity[0], loads.gravity[1]
     for b in range(masses.mass.size):
@@ -112,7 +113,8 @@ def fill_force_outputs(outputs, values, multipliers, q, turns, rates, work, out)
             out[column + e] = force
             power += force * rates[r + e]
         out[column + outputs.driver_rows[d]] = power
-    work[:] = 0.0
+    for k in range(work.shape[0]):
+        work[k, 0], work[k, 1], work[k, 2] = 0.0, 0.0, 0.0
     for e in range(outputs.entry_position.size):
         work[outputs.entry_joint[e], outputs.entry_component[e]] += (
             values[outputs.entry_position[e]] * multipliers[outputs.entry_row[e]]
