@@ -16,6 +16,7 @@ derivatives.  From them it derives, on request:
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
@@ -168,8 +169,11 @@ class KinematicsResult:
         return self.mechanism.body_names
 
     @property
-    def point_names(self) -> tuple[str, ...]:
-        return self.point_map.names
+    def point_names(self) -> Sequence[str]:
+        """Every named point of the model, in its order: a tuple, or for a model with
+        repeated units a sequence that names its copies' points on demand."""
+        names = self.point_map.names
+        return names if self.mechanism.copies else tuple(names)
 
     def point(self, name: str) -> PointMotion:
         """Global position (m), velocity (m/s) and acceleration (m/s²) of point `name`.

@@ -36,7 +36,10 @@ PAGES_WITH_CODE = {
     "how-to/lock-up-and-redundancy.md": (),
     "how-to/inverse-kinematics.md": (),
     "how-to/linear-solver.md": (),
-    "how-to/reading-results.md": ("pandas",),
+    "how-to/reading-results.md": ("pandas", "xarray"),
+    "how-to/chained-mechanisms.md": ("xarray",),
+    "how-to/forces.md": (),
+    "how-to/design-studies.md": ("distributed",),
     "reference/python/index.md": (),
 }
 
