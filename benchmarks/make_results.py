@@ -48,7 +48,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
-    others, large, sweeps = [], [], []
+    others, large, sweeps, forces, startup = [], [], [], [], []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -60,9 +60,14 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             large.append(info)
         elif record["name"].startswith("test_task5_amplitude_sweep"):
             sweeps.append(info)
+        elif record["name"].startswith(("test_task5_run", "test_chain_step")):
+            forces.append(dict(info, median=record["stats"]["median"]))
+        elif record["name"].startswith("test_startup"):
+            startup.append(info)
         else:
             others.append(record)
     document["others"], document["large"], document["sweeps"] = others, large, sweeps
+    document["forces"], document["startup"] = forces, startup
     return steps, setups, document
 
 
@@ -171,8 +176,12 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             lines.append(f"- {family}, {name}: {exponent:.3f}")
     if document["large"]:
         lines += ["", *_large_files(document["large"])]
+    if document["forces"]:
+        lines += ["", *_forces(document["forces"])]
     if document["sweeps"]:
         lines += ["", *_sweeps(document["sweeps"])]
+    if document["startup"]:
+        lines += ["", *_startup(document["startup"][0])]
     if document["others"]:
         lines += [
             "",
@@ -233,6 +242,56 @@ def _large_files(records: list[dict]) -> list[str]:
             f"{info['peak_rss_bytes'] / 2**30:.2f} GB",
         ]
         lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _forces(records: list[dict]) -> list[str]:
+    """The tables of `test_forces_cost.py`: what the forces cost on top of the kinematics."""
+    lines = [
+        "## Forces on top of the kinematics (`test_forces_cost.py`)",
+        "",
+        "Medians over rounds; each ratio divides by the kinematics alone in the same run. Task 5: the whole run",
+        "(10 s at 1 ms, compiled loop) of examples/task5_dynamics.toml, without forces and with every driver's",
+        "and joint's. `task5_chain` with the same masses on every copy, under gravity: a time step of the",
+        "refactorization path, then the same step and the forces of the drivers, or of every driver and joint.",
+        "",
+        "| model | bodies | forces | time | per step | ratio to kinematics |",
+        "|---|---|---|---|---|---|",
+    ]
+    base = {}
+    for info in records:
+        steps = info.get("steps_per_round") or (info["samples"] - 1)
+        info["per_step"] = info["median"] / steps
+        if info["forces"] in ("none", "kinematics"):
+            base[(info["family"], info["bodies"])] = info["per_step"]
+    for info in records:
+        reference = base.get((info["family"], info["bodies"]))
+        ratio = f"{info['per_step'] / reference:.2f}×" if reference else "—"
+        cells = [info["family"], f"{info['bodies']:,}", info["forces"], _seconds(info["median"]),
+                 _seconds(info["per_step"]), ratio]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _startup(info: dict) -> list[str]:
+    """`test_startup.py`: ``sparsekin run examples/task5.toml`` from the shell, warm and cold."""
+    runs = info["runs"]
+    lines = [
+        "## Start-up (`test_startup.py`)",
+        "",
+        "`sparsekin run examples/task5.toml` in fresh processes (`benchmarks/measure_startup.py`): medians of",
+        f"{len(runs['warm_seconds'])} warm runs (numba's cache filled) and {len(runs['cold_seconds'])} cold runs "
+        "(an empty cache: the first run after an install, every kernel compiled).",
+        "",
+        "| what | median | runs |",
+        "|---|---|---|",
+        f"| `import sparsekin.cli` | {_seconds(info['import_seconds'])} | "
+        + ", ".join(f"{v:.2f}" for v in runs["import_seconds"]) + " |",
+        f"| warm run | {_seconds(info['warm_seconds'])} | " + ", ".join(f"{v:.2f}" for v in runs["warm_seconds"]) + " |",
+    ]
+    if runs["cold_seconds"]:
+        lines.append(f"| cold run | {_seconds(info['cold_seconds'])} | "
+                     + ", ".join(f"{v:.1f}" for v in runs["cold_seconds"]) + " |")  # fmt: skip
     return lines
 
 

@@ -68,7 +68,6 @@ A slider-crank, from description to the motion of its slider:
 True
 """
 
-from .check import ModelReport, check_model
 from .errors import (
     AnalysisInterrupted,
     ConvergenceError,
@@ -98,7 +97,6 @@ from .elements import (
 )
 from .model import GROUND, Analysis, Body, Mechanism
 from .modelfile import load_model, save_model
-from .rank import JacobianAnalysis, analyse_jacobian
 from .results import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
 from .solvers import solve_kinematics
 from .stepper import KinematicStepper
@@ -162,9 +160,11 @@ __all__ = [
 __version__ = "0.1.0"
 
 #: Names imported on first use, so that ``import sparsekin`` loads neither Dask nor the
-#: sweep machinery: name -> module.
+#: sweep machinery, nor the rank analysis and its scipy modules that a run does not need
+#: (every ``sparsekin run`` pays for what ``import sparsekin`` imports): name -> module.
 _LAZY = {"sweep": "sweeps", "VariantSet": "sweeps", "SweepResult": "sweeps",
-         "workspace": "workspaces", "Workspace": "workspaces"}  # fmt: skip
+         "workspace": "workspaces", "Workspace": "workspaces", "check_model": "check", "ModelReport": "check",
+         "analyse_jacobian": "rank", "JacobianAnalysis": "rank"}  # fmt: skip
 
 
 def __getattr__(name: str):

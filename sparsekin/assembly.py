@@ -9,13 +9,17 @@ Nothing is allocated per call.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from scipy.sparse import csr_array
 
 from . import _kernels
 from .laws import LawPacker, fill_laws
 from .model import Mechanism
 from .pattern import ConstraintPattern
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_array
 
 __all__ = ["Assembler", "DriverLaws"]
 
@@ -103,9 +107,7 @@ class Assembler:
         # The CSR values, with one discard slot past the end for the ground's columns.
         self._jac_buffer = np.zeros(pattern.nnz + 1)
         self.values = self._jac_buffer[: pattern.nnz]
-        self._csr = csr_array((self.values, pattern.indices, pattern.indptr), shape=(n_equations, n_coordinates))
-        if pattern.nnz and not np.shares_memory(self._csr.data, self._jac_buffer):
-            raise RuntimeError("scipy copied the Jacobian values; the in-place refill would be lost")
+        self._csr = None  # the CSR array over `values`, made when first asked for (`jacobian`)
         self._primitives = pattern.primitives
         self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
         self.weights = pattern.residual_weights
@@ -122,10 +124,17 @@ class Assembler:
 
     @property
     def jacobian(self) -> csr_array:
-        if self._csr_position is None:
-            return self._csr
-        return csr_array((self.values[self._csr_position], self.pattern.indices, self.pattern.indptr),
-                         shape=self._csr.shape)  # fmt: skip
+        from scipy.sparse import csr_array  # here: the compiled loop of a small model never needs it
+
+        p = self.pattern
+        shape = (p.n_equations, p.n_coordinates)
+        if self._csr_position is not None:
+            return csr_array((self.values[self._csr_position], p.indices, p.indptr), shape=shape)
+        if self._csr is None:
+            self._csr = csr_array((self.values, p.indices, p.indptr), shape=shape)
+            if p.nnz and not np.shares_memory(self._csr.data, self._jac_buffer):
+                raise RuntimeError("scipy copied the Jacobian values; the in-place refill would be lost")
+        return self._csr
 
     @property
     def csr_positions(self) -> np.ndarray | None:

@@ -43,7 +43,6 @@ from pathlib import Path
 import numpy as np
 
 from . import _validate
-from .check import check_model
 from .errors import AnalysisInterrupted, ConvergenceError, ModelError, SingularConfigurationError
 from .model import Mechanism
 from .modelfile import load_model
@@ -523,6 +522,8 @@ def check_command(arguments: argparse.Namespace) -> int:
     CommandError, ModelError
         For a bad time or a bad model file; `main` reports them.
     """
+    from .check import check_model
+
     mechanism = load_model(arguments.model)
     if not math.isfinite(arguments.time):
         raise CommandError(f"--time must be a finite number (s), got {arguments.time!r}")

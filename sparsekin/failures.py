@@ -18,6 +18,7 @@ The time loop (`sparsekin.stepper`) decides *when* something failed; `Diagnosis`
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,8 +35,18 @@ from .dynamics import MAX_MIN_NORM_EQUATIONS
 from .errors import ConvergenceError, ModelError, RedundantConstraintWarning, SingularConfigurationError
 from .model import Mechanism
 from .pattern import ConstraintPattern
-from .rank import JacobianAnalysis, analyse_jacobian
 from .reduced import CONSISTENCY_TOLERANCE
+
+if TYPE_CHECKING:
+    from .rank import JacobianAnalysis
+
+
+def _analyse(jacobian, **options) -> JacobianAnalysis:
+    """`sparsekin.rank.analyse_jacobian`, imported when a diagnosis first needs it: its scipy
+    modules (dense and sparse LU, QR) are loaded by a run that fails, not by every run."""
+    from .rank import analyse_jacobian
+
+    return analyse_jacobian(jacobian, **options)
 
 __all__ = ["Diagnosis", "LOCK_RATIO"]
 
@@ -105,7 +116,7 @@ class Diagnosis:
         mechanism, pattern = self.mechanism, self.pattern
         assembler.set_time(t)
         assembler.fill_residual_jacobian(coordinates)
-        analysis = analyse_jacobian(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
+        analysis = _analyse(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
         n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
         if analysis.n_free:
             raise ModelError(self._free_motions_message(analysis, coordinates))
@@ -202,7 +213,7 @@ class Diagnosis:
         worst = self.worst_residual(system)
         system.set_time(t)
         system.fill_residual_jacobian(coordinates)
-        analysis = analyse_jacobian(system.jacobian)
+        analysis = _analyse(system.jacobian)
         if analysis.rank < self.pattern.n_coordinates:
             return self.dependent_at_start(analysis, coordinates, t)
         return ConvergenceError(
@@ -228,13 +239,13 @@ class Diagnosis:
         (t_first, q_first), (t_good, q_good) = first, good
         system.set_time(t_first)
         system.fill_residual_jacobian(q_first)
-        start = analyse_jacobian(system.jacobian)
+        start = _analyse(system.jacobian)
         if start.rank < start.shape[1]:
             return self.dependent_at_start(start, q_first, t_first)
         reference = start.smallest_singular_value
         system.set_time(t_good)
         system.fill_residual_jacobian(q_good)
-        analysis = analyse_jacobian(system.jacobian)
+        analysis = _analyse(system.jacobian)
         if analysis.rank < analysis.shape[1] or analysis.smallest_singular_value <= LOCK_RATIO * reference:
             return self.singular_configuration(
                 system, assembler, analysis, q_good, t_failed, (t_first, reference),

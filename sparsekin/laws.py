@@ -25,7 +25,6 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 from numba import njit
-from scipy.interpolate import CubicSpline
 
 from . import _validate
 from ._jit import JIT
@@ -146,7 +145,7 @@ class Spline(_BuiltIn):
 
     times: tuple[float, ...]
     values: tuple[float, ...]
-    _curve: CubicSpline = field(init=False, repr=False, compare=False)
+    _curve: object = field(init=False, repr=False, compare=False)  # scipy's CubicSpline
 
     type_name = "spline"
     file_keys = FileKeys(forms=(("times", "values"), ("file",)))
@@ -165,6 +164,8 @@ class Spline(_BuiltIn):
             raise ModelError("expected strictly increasing times", element="times")
         _set(self, "times", times)
         _set(self, "values", values)
+        from scipy.interpolate import CubicSpline  # here: importing it costs every run a quarter second
+
         _set(self, "_curve", CubicSpline(times, values))
 
     @property

@@ -24,14 +24,14 @@ on a fixed pattern; `RefactorSolver` only) and ``n_solves`` (right-hand sides so
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-import scipy.linalg
-from scipy.sparse import csc_array, csr_array
-from scipy.sparse.linalg import splu
 
 from . import _lu_kernels
+
+if TYPE_CHECKING:
+    from scipy.sparse import csc_array, csr_array
 
 __all__ = [
     "LinearSolver",
@@ -56,6 +56,14 @@ MAX_GROWTH = 1e3
 #: The column ordering of every SuperLU factorization.
 _ORDERING = "COLAMD"
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
+
+
+def _splu(matrix: csc_array):
+    """SuperLU of a CSC matrix with `_ORDERING`.  scipy.sparse.linalg is imported here, on the
+    first factorization: a small model's run, all in the compiled loop, never loads it."""
+    from scipy.sparse.linalg import splu
+
+    return splu(matrix, permc_spec=_ORDERING)
 
 
 class SingularMatrix(RuntimeError):
@@ -141,7 +149,7 @@ class SuperLUSolver:
         """Factor `jacobian` (square CSR); raise `SingularMatrix` if it is exactly singular."""
         self.n_factorizations += 1
         try:
-            self._lu = splu(jacobian.T, permc_spec=_ORDERING)
+            self._lu = _splu(jacobian.T)
         except RuntimeError as error:  # "Factor is exactly singular"
             self._lu = None
             raise SingularMatrix(str(error)) from error
@@ -406,6 +414,8 @@ class RefactorSolver:
 
     def _transposed_csc(self, data: np.ndarray) -> csc_array:
         """``jacobian.T`` as a CSC array with the analysed pattern and the given values."""
+        from scipy.sparse import csc_array
+
         return csc_array((data, self._indices, self._indptr), shape=(self._n, self._n))
 
     def _analyse_and_factor(self, matrix: csc_array) -> None:
@@ -442,7 +452,7 @@ class RefactorSolver:
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
         try:
-            lu = splu(matrix, permc_spec=_ORDERING)
+            lu = _splu(matrix)
         except RuntimeError as error:  # "Factor is exactly singular"
             raise SingularMatrix(str(error)) from error
         perm_r = lu.perm_r.astype(np.int64)
@@ -532,12 +542,16 @@ class DenseSolver:
         self.n_solves = 0
         self._n = -1
         self._factored = False
-        self._getrf, self._getrs = scipy.linalg.lapack.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+        self._getrf = self._getrs = None  # LAPACK's, looked up at the first factorization
 
     def factor(self, jacobian: csr_array) -> None:
         """Factor `jacobian` (square CSR); raise `SingularMatrix` if a pivot is exactly zero."""
         n = _checked_square(jacobian)
         self._factored = False
+        if self._getrf is None:
+            import scipy.linalg
+
+            self._getrf, self._getrs = scipy.linalg.lapack.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
         if n != self._n:
             self._n = n
             self._dense = np.zeros((n, n))  # C order: its Fortran view ``.T`` is jacobian.T

@@ -20,7 +20,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.sparse.linalg import splu
 
 from .assembly import Assembler
 from .model import Analysis, Mechanism
@@ -63,6 +62,8 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     assembler.set_time(t)
     assembler.fill_residual_jacobian(short_pattern.initial_coordinates)
     try:
+        from scipy.sparse.linalg import splu  # here: a long chain's run, not every run
+
         lu = splu(assembler.jacobian.T.tocsc(), permc_spec="COLAMD")
     except RuntimeError:  # singular at the drawing: let the long chain's own factorization say so
         return None

@@ -12,8 +12,6 @@ assembler's Jacobian are computed once; each refill is one gather, not a new mat
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_array
-
 from .assembly import Assembler
 
 __all__ = ["ReducedSystem", "CONSISTENCY_TOLERANCE"]
@@ -52,6 +50,8 @@ class ReducedSystem:
         self.rows = np.asarray(rows, dtype=np.int64)
         self.held = np.zeros(0, dtype=np.int64) if held is None else np.asarray(held, dtype=np.int64)
         self.held_values = np.zeros(0) if held_values is None else np.asarray(held_values, dtype=float)
+        from scipy.sparse import csr_array  # here: only a model with redundant equations needs it
+
         full = assembler.jacobian
         n_kept, n_held = self.rows.size, self.held.size
         starts, ends = full.indptr[self.rows], full.indptr[self.rows + 1]
