@@ -19,18 +19,17 @@ centre of mass at ``a = R s`` from its frame origin, the acceleration of the cen
 
 from __future__ import annotations
 
-import math
 
 from numba import njit
 
 from ._jit import JIT
+from ._kernels import _turned, point_separation, separation_rate
 
 
 @njit(inline="always", **JIT)
 def _arm(turns, body, local):
     """R(angle_body) @ local."""
-    c, s = turns[body, 0], turns[body, 1]
-    return c * local[0] - s * local[1], s * local[0] + c * local[1]
+    return _turned(turns[body, 0], turns[body, 1], local)
 
 
 @njit(inline="always", **JIT)
@@ -73,15 +72,9 @@ def fill_applied_forces(loads, q, qd, qdd, turns, law_values, inertial, out):
     spring = loads.spring
     for k in range(spring.body_i.size):
         i, j = spring.body_i[k], spring.body_j[k]
-        aix, aiy = _arm(turns, i, spring.local_i[k])
-        ajx, ajy = _arm(turns, j, spring.local_j[k])
-        dx = q[3 * j] + ajx - q[3 * i] - aix
-        dy = q[3 * j + 1] + ajy - q[3 * i + 1] - aiy
-        length = math.hypot(dx, dy)
+        aix, aiy, ajx, ajy, dx, dy, length = point_separation(q, turns, i, j, spring.local_i[k], spring.local_j[k])
         ex, ey = dx / length, dy / length
-        wi, wj = qd[3 * i + 2], qd[3 * j + 2]
-        vx = qd[3 * j] - wj * ajy - qd[3 * i] + wi * aiy
-        vy = qd[3 * j + 1] + wj * ajx - qd[3 * i + 1] - wi * aix
+        vx, vy = separation_rate(qd, i, j, aix, aiy, ajx, ajy)
         tension = spring.stiffness[k] * (length - spring.free_length[k]) + spring.damping[k] * (ex * vx + ey * vy)
         _add_force(out, i, aix, aiy, tension * ex, tension * ey)
         _add_force(out, j, ajx, ajy, -tension * ex, -tension * ey)

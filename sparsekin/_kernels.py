@@ -152,17 +152,31 @@ def fill_combination_gamma(m, gamma):
 
 
 # ---------------------------------------------------------------------- distance
+@njit(inline="always", **JIT)
+def point_separation(q, turns, body_i, body_j, local_i, local_j):
+    """Arms ``a = R_i s_i``, ``b = R_j s_j`` and ``d = r_j + b - r_i - a`` with its length:
+    ``(ax, ay, bx, by, dx, dy, length)``."""
+    i, j = 3 * body_i, 3 * body_j
+    ax, ay = _turned(turns[body_i, 0], turns[body_i, 1], local_i)
+    bx, by = _turned(turns[body_j, 0], turns[body_j, 1], local_j)
+    dx = q[j] + bx - q[i] - ax
+    dy = q[j + 1] + by - q[i + 1] - ay
+    return ax, ay, bx, by, dx, dy, math.hypot(dx, dy)
+
+
+@njit(inline="always", **JIT)
+def separation_rate(qd, body_i, body_j, ax, ay, bx, by):
+    """``d' = r_j' + Omega b w_j - r_i' - Omega a w_i`` of `point_separation`'s d."""
+    i, j = 3 * body_i, 3 * body_j
+    wi, wj = qd[i + 2], qd[j + 2]
+    return qd[j] - by * wj - qd[i] + ay * wi, qd[j + 1] + bx * wj - qd[i + 1] - ax * wi
+
+
 @njit(**JIT)
 def fill_distance(q, turns, d, residual, jac_data):
     """g = |d|, d = r_j + b - r_i - a: 1 row, 6 entries, with e = d / |d|."""
     for k in range(d.row.size):
-        bi, bj = d.body_i[k], d.body_j[k]
-        i, j = 3 * bi, 3 * bj
-        ax, ay = _turned(turns[bi, 0], turns[bi, 1], d.local_i[k])
-        bx, by = _turned(turns[bj, 0], turns[bj, 1], d.local_j[k])
-        dx = q[j] + bx - q[i] - ax
-        dy = q[j + 1] + by - q[i + 1] - ay
-        length = math.hypot(dx, dy)
+        ax, ay, bx, by, dx, dy, length = point_separation(q, turns, d.body_i[k], d.body_j[k], d.local_i[k], d.local_j[k])
         ex, ey = dx / length, dy / length
         residual[d.row[k]] = length
         s = d.slots[k]
@@ -179,16 +193,10 @@ def fill_distance_gamma(q, qd, turns, d, gamma):
     """gamma = e·(b w_j² - a w_i²) - (|d'|² - (e·d')²) / |d|."""
     for k in range(d.row.size):
         bi, bj = d.body_i[k], d.body_j[k]
-        i, j = 3 * bi, 3 * bj
-        wi, wj = qd[i + 2], qd[j + 2]
-        ax, ay = _turned(turns[bi, 0], turns[bi, 1], d.local_i[k])
-        bx, by = _turned(turns[bj, 0], turns[bj, 1], d.local_j[k])
-        dx = q[j] + bx - q[i] - ax
-        dy = q[j + 1] + by - q[i + 1] - ay
-        length = math.hypot(dx, dy)
+        wi, wj = qd[3 * bi + 2], qd[3 * bj + 2]
+        ax, ay, bx, by, dx, dy, length = point_separation(q, turns, bi, bj, d.local_i[k], d.local_j[k])
         ex, ey = dx / length, dy / length
-        ddx = qd[j] - by * wj - qd[i] + ay * wi
-        ddy = qd[j + 1] + bx * wj - qd[i + 1] - ax * wi
+        ddx, ddy = separation_rate(qd, bi, bj, ax, ay, bx, by)
         along = ex * ddx + ey * ddy
         gamma[d.row[k]] = (
             ex * (bx * wj * wj - ax * wi * wi) + ey * (by * wj * wj - ay * wi * wi)

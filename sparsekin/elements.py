@@ -701,25 +701,14 @@ class DistanceDriver(Driver):
 
     def __post_init__(self) -> None:
         _pair_checks(self)
-        points = self.points
-        if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
-            raise ModelError(f"expected two points [P, Q], got {points!r}", element="points")
-        _set(self, "points", (_validate.point_reference(points[0], "points[0]"),
-                              _validate.point_reference(points[1], "points[1]")))  # fmt: skip
+        _set(self, "points", _two_points(self.points))
         _driver_checks(self)
 
     def check(self, mechanism, where: str) -> None:
-        p, q = mechanism.position(self.points[0]), mechanism.position(self.points[1])
-        if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
-            raise ModelError(
-                f"{shown_point(self.points[0])} and {shown_point(self.points[1])} coincide in the drawing; "
-                "expected two distinct points (the distance has no direction at zero length)",
-                element=f"{where}.points",
-            )
+        _check_apart(mechanism, self.points, where, "the distance has no direction at zero length")
 
     def describe(self) -> str:
-        return f"distance {self.bodies[0]}.{shown_point(self.points[0])}–{self.bodies[1]}.{shown_point(self.points[1])}"
-
+        return f"distance {_point_pair_words(self)}"
 
     @classmethod
     def equations(cls, drivers: Columns):
@@ -888,27 +877,17 @@ class Spring(Load):
 
     def __post_init__(self) -> None:
         _pair_checks(self)
-        points = self.points
-        if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
-            raise ModelError(f"expected two points [P, Q], got {points!r}", element="points")
-        _set(self, "points", (_validate.point_reference(points[0], "points[0]"),
-                              _validate.point_reference(points[1], "points[1]")))  # fmt: skip
+        _set(self, "points", _two_points(self.points))
         _set(self, "stiffness", _validate.non_negative_float(self.stiffness, "stiffness"))
         _set(self, "damping", _validate.non_negative_float(self.damping, "damping"))
         if self.free_length is not None:
             _set(self, "free_length", _validate.non_negative_float(self.free_length, "free_length"))
 
     def check(self, mechanism, where: str) -> None:
-        p, q = mechanism.position(self.points[0]), mechanism.position(self.points[1])
-        if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
-            raise ModelError(
-                f"{shown_point(self.points[0])} and {shown_point(self.points[1])} coincide in the drawing; "
-                "expected two distinct points (the spring's force has no direction at zero length)",
-                element=f"{where}.points",
-            )
+        _check_apart(mechanism, self.points, where, "the spring's force has no direction at zero length")
 
     def describe(self) -> str:
-        return f"spring {self.bodies[0]}.{shown_point(self.points[0])}–{self.bodies[1]}.{shown_point(self.points[1])}"
+        return f"spring {_point_pair_words(self)}"
 
     @classmethod
     def loads(cls, loads: Columns):
@@ -944,6 +923,30 @@ def shown_point(reference: PointRef | None) -> str:
     if isinstance(reference, str):
         return reference
     return f"({reference[0]:g}, {reference[1]:g})"
+
+
+def _two_points(points) -> tuple[PointRef, PointRef]:
+    """The ``points`` of a two-point element (a distance driver, a spring), validated."""
+    if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
+        raise ModelError(f"expected two points [P, Q], got {points!r}", element="points")
+    return _validate.point_reference(points[0], "points[0]"), _validate.point_reference(points[1], "points[1]")
+
+
+def _check_apart(mechanism, points, where: str, why: str) -> None:
+    """The two points of a two-point element must not coincide in the drawing."""
+    p, q = mechanism.position(points[0]), mechanism.position(points[1])
+    if math.hypot(q[0] - p[0], q[1] - p[1]) == 0.0:
+        raise ModelError(
+            f"{shown_point(points[0])} and {shown_point(points[1])} coincide in the drawing; "
+            f"expected two distinct points ({why})",
+            element=f"{where}.points",
+        )
+
+
+def _point_pair_words(element) -> str:
+    """``c1.A–rod.B``: the two ends of a two-point element in words."""
+    (body_i, body_j), (point_i, point_j) = element.bodies, element.points
+    return f"{body_i}.{shown_point(point_i)}–{body_j}.{shown_point(point_j)}"
 
 
 def _angle_difference(rows: np.ndarray, i: np.ndarray, j: np.ndarray) -> Combination:

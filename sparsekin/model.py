@@ -338,24 +338,18 @@ class Mechanism:
                 return copies.element("joints", split[0], copies.joint_index[split[1]])
         raise KeyError(name)
 
-    def joint_index(self, name: str) -> int:
-        """Position of the joint called `name` in `joints`; KeyError if there is none."""
-        index = self._joint_index.get(name)
-        if index is not None:
-            return index
-        for copies in self._copies:
-            split = copies.split(name)
-            if split is not None and split[1] in copies.joint_index:
-                return copies.first_joint + split[0] * copies.n_joints + copies.joint_index[split[1]]
-        raise KeyError(name)
-
     def index_of(self, kind: str, name: str) -> int:
         """Position in `joints` or `drivers` (`kind`) of the element called `name`; KeyError
         if there is none.  A copy's element is found by its expanded name, without building
         the copies."""
-        for index, element in enumerate(self.own(kind)):
-            if element.name == name:
+        if kind == "joints":
+            index = self._joint_index.get(name)
+            if index is not None:
                 return index
+        else:
+            for index, element in enumerate(self.own(kind)):
+                if element.name == name:
+                    return index
         for copies in self._copies:
             split = copies.split(name)
             if split is None:

@@ -304,7 +304,7 @@ def test_every_body_of_a_four_bar_balances_its_forces_and_moments():
         moment = np.zeros(times.size)
         for joint, sign in acting[body.name]:
             f = sign * result.reaction(joint).force
-            arm = result.point(mechanism.joints[mechanism.joint_index(joint)].at).position - com[:, b]
+            arm = result.point(mechanism.joints[mechanism.index_of("joints", joint)].at).position - com[:, b]
             force = force + f
             moment += arm[:, 0] * f[:, 1] - arm[:, 1] * f[:, 0]
         if body.name == "crank":
