@@ -1,9 +1,12 @@
 """numba kernels: arrays in, preallocated arrays filled in place.
 
 One pair of kernels per primitive equation of `sparsekin.primitives` (its residual and
-Jacobian values; its gamma), and the wiring that calls them all: `fill_residual_jacobian`
-and `fill_gamma` are what the assembler, the compiled time loop and the joint outputs
-call, on the same packed `Primitives`.
+Jacobian values; its gamma), and the wiring that calls them all on the same packed
+`Primitives`: `residual_jacobian` and `acceleration_rhs` are inlined into the compiled
+time loop (`sparsekin._compiled`), and the assembler calls them from Python through
+`fill_residual_jacobian` and `fill_gamma`; `fill_outputs`, which evaluates the elements'
+own coordinates (the joint outputs) at every sample, runs the same primitive kernels
+(`_fill_all`, `acceleration_rhs`) on the outputs' `Primitives`.
 
 Symbols (for these kernels only):
 
@@ -218,20 +221,23 @@ def _fill_all(primitives, q, turns, residual, jac_data):
 def residual_jacobian(primitives, q, turns, target, weights, residual, jac_data):
     """Residual g(q) - target and the Jacobian values at q; returns the weighted norm.
 
-    The norm is max |residual| · weights, NaN when any entry is not finite.  `turns`
-    receives the cos and sin of every body's angle at q.  (Inlined into the compiled
-    time loop; `fill_residual_jacobian` calls it from Python.)
+    The norm is max |residual| · weights, NaN when any entry is not finite; every row
+    is g(q) - target even then.  `turns` receives the cos and sin of every body's angle
+    at q.  (Inlined into the compiled time loop; `fill_residual_jacobian` calls it from
+    Python.)
     """
     _fill_all(primitives, q, turns, residual, jac_data)
     norm = 0.0
+    finite = True
     for r in range(residual.size):
         residual[r] -= target[r]
         weighted = abs(residual[r]) * weights[r]
         if not weighted <= norm:  # larger, or NaN
-            if not math.isfinite(weighted):
-                return math.nan
-            norm = weighted
-    return norm
+            if math.isfinite(weighted):
+                norm = weighted
+            else:
+                finite = False
+    return norm if finite else math.nan
 
 
 @njit(**JIT)
@@ -269,8 +275,9 @@ def fill_outputs(primitives, indptr, indices, coordinates, velocities, accelerat
     jac_data = np.zeros(indptr[n_rows] + 1)
     gamma = np.zeros(n_rows)
     for k in range(coordinates.shape[0]):
-        q[:n] = coordinates[k]
-        qd[:n] = velocities[k]
+        for c in range(n):
+            q[c] = coordinates[k, c]
+            qd[c] = velocities[k, c]
         _fill_all(primitives, q, turns, value[k], jac_data)
         acceleration_rhs(primitives, q, qd, turns, gamma)
         for r in range(n_rows):

@@ -23,14 +23,17 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import islice
 
 import numpy as np
 
 from . import _validate
 from ._validate import FileKeys
-from .elements import COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS, Driver, Joint, Load, PointRef
+from .elements import (
+    COORDINATE_NAMES, DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS, Driver, Joint, Load, PointRef, _Element,
+)
 from .errors import ModelError
-from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step
+from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message
 
 __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
 
@@ -164,7 +167,10 @@ class Mechanism:
                 self._check_point(body.com, "bodies[{}].com", index)
         _set(self, "_body_index", body_index)
         _set(self, "_joint_index", self._check_elements("joints", self.joints))
-        self._check_elements("drivers", self.drivers)
+        for name, index in self._check_elements("drivers", self.drivers).items():
+            if name in self._joint_index:
+                raise ModelError(_same_name_message(name, f"joints[{self._joint_index[name]}]"),
+                                 element=f"drivers[{index}].name")  # fmt: skip
         self._check_elements("loads", self.loads)
         self._check_copies()
         if self.analysis.points is not None:
@@ -373,7 +379,7 @@ class Mechanism:
     def _check_point(self, reference: PointRef, where: str, *where_arguments) -> None:
         if isinstance(reference, str) and reference not in self.points:
             raise ModelError(
-                f'unknown point "{reference}" (known: {_validate.known_list(list(self.points))})',
+                f'unknown point "{reference}" (known: {_known_names(self.points)})',
                 element=where.format(*where_arguments),
             )
 
@@ -404,13 +410,14 @@ class Mechanism:
                 if a != b and second.startswith(first) and (second == first or second[len(first) :][:1].isdigit()):
                     raise ModelError(f'prefix "{second}" of repeat[{b}] cannot be told from prefix "{first}" of '
                                      f"repeat[{a}] in names like {first}12.NAME", element=f"repeat[{b}].prefix")  # fmt: skip
+        own_names = [*self.own("points"), *self._body_index, *self._joint_index,
+                     *(element.name for kind in ("drivers", "loads") for element in self.own(kind) if element.name)]
         for c in copies:
-            own_names = [*self.own("points"), *self._body_index, *self._joint_index,
-                         *(d.name for d in self.own("drivers") if d.name)]  # fmt: skip
             for name in own_names:
                 split = c.split(name)
                 if split is not None and (split[1] in c.point_index or split[1] in c.body_index
-                                          or split[1] in c.joint_index or split[1] in c.driver_index):  # fmt: skip
+                                          or split[1] in c.joint_index or split[1] in c.driver_index
+                                          or split[1] in c.load_index):  # fmt: skip
                     raise ModelError(f'"{name}" is also the name of copy {split[0]}\'s {split[1]}',
                                      element=f"{c.label}.prefix")
             for target in c.repeat.first.values():
@@ -423,12 +430,15 @@ class Mechanism:
 
     def _check_copy_element(self, copies: Copies, kind: str, k: int, e: int, where: str) -> None:
         element = copies.element(kind, k, e)
-        label = f"{where}.{kind}[{e}]"
-        if kind == "bodies":
+        if kind == "bodies":  # spelled as in the file: units.NAME.bodies.BODY
+            label = f"{where}.bodies.{copies.unit.bodies[e].name}"
             self._check_point(element.origin, "{}.origin", label)
             for n, point in enumerate(element.points):
                 self._check_point(point, "{}.points[{}]", label, n)
+            if element.com is not None:
+                self._check_point(element.com, "{}.com", label)
             return
+        label = f"{where}.{kind}[{e}]"
         declaration = type(element)
         for field_name in declaration.body_fields:
             value = getattr(element, field_name)
@@ -441,7 +451,7 @@ class Mechanism:
             elif value is not None and type(value[0]) is not float:
                 for n, reference in enumerate(value):
                     self._check_point(reference, "{}.{}[{}]", label, field_name, n)
-        if type(element).check is not Joint.check:
+        if type(element).check is not _Element.check:
             element.check(self, label)
 
     def _check_elements(self, kind: str, elements) -> dict[str, int]:
@@ -470,7 +480,7 @@ class Mechanism:
                     raise ModelError(f'duplicate {singular} name "{element.name}"', element=f"{kind}[{index}].name")
                 names[element.name] = index
         for index, element in enumerate(elements):
-            if type(element).check is not Joint.check:
+            if type(element).check is not _Element.check:
                 element.check(self, f"{kind}[{index}]")
         return names
 
@@ -499,6 +509,14 @@ class _BodyNames(Sequence):
         if index < 0:
             index += len(self)
         return self._mechanism.body_name(index)
+
+
+def _known_names(names) -> str:
+    """`_validate.known_list` of the names of `names` (a mapping, or a `PointTable` of
+    millions of copies' points), reading only its first and last few."""
+    if len(names) <= 6:
+        return _validate.known_list(list(names))
+    return f"{', '.join(islice(names, 4))} … {', '.join(list(islice(reversed(names), 2))[::-1])}"
 
 
 def _point_pair(name: str, value: object) -> tuple[float, float]:

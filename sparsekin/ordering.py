@@ -22,6 +22,7 @@ import dataclasses
 import numpy as np
 
 from .assembly import Assembler
+from .errors import ModelError
 from .model import Analysis, Mechanism
 from .pattern import ConstraintPattern, build_pattern
 from .units import Cycle, Step
@@ -38,7 +39,8 @@ MAX_MIDDLE_COPIES = 64
 def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
     """``(perm_r, perm_c)`` for the first factorization of ``jacobian.T`` (SuperLU's
     convention: ``Pr A Pc = L U``), tiled from a short chain; None if the mechanism has no
-    repeats, or the tiling does not give a permutation.
+    repeats, names a copy that the short chain lacks (an own driver on ``u4999.crank``,
+    a repeat's `first`), or the tiling does not give a permutation.
 
     Parameters
     ----------
@@ -52,11 +54,17 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     if not mechanism.copies or pattern.n_equations != pattern.n_coordinates:
         return None
     middles = [_middle_copies(copies) for copies in mechanism.copies]
-    short = dataclasses.replace(
-        mechanism,
-        analysis=Analysis(),
-        repeats=tuple(dataclasses.replace(c.repeat, count=min(c.count, m + 2)) for c, m in zip(mechanism.copies, middles)),
-    )
+    try:
+        short = dataclasses.replace(
+            mechanism,
+            analysis=Analysis(),
+            repeats=tuple(dataclasses.replace(c.repeat, count=min(c.count, m + 2))
+                          for c, m in zip(mechanism.copies, middles)),  # fmt: skip
+        )
+    except ModelError:
+        # The model names a copy beyond the short chain (its own driver on ``u4999.crank``,
+        # another repeat's `first`): no short chain, SuperLU orders the long one.
+        return None
     short_pattern = build_pattern(short)
     assembler = Assembler(short, short_pattern)
     assembler.set_time(t)

@@ -15,6 +15,7 @@ relative angle, a cylinder's stroke), which the results evaluate with the same k
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -229,7 +230,8 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
 
 def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> OutputPattern:
     """The own coordinate of every joint and driver whose kind declares one, or of the
-    joints and drivers of the given indices only (`joints`, `drivers`), in that order."""
+    joints and drivers of the given indices only (`joints`, `drivers`), in that order
+    (an index given twice counts once)."""
     if joints is not None or drivers is not None:
         return _selected_outputs(mechanism, joints or (), drivers or ())
     resolver = Resolver(mechanism)
@@ -250,12 +252,15 @@ def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> Out
 
 
 def _selected_outputs(mechanism: Mechanism, joints, drivers) -> OutputPattern:
-    """Output rows for a few chosen elements, built from them as objects."""
+    """Output rows for a few chosen elements, built from them as objects; an element given
+    twice has one row."""
     resolver = Resolver(mechanism)
     rows = {"joints": np.full(mechanism.n_joints, -1, dtype=np.int64),
             "drivers": np.full(mechanism.n_drivers, -1, dtype=np.int64)}  # fmt: skip
     blocks, n_rows = [], 0
     for kind, indices in (("joints", joints), ("drivers", drivers)):
+        size = len(rows[kind])
+        indices = list(dict.fromkeys(k + size if k < 0 else k for k in map(operator.index, indices)))  # one row each
         elements = [getattr(mechanism, kind)[k] for k in indices]
         for k, element in zip(indices, elements):
             if not type(element).output_names:
@@ -273,9 +278,12 @@ def _selected_outputs(mechanism: Mechanism, joints, drivers) -> OutputPattern:
 class PointMap:
     """Where each named point rides: its body (-1 for the ground) and its local position.
 
-    A point rides on the first body that lists it; a point that no body lists is on the
+    A point rides on the first body that lists it, in the order of `Mechanism.bodies`
+    (the model's own, then each repeat's copies); a point that no body lists is on the
     ground (its local position is then its global one).  Points of a repeated unit's
-    copies are located by index arithmetic when asked, without a table of every point.
+    copies are located by index arithmetic when asked, without a table of every point;
+    a point of the model that a unit's body lists rides on that body of the unit's
+    first copy (as in `Mechanism.expanded`) unless an earlier body lists it.
 
     Attributes
     ----------
@@ -291,11 +299,15 @@ class PointMap:
             for point in body.points:
                 self._carrier.setdefault(point, index)
         self._unit_carriers = []
+        self._model_carriers: dict[str, int] = {}  # model points that units' bodies list: copy 0's body
         for copies in mechanism.copies:
             carriers: dict[str, int] = {}
             for index, body in enumerate(copies.unit.bodies):
                 for point in body.points:
-                    carriers.setdefault(point, index)
+                    if point in copies.point_index:
+                        carriers.setdefault(point, index)
+                    else:
+                        self._model_carriers.setdefault(point, copies.first_body + index)
             self._unit_carriers.append(carriers)
         self._frames: np.ndarray | None = None
 
@@ -305,12 +317,14 @@ class PointMap:
         position = np.asarray(mechanism.points[name], dtype=float)  # KeyError for an unknown name
         body = self._carrier.get(name, -1)
         if body < 0 and mechanism.copies:
+            candidates = [self._model_carriers.get(name, -1)]
             located = mechanism.points.locate(name)
             if located is not None:
                 copies, k, p = located
                 unit_body = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], -1)
                 if unit_body >= 0:
-                    body = copies.first_body + k * copies.n_bodies + unit_body
+                    candidates.append(copies.first_body + k * copies.n_bodies + unit_body)
+            body = min((c for c in candidates if c >= 0), default=-1)  # the first body that lists it
         if body < 0:
             return -1, position
         if self._frames is None:
@@ -325,19 +339,33 @@ class PointMap:
 
 
 class _Names(Sequence):
-    """The point names of a mechanism with repeats, as a sequence built on demand."""
+    """The point names of a mechanism with repeats (a `~sparsekin.units.PointTable`), as a
+    sequence: name i found by index arithmetic, not by walking the names before it."""
 
     def __init__(self, points) -> None:
         self._points = points
+        self._own = tuple(points.own)
+        self._unit_names = [tuple(copies.unit.points) for copies in points.copies]
+        sizes = [len(self._own), *(c.count * len(names) for c, names in zip(points.copies, self._unit_names))]
+        self._starts = np.cumsum([0, *sizes])
 
     def __len__(self) -> int:
-        return len(self._points)
+        return int(self._starts[-1])
 
     def __getitem__(self, index):
-        for k, name in enumerate(self._points):
-            if k == index:
-                return name
-        raise IndexError(index)
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        index = operator.index(index)
+        if index < 0:
+            index += len(self)
+        if not 0 <= index < len(self):
+            raise IndexError(f"point index {index} out of range")
+        if index < len(self._own):
+            return self._own[index]
+        segment = int(np.searchsorted(self._starts, index, side="right")) - 1  # 1 + the repeat's position
+        names = self._unit_names[segment - 1]
+        within = index - int(self._starts[segment])
+        return self._points.copies[segment - 1].name(within // len(names), names[within % len(names)])
 
     def __iter__(self):
         return iter(self._points)

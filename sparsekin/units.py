@@ -1,7 +1,7 @@
 """Units repeated into chains: one description, many copies, no object per copy.
 
-A `Unit` is a small sub-mechanism (points, bodies, joints, drivers) whose names are local
-to it; a body named ``prev.NAME`` is body NAME of the copy before.  A `Repeat` makes
+A `Unit` is a small sub-mechanism (points, bodies, joints, drivers, loads) whose names are
+local to it; a body named ``prev.NAME`` is body NAME of the copy before.  A `Repeat` makes
 ``count`` copies of a unit: copy k's names are ``PREFIX{k}.NAME``, its drawing is
 translated by ``k · offset``, and `vary` gives copies their own law parameters or point
 positions (`Step`: the unit's value + k · step; `Cycle`: values[k mod len]).  A
@@ -37,6 +37,7 @@ over the copies from the same arithmetic.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -107,13 +108,18 @@ class Unit:
             if body.name in bodies:
                 raise ModelError(f'duplicate body name "{body.name}"', element=f"bodies[{index}].name")
             bodies[body.name] = index
-        for kind in ("joints", "drivers"):
-            seen: set[str] = set()
+        named: dict[str, dict[str, int]] = {}
+        for kind in ("joints", "drivers", "loads"):
+            seen = named[kind] = {}
             for index, element in enumerate(getattr(self, kind)):
                 if element.name is not None:
                     if element.name in seen:
                         raise ModelError(f'duplicate {kind[:-1]} name "{element.name}"', element=f"{kind}[{index}].name")
-                    seen.add(element.name)
+                    seen[element.name] = index
+        for driver_name, index in named["drivers"].items():
+            if driver_name in named["joints"]:
+                raise ModelError(_same_name_message(driver_name, f'joints[{named["joints"][driver_name]}]'),
+                                 element=f"drivers[{index}].name")  # fmt: skip
         for kind in ("joints", "drivers", "loads"):  # a "prev." reference must name a body of the unit
             for index, element in enumerate(getattr(self, kind)):
                 for field_name, k, name in _body_references(element):
@@ -143,8 +149,9 @@ class Repeat:
     first : mapping
         What ``prev.NAME`` means for copy 0: ``{"prev.crank": "crank0"}``; default the ground.
     vary : mapping of path to Step or Cycle
-        Per-copy values of a law parameter (``drivers[0].law.phase``,
-        ``drivers.NAME.law.amplitude``) or of a point (``points.M``).
+        Per-copy values of a law's number parameter (``drivers[0].law.phase``,
+        ``drivers.NAME.law.amplitude``) or of a point (``points.M``); checked here,
+        against the unit, for every copy.
     """
 
     unit: Unit
@@ -173,11 +180,16 @@ class Repeat:
         if not isinstance(self.vary, Mapping):
             raise ModelError(f"expected a table of path = {{ step = … }} or {{ cycle = […] }}, got {self.vary!r}",
                              element="vary")  # fmt: skip
+        vary = {}
         for path, variation in self.vary.items():
             if not isinstance(variation, (Step, Cycle)):
                 raise ModelError(f"expected {{ step = … }} or {{ cycle = […] }}, got {variation!r}", element=f'vary."{path}"')
-            _resolve_path(self.unit, path)
-        object.__setattr__(self, "vary", dict(self.vary))
+            target = _resolve_path(self.unit, path)
+            try:
+                vary[path] = _checked_variation(self.unit, target, variation, self.count)
+            except ModelError as error:
+                raise error.within(f'vary."{path}"') from None
+        object.__setattr__(self, "vary", vary)
 
 
 # ---------------------------------------------------------------------- variation paths
@@ -209,6 +221,12 @@ def _resolve_path(unit: Unit, path: str):
         law = getattr(driver, law_field)
         if not dataclasses.is_dataclass(law) or key not in {f.name for f in dataclasses.fields(law) if f.init}:
             raise ModelError(f"{type(law).__name__} has no parameter {key}", element=where)
+        value = getattr(law, key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+            kind = getattr(law, "type_name", type(law).__name__)
+            shown = "a list" if _validate.is_sequence(value) else _validate._shown(value)
+            raise ModelError(f"{key} of a {kind} law is {shown}, not a number: vary steps or cycles a law's number "
+                             "parameters only", element=where)  # fmt: skip
         return ("law", index, law_field, key)
     match = _POINT_PATH.fullmatch(path)
     if match:
@@ -216,6 +234,55 @@ def _resolve_path(unit: Unit, path: str):
             raise ModelError(f'unit "{unit.name}" has no point "{match[1]}"', element=where)
         return ("point", match[1])
     raise ModelError("expected drivers[i].law.KEY, drivers.NAME.law.KEY or points.NAME", element=where)
+
+
+def _checked_variation(unit: Unit, target: tuple, variation: Step | Cycle, count: int) -> Step | Cycle:
+    """`variation` of the parameter or point `target` (`_resolve_path`), checked for every
+    copy and in its canonical form (floats; ``(x, y)`` pairs for a point)."""
+    if target[0] == "point":
+        if isinstance(variation, Cycle):
+            return Cycle(_pairs(variation.values, "cycle"))
+        step = _validate.pair(variation.value, "step")
+        _check_stepped(np.array(unit.points[target[1]]), np.array(step), count)
+        return Step(step)
+    _, driver, law_field, key = target
+    base = getattr(getattr(unit.drivers[driver], law_field), key)
+    if isinstance(variation, Cycle):
+        return Cycle(tuple(_validate.finite_float(value, f"cycle[{n}]") for n, value in enumerate(variation.values)))
+    if base is None:
+        raise ModelError(f"cannot step a parameter left at its default: give {key} in the unit, or use a cycle")
+    step = _validate.finite_float(variation.value, "step")
+    _check_stepped(np.array([float(base)]), np.array([step]), count)
+    return Step(step)
+
+
+def _pairs(values: tuple, element: str) -> tuple:
+    """`values` as a tuple of ``(x, y)`` pairs of finite numbers of sensible magnitude."""
+    if all(type(v) is tuple and len(v) == 2 and type(v[0]) is float and type(v[1]) is float for v in values):
+        array = np.array(values)  # the common case (a file's, a sweep's long cycles): checked at once
+        if np.all(np.abs(array) <= _validate.MAX_MAGNITUDE):  # False for NaN
+            return values
+    return tuple(_validate.pair(value, f"{element}[{n}]") for n, value in enumerate(values))
+
+
+def _check_stepped(base: np.ndarray, step: np.ndarray, count: int) -> None:
+    """Refuse a step that takes a copy's value beyond `_validate.MAX_MAGNITUDE`, naming the
+    first such copy.  |base + k · step| is largest at k = 0 or k = count - 1: one test."""
+    def good(values):
+        return np.isfinite(values) & (np.abs(values) <= _validate.MAX_MAGNITUDE)
+
+    if good(base + (count - 1) * step).all():
+        return
+    values = base[None] + np.arange(count, dtype=float)[:, None] * step[None]
+    k = int(np.flatnonzero(~good(values).all(axis=1))[0])
+    shown = ", ".join(f"{v:.6g}" for v in values[k])
+    raise ModelError(f"copy {k} takes {shown}: the varied value must be a finite number of magnitude at most "
+                     f"{_validate.MAX_MAGNITUDE:g}")  # fmt: skip
+
+
+def _same_name_message(name: str, other: str) -> str:
+    """A driver's name that is also a joint's: their outputs and forces would share labels."""
+    return f'driver name "{name}" is also the name of {other}: joints and drivers need distinct names'
 
 
 def _body_references(element):
@@ -260,6 +327,7 @@ class Copies:
         self.point_index = {name: k for k, name in enumerate(unit.points)}
         self.joint_index = {joint.name: k for k, joint in enumerate(unit.joints) if joint.name is not None}
         self.driver_index = {driver.name: k for k, driver in enumerate(unit.drivers) if driver.name is not None}
+        self.load_index = {load.name: k for k, load in enumerate(unit.loads) if load.name is not None}
         self._variations = {path: (_resolve_path(unit, path), variation) for path, variation in repeat.vary.items()}
         self._positions: np.ndarray | None = None
 
@@ -313,7 +381,7 @@ class Copies:
             for (target, variation) in self._variations.values():
                 if target[0] == "point":
                     p = self.point_index[target[1]]
-                    positions[:, p] = self._varied_pairs(variation, base[p], f"points.{target[1]}")
+                    positions[:, p] = self._varied_pairs(variation, base[p])
             positions += shift[:, None, :]
             self._positions = positions
         return self._positions
@@ -360,41 +428,28 @@ class Copies:
     def law_variations(self, driver: int) -> dict[str, dict[str, np.ndarray]]:
         """For unit driver `driver`: law field -> {key: value of every copy}."""
         varied: dict[str, dict[str, np.ndarray]] = {}
-        for path, (target, variation) in self._variations.items():
+        for target, variation in self._variations.values():
             if target[0] == "law" and target[1] == driver:
                 _, _, law_field, key = target
                 law = getattr(self.unit.drivers[driver], law_field)
-                varied.setdefault(law_field, {})[key] = self._varied_numbers(variation, getattr(law, key), path)
+                varied.setdefault(law_field, {})[key] = self._varied_numbers(variation, getattr(law, key))
         return varied
 
-    def _varied_numbers(self, variation, base, path: str) -> np.ndarray:
+    def _varied_numbers(self, variation, base) -> np.ndarray:
+        """Every copy's value of a law parameter (`variation` checked by `Repeat`)."""
         k = np.arange(self.count)
         if isinstance(variation, Cycle):
-            values = np.array([_finite(value, path) for value in variation.values], dtype=float)
+            values = np.array(variation.values, dtype=float)
             return values[k % values.size]
-        if base is None:
-            raise ModelError(f"cannot step a parameter left at its default: give {path.rsplit('.', 1)[-1]} in the unit",
-                             element=f'vary."{path}"')  # fmt: skip
-        values = base + k * _finite(variation.value, path)
-        self._check_finite(values, path)
-        return values
+        return base + k * variation.value
 
-    def _varied_pairs(self, variation, base, path: str) -> np.ndarray:
+    def _varied_pairs(self, variation, base) -> np.ndarray:
+        """Every copy's drawn point, before the translation by k · offset (checked by `Repeat`)."""
         k = np.arange(self.count)
         if isinstance(variation, Cycle):
-            values = np.array([_validate.pair(value, f'vary."{path}".cycle') for value in variation.values], dtype=float)
+            values = np.array(variation.values, dtype=float).reshape(-1, 2)
             return values[k % len(values)]
-        step = np.asarray(_validate.pair(variation.value, f'vary."{path}".step'), dtype=float)
-        values = base + k[:, None] * step
-        self._check_finite(values, path)
-        return values
-
-    def _check_finite(self, values: np.ndarray, path: str) -> None:
-        bad = ~(np.isfinite(values) & (np.abs(values) <= _validate.MAX_MAGNITUDE))
-        if bad.any():
-            k = int(np.flatnonzero(bad.reshape(self.count, -1).any(axis=1))[0])
-            raise ModelError("the varied value is not a finite number of sensible magnitude",
-                             element=f'{self.label} copy {k}: vary."{path}"')
+        return base + k[:, None] * np.asarray(variation.value, dtype=float)
 
     # ------------------------------------------------------------------ elements on demand
     def element(self, kind: str, k: int, e: int):
@@ -426,18 +481,15 @@ class Copies:
             changes[field_name] = self.joint_name(k, getattr(unit_element, field_name))
         if unit_element.name is not None:
             changes["name"] = self.name(k, unit_element.name)
-        if kind == "drivers":
-            for law_field, keys in self.law_variations(e).items():
-                law = getattr(unit_element, law_field)
-                changes[law_field] = dataclasses.replace(law, **{key: float(values[k]) for key, values in keys.items()})
         try:
+            if kind == "drivers":
+                for law_field, keys in self.law_variations(e).items():
+                    law = getattr(unit_element, law_field)
+                    copy_values = {key: float(values[k]) for key, values in keys.items()}
+                    changes[law_field] = dataclasses.replace(law, **copy_values)
             return dataclasses.replace(unit_element, **changes)
         except ModelError as error:
             raise error.within(f"{self.label} copy {k}: units.{self.unit.name}.{kind}[{e}]") from None
-
-
-def _finite(value, path: str) -> float:
-    return _validate.finite_float(value, f'vary."{path}"')
 
 
 # ---------------------------------------------------------------------- lazy views of the whole model
@@ -538,6 +590,15 @@ class PointTable(Mapping):
         )
 
     __hash__ = None
+
+    def __reversed__(self):
+        """The names from the last copy's last point back to the model's first point."""
+        for copies in reversed(self.copies):
+            names = list(copies.unit.points)[::-1]
+            for k in range(copies.count - 1, -1, -1):
+                for name in names:
+                    yield copies.name(k, name)
+        yield from reversed(self.own)
 
     def all_positions(self) -> np.ndarray:
         """Every point's drawn position, own then copies', shape (len(self), 2)."""

@@ -161,3 +161,25 @@ def test_jacobian_pattern_is_fixed_and_shared():
     assert assembler.jacobian.data is data and jacobian.indices is indices and jacobian.indptr is indptr
     assert not np.array_equal(first, data)
     assert jacobian.has_sorted_indices
+
+
+def test_a_row_that_is_not_finite_leaves_the_others_complete():
+    """The weighted norm is NaN, and every other row is still g(q) - target (the
+    assembler's `residual`), the driven rows after the non-finite ones included."""
+    from pathlib import Path
+
+    from sparsekin import load_model
+
+    mechanism = load_model(Path(__file__).resolve().parent / "data" / "slider_crank.toml")
+    pattern = build_pattern(mechanism)
+    assembler = Assembler(mechanism, pattern)
+    assembler.set_time(0.3)  # the driven row's target: the drawn crank angle + 0.3 s · rate
+    q = pattern.initial_coordinates.copy()
+    assert np.isfinite(assembler.fill_residual_jacobian(q))
+    complete = assembler.residual.copy()
+    assert complete[pattern.driven_row[0]] != 0.0
+    q[3 * mechanism.body_index("slider")] = np.nan  # the rows of joints[2] and of the guide
+    assert np.isnan(assembler.fill_residual_jacobian(q))
+    finite = np.isfinite(assembler.residual)
+    assert not finite[: pattern.driven_row[0]].all() and finite[pattern.driven_row].all()
+    np.testing.assert_array_equal(assembler.residual[finite], complete[finite])

@@ -33,6 +33,7 @@ from sparsekin import (
     LimitWarning,
     Linear,
     Mechanism,
+    ModelError,
     PathDriver,
     PinInSlot,
     RackPinion,
@@ -265,6 +266,37 @@ def test_an_element_without_an_own_coordinate_is_named():
     with pytest.raises(KeyError, match=r'unknown joint "axle": expected a name'):
         result.joint("axle")
     assert result.joint_names == ("joints[0]", "joints[1]", "carrier_axis", "planet_axis")
+
+
+def test_an_element_asked_twice_has_one_output_row_with_its_own_rates():
+    from sparsekin.pattern import build_output_pattern
+    from sparsekin.results import own_coordinates
+
+    mechanism = scotch_yoke()
+    times = np.linspace(0.0, 0.5, 11)
+    result = solve_kinematics(mechanism, times)
+    states = result.coordinates, result.velocities, result.accelerations
+    once = build_output_pattern(mechanism, joints=[1])
+    twice = build_output_pattern(mechanism, joints=[1, 1, -2], drivers=[0, 0])  # -2 is joints[1] again
+    assert (once.n_rows, twice.n_rows) == (1, 2)
+    for row in range(twice.n_rows):  # no entry of a row given twice
+        columns = twice.indices[twice.indptr[row] : twice.indptr[row + 1]]
+        assert columns.size == np.unique(columns).size
+    for got, want in zip(own_coordinates(twice, *states), result.joint("guide")):
+        np.testing.assert_allclose(got[:, 0], want, rtol=0, atol=1e-12)  # the stroke's rate, not twice it
+    for got, want in zip(own_coordinates(twice, *states), result.driver(0)):
+        np.testing.assert_allclose(got[:, 1], want, rtol=0, atol=1e-12)
+    for got, want in zip(own_coordinates(once, *states), own_coordinates(twice, *states)):
+        np.testing.assert_array_equal(got[:, 0], want[:, 0])
+
+
+def test_a_driver_may_not_take_a_joints_name():
+    mechanism = scotch_yoke()
+    with pytest.raises(ModelError, match=r'^drivers\[0\]\.name: driver name "guide" is also the name of joints\[1\]: '
+                                         r"joints and drivers need distinct names$"):  # fmt: skip
+        replace(mechanism, drivers=[PathDriver("crank", "A", law_x=Linear(rate=0.0), law_y=Linear(rate=0.1), name="guide")])
+    renamed = replace(mechanism, drivers=[replace(mechanism.drivers[0], name="motor")])
+    assert renamed.drivers[0].name == "motor"
 
 
 # ---------------------------------------------------------------------- limits

@@ -657,6 +657,11 @@ MISTAKES = {
         "drivers[1].name",
         r'duplicate driver name "spin"',
     ),
+    "driver named like a joint": (
+        (LAW, f'{LAW}\nname = "guide"'),
+        "drivers[0].name",
+        r'driver name "guide" is also the name of joints\[3\]: joints and drivers need distinct names$',
+    ),
     "duplicate point": (
         ("B = [0.4, 0.0]", "B = [0.4, 0.0]\nA = [0.2, 0.0]"),
         "line 7, column 15",

@@ -10,6 +10,7 @@ residual and Jacobian at random configurations) and the same motion.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -22,8 +23,10 @@ from sparsekin import (
     Linear,
     Mechanism,
     ModelError,
+    Polynomial,
     Revolute,
     RotationalDriver,
+    Spline,
     Translational,
     TranslationalDriver,
     load_model,
@@ -32,6 +35,7 @@ from sparsekin import (
     testset,
 )
 from sparsekin.assembly import Assembler
+from sparsekin.model import Analysis
 from sparsekin.pattern import build_pattern
 from sparsekin.units import Cycle, Repeat, Step, Unit
 
@@ -259,6 +263,208 @@ def test_a_mistake_in_a_repeat_names_unit_copy_and_element(edits, tmp_path):
 def test_a_varied_value_out_of_range_names_the_copy():
     driven = Unit("d", points={"S": (0.0, 0.0)}, bodies=[Body("w", origin="S")], joints=[Revolute(("w", "ground"), at="S")],
                   drivers=[RotationalDriver(("w", "ground"), law=Harmonic(amplitude=1e14, omega=1.0))])  # fmt: skip
-    with pytest.raises(ModelError, match=r'repeat\[0\] copy 16: vary."drivers\[0\].law.amplitude": the varied value is not'):
-        # copy 16 is the first beyond 1e15: 1e14 + 16 · 6e13
-        Mechanism(points={}, bodies=[], repeats=[Repeat(driven, count=40, vary={"drivers[0].law.amplitude": Step(6e13)})])
+    with pytest.raises(ModelError, match=r'^vary."drivers\[0\].law.amplitude": copy 16 takes 1.06e\+15: the varied value '
+                                         r"must be a finite number of magnitude at most 1e\+15$"):  # fmt: skip
+        # copy 16 is the first beyond 1e15: 1e14 + 16 · 6e13; refused by the repeat itself, before any use
+        Repeat(driven, count=40, vary={"drivers[0].law.amplitude": Step(6e13)})
+    assert Repeat(driven, count=16, vary={"drivers[0].law.amplitude": Step(6e13)}).count == 16  # up to copy 15: fine
+
+
+def test_a_point_variation_is_checked_by_the_repeat_not_when_drawn():
+    with pytest.raises(ModelError, match=r'^vary."points.R".step: expected \[x, y\], got 0.5$'):
+        Repeat(arm_unit(), count=3, vary={"points.R": Step(0.5)})
+    with pytest.raises(ModelError, match=r'^vary."points.R".cycle\[1\]\[0\]: expected a finite number, got nan$'):
+        Repeat(arm_unit(), count=3, vary={"points.R": Cycle(((0.0, 0.5), (math.nan, 0.5)))})
+    repeat = Repeat(arm_unit(), count=3, vary={"points.R": Cycle(([0, 1], (0.5, 0.5)))})  # canonical: float pairs
+    assert repeat.vary["points.R"] == Cycle(((0.0, 1.0), (0.5, 0.5)))
+
+
+def law_unit(law) -> Unit:
+    """A wheel on its own pivot, turned by `law`."""
+    return Unit("spin", points={"S": (0.0, 0.0)}, bodies=[Body("wheel", origin="S", points=("S",))],
+                joints=[Revolute(("wheel", "ground"), at="S")], drivers=[RotationalDriver(("wheel", "ground"), law=law)])  # fmt: skip
+
+
+@pytest.mark.parametrize(("law", "path", "variation", "message"), [
+    (Polynomial((0.0, 1.0)), "drivers[0].law.coefficients", Step(0.1), "coefficients of a polynomial law is a list"),
+    (Spline((0.0, 1.0), (0.0, 1.0)), "drivers[0].law.times", Cycle([(0.0, 2.0)]), "times of a spline law is a list"),
+    (Spline((0.0, 1.0), (0.0, 1.0)), "drivers[0].law.values", Step(1.0), "values of a spline law is a list"),
+])  # fmt: skip
+def test_a_list_valued_law_key_cannot_vary(law, path, variation, message):
+    with pytest.raises(ModelError, match=rf'^vary\."{re.escape(path)}": {message}, not a number: vary steps or cycles'):
+        Repeat(law_unit(law), count=3, vary={path: variation})
+
+
+def test_a_copy_whose_varied_law_is_refused_is_named():
+    class Positive(Linear):  # a law with a check of its own, which a varied rate may fail
+        def __post_init__(self):
+            super().__post_init__()
+            if self.rate <= 0:
+                raise ModelError(f"expected a positive rate, got {self.rate}", element="rate")
+
+    # rates 1.0, 0.5, 0.0, -0.5: the last copy, checked as the mechanism is made, is refused
+    with pytest.raises(ModelError, match=r"^repeat\[0\] copy 3: units\.spin\.drivers\[0\]\.rate: expected a positive "
+                                         r"rate, got -0\.5$"):  # fmt: skip
+        Mechanism(points={}, bodies=[], repeats=[
+            Repeat(law_unit(Positive(rate=1.0)), count=4, vary={"drivers[0].law.rate": Step(-0.5)})
+        ])  # fmt: skip
+    rates = [1.0] * 70
+    rates[65] = 0.0  # beyond the 64 copies of a cycle checked as the mechanism is made
+    mechanism = Mechanism(points={}, bodies=[], repeats=[
+        Repeat(law_unit(Positive(rate=1.0)), count=70, vary={"drivers[0].law.rate": Cycle(rates)})
+    ])  # fmt: skip
+    with pytest.raises(ModelError, match=r"^repeat\[0\] copy 65: units\.spin\.drivers\[0\]\.rate: expected a positive"):
+        mechanism.drivers[65]  # built on demand: still named
+
+
+# ---------------------------------------------------------------------- mistakes caught as the file is read
+REPEAT_FIRST = 'first = { "prev.crank" = "crank0" }'
+UNIT_JOINT = 'bodies = ["coupler", "prev.crank"]'
+COUPLER = '[units.loop.bodies.coupler]\norigin = "T"'
+
+
+def unit_driver(law: str, vary: str = "", name: str = "") -> tuple[tuple[str, str], ...]:
+    """Edits that give the unit a driver with `law`, and the repeat a `vary` table."""
+    driver = f'[[units.loop.drivers]]\ntype = "rotational"\nbodies = ["crank", "ground"]\nlaw = {law}\n{name}\n'
+    edits = (("[[repeat]]", driver + "[[repeat]]"),)
+    return edits + (((REPEAT_FIRST, f"{REPEAT_FIRST}\nvary = {vary}"),) if vary else ())
+
+
+def unit_load(name: str) -> str:
+    return f'[[units.loop.loads]]\ntype = "torque"\nbody = "crank"\nvalue = 1.0\nname = "{name}"\n\n'
+
+
+HARMONIC = '{ type = "harmonic", amplitude = 0.1, omega = 1.0 }'
+FILE_MISTAKES = {
+    "vary a polynomial's coefficients": (
+        unit_driver('{ type = "polynomial", coefficients = [0.0, 1.0] }',
+                    '{ "drivers[0].law.coefficients" = { step = 0.1 } }'),
+        r'repeat\[0\]\.vary\."drivers\[0\]\.law\.coefficients": coefficients of a polynomial law is a list, not a '
+        r"number: vary steps or cycles a law's number parameters only$",
+    ),
+    "cycle a spline's times": (
+        unit_driver('{ type = "spline", times = [0.0, 2.0], values = [0.0, 1.0] }',
+                    '{ "drivers[0].law.times" = { cycle = [[0.0, 1.0], [0.0, 3.0]] } }'),
+        r'repeat\[0\]\.vary\."drivers\[0\]\.law\.times": times of a spline law is a list, not a number',
+    ),
+    "step a point by a number": (
+        ((REPEAT_FIRST, f'{REPEAT_FIRST}\nvary = {{ "points.Q" = {{ step = 0.5 }} }}'),),
+        r'repeat\[0\]\.vary\."points\.Q"\.step: expected \[x, y\], got 0\.5$',
+    ),
+    "cycle a phase through a word": (
+        unit_driver(HARMONIC, '{ "drivers[0].law.phase" = { cycle = [0.0, "half"] } }'),
+        r'repeat\[0\]\.vary\."drivers\[0\]\.law\.phase"\.cycle\[1\]: expected a number, got \'half\'$',
+    ),
+    "step an amplitude beyond 1e15": (
+        unit_driver('{ type = "harmonic", amplitude = 1e14, omega = 1.0 }',
+                    '{ "drivers[0].law.amplitude" = { step = 6e13 } }'),
+        r'repeat\[0\]\.vary\."drivers\[0\]\.law\.amplitude": copy 16 takes 1\.06e\+15: the varied value must be a '
+        r"finite number of magnitude at most 1e\+15$",
+    ),
+    "step an offset left at initial": (
+        unit_driver(HARMONIC, '{ "drivers[0].law.offset" = { step = 0.1 } }'),
+        r'repeat\[0\]\.vary\."drivers\[0\]\.law\.offset": cannot step a parameter left at its default: give offset',
+    ),
+    "unknown com of a unit body": (
+        ((COUPLER, f'{COUPLER}\ncom = "W"'),),
+        r'repeat\[0\] copy 0: units\.loop\.bodies\.coupler\.com: unknown point "W" \(known: O0, A0, u0\.T, u0\.P … '
+        r"u999\.P, u999\.Q\)$",
+    ),
+    "unknown origin of a unit body": (
+        ((COUPLER, '[units.loop.bodies.coupler]\norigin = "X"'),),
+        r'repeat\[0\] copy 0: units\.loop\.bodies\.coupler\.origin: unknown point "X" \(known: O0, A0, u0\.T, u0\.P … '
+        r"u999\.P, u999\.Q\)$",
+    ),
+    "duplicate load names in a unit": (
+        (("[[repeat]]", unit_load("w") + unit_load("w") + "[[repeat]]"),),
+        r'units\.loop\.loads\[1\]\.name: duplicate load name "w"$',
+    ),
+    "own load named like a copy's": (
+        (("[[repeat]]", unit_load("w") + "[[repeat]]"),
+         ("[units.loop.points]", '[[loads]]\ntype = "torque"\nbody = "crank0"\nvalue = 1.0\nname = "u3.w"\n\n'
+                                 "[units.loop.points]")),
+        r'repeat\[0\]\.prefix: "u3\.w" is also the name of copy 3\'s w$',
+    ),
+    "unit driver named like a unit joint": (
+        ((UNIT_JOINT, f'{UNIT_JOINT}\nname = "pin"'), *unit_driver(HARMONIC, name='name = "pin"')),
+        r'units\.loop\.drivers\[0\]\.name: driver name "pin" is also the name of joints\[2\]: joints and drivers need '
+        r"distinct names$",
+    ),
+}
+
+
+@pytest.mark.parametrize(("edits", "message"), FILE_MISTAKES.values(), ids=FILE_MISTAKES.keys())
+def test_a_mistake_in_a_unit_or_its_variations_is_one_line_naming_it(edits, message, tmp_path):
+    text = FILE_HEAD
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    path = tmp_path / "chain.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ModelError, match=r"^" + re.escape(str(path)) + ": " + message) as caught:
+        load_model(path)
+    assert "\n" not in str(caught.value)
+
+
+def test_an_unknown_point_lists_a_few_names_without_walking_the_copies(monkeypatch):
+    from sparsekin.units import Copies
+
+    calls = []
+    name = Copies.name
+    monkeypatch.setattr(Copies, "name", lambda self, k, local: calls.append(k) or name(self, k, local))
+    with pytest.raises(ModelError, match=r'^bodies\[0\]\.points\[2\]: unknown point "Z" \(known: O, A, a0\.P, a0\.Q … '
+                                         r"a999999\.Q, a999999\.R\)$"):  # fmt: skip
+        base_model(bodies=[Body("crank0", origin="O", angle=math.pi / 2, points=("O", "A", "Z"))],
+                   repeats=[Repeat(arm_unit(), count=10**6, prefix="a", offset=(1.0, 0.0), first={"prev.crank": "crank0"})])
+    assert len(calls) < 100  # a million copies, three points each: not one name each
+
+
+# ---------------------------------------------------------------------- points and outputs of a repeat
+def test_a_model_point_that_a_unit_body_lists_rides_on_the_first_copy():
+    unit = replace(arm_unit(), bodies=(*arm_unit().bodies[:1], replace(arm_unit().bodies[1], points=("R", "Q", "M"))))
+    mechanism = base_model(points={"O": (0.0, 0.0), "A": (0.0, 0.5), "M": (0.5, 1.0)},
+                           repeats=[Repeat(unit, count=3, prefix="a", offset=(1.0, 0.0), first={"prev.crank": "crank0"})])
+    expanded = mechanism.expanded()
+    assert expanded.bodies[2].name == "a0.rod" and "M" in expanded.bodies[2].points  # the first body that lists M
+    times = np.linspace(0.0, 1.0, 11)
+    result, reference = solve_kinematics(mechanism, times), solve_kinematics(expanded, times)
+    motion, expected = result.point("M"), reference.point("M")
+    for got, want in zip(motion, expected):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert np.ptp(motion.position[:, 0]) > 0.1  # it moves with copy 0's rod, not with the ground
+
+
+def test_the_point_names_of_a_repeat_index_like_a_list():
+    from sparsekin.pattern import build_point_map
+
+    mechanism = base_model(repeats=[
+        Repeat(arm_unit(), count=4, prefix="a", offset=(1.0, 0.0), first={"prev.crank": "crank0"}),
+        Repeat(Unit("empty"), count=2, prefix="e"),  # no points: no names
+        Repeat(replace(arm_unit(), name="more"), count=3, prefix="b", offset=(1.0, 0.0), first={"prev.crank": "a3.crank"}),
+    ])  # fmt: skip
+    names, expected = build_point_map(mechanism).names, list(mechanism.points)
+    assert len(names) == len(expected) == 2 + 3 * 4 + 3 * 3
+    assert [names[k] for k in range(len(names))] == expected
+    assert [names[k] for k in range(-len(names), 0)] == expected
+    assert names[3:9:2] == expected[3:9:2] and names[::-5] == expected[::-5]
+    assert (names[-1], names[13], names[14]) == ("b2.R", "a3.R", "b0.P")
+    with pytest.raises(IndexError):
+        names[len(names)]
+    result = solve_kinematics(replace(mechanism, repeats=mechanism.repeats[:1]), np.linspace(0.0, 0.2, 3))
+    assert result.point_names[-1] == "a3.R" and result.point_names[-3:] == ["a3.P", "a3.Q", "a3.R"]
+
+
+def test_an_own_driver_on_a_copy_beyond_the_short_chain_takes_superlus_order(monkeypatch):
+    from sparsekin import stepper
+    from sparsekin.ordering import tiled_ordering
+
+    monkeypatch.setattr(stepper, "MIN_TILED_COORDINATES", 0)  # tile even this short chain
+    long_chain = load_model(EXAMPLES / "four_bar_chain.toml")
+    chain = replace(long_chain, analysis=Analysis(), repeats=(replace(long_chain.repeats[0], count=10),))
+    at_the_end = replace(chain, drivers=(RotationalDriver(("u9.crank", "ground"), law=Linear(rate=1.0)),))
+    assert tiled_ordering(chain, build_pattern(chain)) is not None  # the tiling applies to the chain itself
+    assert tiled_ordering(at_the_end, build_pattern(at_the_end)) is None  # its short chain has no u9.crank
+    times = np.linspace(0.0, 1.0, 11)
+    result = solve_kinematics(at_the_end, times, linear_solver="refactor")
+    angle = math.pi / 2 + times  # driven from the far end, every crank still turns alike
+    np.testing.assert_allclose(result.point("A0").position, np.c_[np.cos(angle), np.sin(angle)], atol=1e-9)
