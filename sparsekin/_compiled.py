@@ -128,8 +128,18 @@ def supports_compiled(mechanism: Mechanism) -> bool:
 
     Subclasses and other law objects are refused: their `evaluate` may differ.
     """
-    return all(type(law) in BUILT_IN_LAWS for kind in ("drivers", "loads")
-               for element in mechanism.declared(kind) for law in element.laws())  # fmt: skip
+    return _unsupported_law(mechanism) is None
+
+
+def _unsupported_law(mechanism: Mechanism):
+    """``(kind, element, law)`` of the first driver or load law the compiled loop cannot
+    evaluate (a repeated unit's elements looked at once, not once per copy), or None."""
+    for kind in ("drivers", "loads"):
+        for element in mechanism.declared(kind):
+            for law in element.laws():
+                if type(law) not in BUILT_IN_LAWS:
+                    return kind, element, law
+    return None
 
 
 @njit(inline="always", **JIT)
@@ -371,14 +381,14 @@ def solve_compiled(
     >>> outcome.n_solved, outcome.status.name
     (101, 'SOLVED')
     """
-    for k, driver in enumerate(mechanism.drivers):
-        for field_name in driver.law_fields:
-            law = getattr(driver, field_name)
-            if type(law) not in BUILT_IN_LAWS:
-                raise ValueError(
-                    f"`drivers[{k}].{field_name}` must be one of {', '.join(kind.__name__ for kind in BUILT_IN_LAWS)} "
-                    f"for the compiled loop, got {type(law).__name__}."
-                )
+    unsupported = _unsupported_law(mechanism)
+    if unsupported is not None:
+        kind, element, law = unsupported
+        built_in = ", ".join(law_kind.__name__ for law_kind in BUILT_IN_LAWS)
+        raise ValueError(
+            f"the laws of `mechanism` must be {built_in} for the compiled loop; {kind[:-1]} "
+            f"{element.describe()!r} has a {type(law).__name__}."
+        )
     n_times, n_coordinates = np.shape(times)[0], pattern.n_coordinates
     if pattern.n_equations != n_coordinates:
         raise ValueError(

@@ -54,11 +54,6 @@ class DriverLaws:
         self._initial = initial
         self.n_laws = target
 
-    @property
-    def all_built_in(self) -> bool:
-        """Whether every law is a built-in law (the compiled time loop needs that)."""
-        return not self._others
-
     def evaluate(self, t: float, value: np.ndarray, rate: np.ndarray, acceleration: np.ndarray) -> None:
         """Fill the value and time derivatives of every law at time `t` (s)."""
         fill_laws(self.table, float(t), value, rate, acceleration)

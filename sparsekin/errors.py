@@ -1,11 +1,14 @@
 """Exceptions raised by sparsekin.
 
-Every exception derives from `SparsekinError`.  A mistake in a model (in Python or in a
-model file) is a `ModelError` that names the element (``joints[3].bodies``) and, for a
-file, the file.  An analysis that cannot go on raises a `ConvergenceError` (Newton did not
-converge), or a `SingularConfigurationError` when the mechanism reached a singular
-configuration (a lock-up, a dead centre); both carry the time, the driver values and the
-samples solved before the failure (``result``), so nothing is lost.
+Every error derives from `SparsekinError`, except `AnalysisInterrupted`: a Ctrl-C during
+an analysis, which is a `KeyboardInterrupt` so that it still stops a program that does
+not look for it.  A mistake in a model (in Python or in a model file) is a `ModelError`
+that names the element (``joints[3].bodies``) and, for a file, the file.  An analysis that
+cannot go on raises a `ConvergenceError` (Newton did not converge), or a
+`SingularConfigurationError` when the mechanism reached a singular configuration (a
+lock-up, a dead centre); both carry the time, the driver values and the samples solved
+before the failure (``result``), so nothing is lost.  So does `AnalysisInterrupted`, and
+any `SparsekinError` raised by `sparsekin.solve_kinematics` once its time loop has begun.
 
 Warnings: `RedundantConstraintWarning` when the analysis leaves out redundant equations;
 `LimitWarning` when a joint or an actuator leaves the range its `limits` allow.
@@ -13,6 +16,9 @@ Warnings: `RedundantConstraintWarning` when the analysis leaves out redundant eq
 
 from __future__ import annotations
 
+import os
+import sys
+import warnings
 from typing import Any
 
 __all__ = [
@@ -24,11 +30,14 @@ __all__ = [
     "RedundantConstraintWarning",
     "LimitWarning",
     "AnalysisInterrupted",
+    "warn_caller",
 ]
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 
 
 class SparsekinError(Exception):
-    """Base class of every error raised by sparsekin."""
+    """Base class of every error raised by sparsekin (but `AnalysisInterrupted`)."""
 
 
 class ModelError(SparsekinError, ValueError):
@@ -171,3 +180,13 @@ class AnalysisInterrupted(KeyboardInterrupt):
     def __init__(self, result: Any) -> None:
         super().__init__(f"interrupted after {result.n_times} samples")
         self.result = result
+
+
+def warn_caller(message: str, category: type[Warning]) -> None:
+    """Issue a warning attributed to the first caller outside sparsekin: the user's call
+    of `sparsekin.solve_kinematics` (or of a stepper, a sweep), however deep inside the
+    package the warning arises."""
+    frame, level = sys._getframe(1), 2
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

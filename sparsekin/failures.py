@@ -17,7 +17,6 @@ The time loop (`sparsekin.stepper`) decides *when* something failed; `Diagnosis`
 
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,7 +31,13 @@ from .describe import (
     shares,
 )
 from .dynamics import MAX_MIN_NORM_EQUATIONS
-from .errors import ConvergenceError, ModelError, RedundantConstraintWarning, SingularConfigurationError
+from .errors import (
+    ConvergenceError,
+    ModelError,
+    RedundantConstraintWarning,
+    SingularConfigurationError,
+    warn_caller,
+)
 from .model import Mechanism
 from .pattern import ConstraintPattern
 from .reduced import CONSISTENCY_TOLERANCE
@@ -144,12 +149,11 @@ class Diagnosis:
                          if rows.size <= MAX_MIN_NORM_EQUATIONS else
                          f"; the reactions of the joints involved are not unique, and with more than "
                          f"{MAX_MIN_NORM_EQUATIONS} redundant equations the ones given leave these out")  # fmt: skip
-        warnings.warn(
+        warn_caller(
             f"{n_equations} equations for {n_coordinates} coordinates: {rows.size} redundant "
             f"equation{'s' * (rows.size != 1)} left out (each depends on the others at t = {t:g} s): {listed}"
             + reactions,
             RedundantConstraintWarning,
-            stacklevel=4,
         )
         return rows
 

@@ -119,7 +119,9 @@ class Polynomial(_BuiltIn):
                 f"expected a non-empty list of numbers, got {coefficients!r}", element="coefficients"
             )
         first = None if coefficients[0] is None else _validate.finite_float(coefficients[0], "coefficients[0]")
-        rest = _validate.number_list(tuple(coefficients[1:]), "coefficients")
+        rest = (
+            _validate.finite_float(c, f"coefficients[{k}]") for k, c in enumerate(coefficients[1:], start=1)
+        )
         _set(self, "coefficients", (first, *rest))
 
     def parameters(self, initial: float) -> np.ndarray:

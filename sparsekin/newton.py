@@ -13,7 +13,9 @@ divides the residual by at least ``1 / CHORD_CONTRACTION``; otherwise the caller
 with plain Newton.  Either way the Jacobian at the converged position is factored, so
 velocities and accelerations are solved with it; chord corrections, which converge only
 linearly, end with one Newton correction with that factorization (the *polish*) unless
-the residual is already below ``POLISH_BELOW · tolerance``.
+the residual is already below ``POLISH_BELOW · tolerance`` or no chord correction was
+taken (the start had converged).  The polish is counted as a correction and comes on top
+of `max_iterations`: a converged chord Newton may report ``max_iterations + 1``.
 
 A *system* has ``fill_residual_jacobian(q) -> weighted norm``, ``residual``,
 ``jacobian`` and ``values`` (see `sparsekin.assembly.Assembler`).
@@ -120,13 +122,27 @@ class Factorizer:
 
     def __call__(self) -> None:
         system, solver = self.system, self.linear_solver
-        if self._layout is None:
-            solver.factor(system.jacobian)
-        else:
-            solver.factor_ordered(system.values)
-        if self._may_order and solver.layout_version != self._layout:
-            system.fill_in_order(solver.value_positions)
-            self._layout = solver.layout_version
+        try:
+            if self._layout is None:
+                solver.factor(system.jacobian)
+            else:
+                solver.factor_ordered(system.values)
+        finally:  # also when a fresh factorization failed after it had changed the order
+            if self._may_order and solver.layout_version != self._layout:
+                self._follow_layout()
+
+    def _follow_layout(self) -> None:
+        """Have the system fill in the solver's current value order (the CSR order if the
+        solver holds no analysis, its last one having failed)."""
+        solver = self.linear_solver
+        try:
+            positions = solver.value_positions
+        except RuntimeError:  # no analysis: the next factorization reads the CSR Jacobian
+            self.system.fill_in_order(None)
+            self._layout = None
+            return
+        self.system.fill_in_order(positions)
+        self._layout = solver.layout_version
 
 
 def solve_positions(
@@ -146,7 +162,8 @@ def solve_positions(
     tolerance : float
         Largest accepted weighted residual.
     max_iterations : int
-        Most corrections.
+        Most corrections before the residual is within `tolerance` (a chord Newton's
+        polish comes on top).
     chord : bool
         Try chord Newton first, then plain Newton from the original `q`.
     factor : callable, optional
@@ -158,8 +175,9 @@ def solve_positions(
     Returns
     -------
     int
-        Corrections taken (those of the attempt that converged).  On return
-        `linear_solver` holds the factorization of the Jacobian at the converged `q`.
+        Corrections taken (those of the attempt that converged, with the polish: at most
+        ``max_iterations + 1``).  On return `linear_solver` holds the factorization of the
+        Jacobian at the converged `q`.
 
     Raises
     ------

@@ -33,7 +33,10 @@ variable       dimensions                      content
 from __future__ import annotations
 
 import os
+import signal
+import threading
 from collections.abc import Sequence
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -43,7 +46,8 @@ from .geometry import carried_motion
 from .model import Mechanism
 from .pattern import build_output_pattern, build_pattern, build_point_map
 
-__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
+__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES",
+           "dataset_labels"]
 
 #: The components of a recorded point, in the order they are stored.
 POINT_COMPONENTS = ("x", "y", "vx", "vy", "ax", "ay")
@@ -168,6 +172,29 @@ def _force_elements(mechanism: Mechanism, forces) -> tuple[list[int], list[int]]
     return sorted(set(chosen["drivers"])), sorted(set(chosen["joints"]))
 
 
+def dataset_labels(mechanism: Mechanism, coordinates: bool, point_names, joint_indices, force_labels=(),
+                   force_units=()) -> dict:  # fmt: skip
+    """The coordinates (labels) of the Dataset of a run that recorded these (the layout of
+    the module docstring): the same for a Zarr store and `KinematicsResult.to_xarray`."""
+    labels = {}
+    if coordinates:
+        labels["coordinate"] = [f"{name}.{c}" for name in mechanism.body_names for c in COORDINATE_NAMES]
+    if point_names:
+        labels |= {"point": list(point_names), "component": list(POINT_COMPONENTS)}
+    if joint_indices:
+        kinds = [type(mechanism.joints[k]) for k in joint_indices]
+        outputs = build_output_pattern(mechanism, joints=joint_indices)
+        labels |= {
+            "joint": [mechanism.joints[k].name or f"joints[{k}]" for k in joint_indices],
+            "derivative": list(JOINT_DERIVATIVES),
+            "joint_quantity": ("joint", [kind.output_names[0] for kind in kinds]),
+            "joint_unit": ("joint", ["rad" if angle else "m" for angle in outputs.row_is_angle]),
+        }
+    if force_labels:
+        labels |= {"force": list(force_labels), "force_unit": ("force", list(force_units))}
+    return labels
+
+
 class Recorder:
     """Fills chunks of rows from solved samples and writes them to a sink.
 
@@ -198,6 +225,7 @@ class Recorder:
         self._rows = 0
         self._first = 0  # the index of the chunk's first sample
         self.n_written = 0
+        self._failed = False  # a write to the sink failed
         self._limits = _LimitWatch(mechanism)
 
     @property
@@ -256,9 +284,14 @@ class Recorder:
                 self.flush()
 
     def flush(self) -> None:
-        """Write the rows filled so far."""
+        """Write the rows filled so far.
+
+        A Ctrl-C during the write is taken once it is done (`_interrupt_deferred`), so
+        that a store never holds a chunk twice or half of one; after a write that failed
+        nothing is written again.
+        """
         m = self._rows
-        if m == 0:
+        if m == 0 or self._failed:
             return
         data = {"t": self._t[:m]}
         if self._q is not None:
@@ -269,10 +302,16 @@ class Recorder:
             data["joints"] = self._joints[:m]
         if self._forces is not None:
             data["forces"] = self._forces[:m]
-        self.sink.write(self._first, data)
-        self._first += m
-        self.n_written = self._first
-        self._rows = 0
+        with _interrupt_deferred():  # a Ctrl-C waits for the write and its bookkeeping
+            try:
+                self.sink.write(self._first, data)
+            except BaseException:
+                self._rows = 0  # the sink's state is unknown: never write these rows again
+                self._failed = True
+                raise
+            self._first += m
+            self.n_written = self._first
+            self._rows = 0
 
     def _point_tracks(self, m: int) -> np.ndarray:
         out = np.empty((m, len(self.selection.point_names), 6))
@@ -291,6 +330,28 @@ class Recorder:
         """Write what is left and close the sink; returns the sink's arrays."""
         self.flush()
         return self.sink.close(self.n_written)
+
+
+@contextmanager
+def _interrupt_deferred():
+    """Hold a SIGINT (Ctrl-C) that arrives in the block until the block is done, then hand
+    it to the handler there was (which raises `KeyboardInterrupt`).
+
+    Only the main thread receives signals, and only a Python handler can be called
+    later: elsewhere, or under another handler, the block runs as it is.
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+        yield
+        return
+    received = []
+    signal.signal(signal.SIGINT, lambda signum, frame: received.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if received:
+            previous(signal.SIGINT, received[0])
 
 
 class _LimitWatch:
@@ -329,6 +390,32 @@ class _LimitWatch:
         self._open &= ~outside
 
 
+#: What the top of a Zarr store holds: a format 2 group or array (and its consolidated
+#: metadata), or format 3's metadata.
+_ZARR_MARKERS = (".zgroup", ".zarray", ".zmetadata", "zarr.json")
+
+
+def _clear_store(path: str) -> None:
+    """Empty the Zarr store at `path`, if there is one; refuse to touch anything else."""
+    if not os.path.lexists(path):
+        return
+    if not os.path.isdir(path):
+        raise ValueError(f"`store` {path!r} is a file, not a Zarr store; give a new path or a Zarr store to "
+                         "replace.")  # fmt: skip
+    with os.scandir(path) as scan:
+        entries = list(scan)
+    if entries and not any(entry.name in _ZARR_MARKERS for entry in entries):
+        raise ValueError(f"`store` {path!r} is a folder that is not a Zarr store and not empty; give a new "
+                         "path, an empty folder or a Zarr store to replace.")  # fmt: skip
+    import shutil
+
+    for entry in entries:
+        if entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path)
+        else:
+            os.remove(entry.path)
+
+
 class MemorySink:
     """Arrays for every sample of a run, in memory."""
 
@@ -359,8 +446,15 @@ class ZarrSink:
     Parameters
     ----------
     path : str or path-like
-        The store (a folder); replaced if it exists.
+        The store (a folder).  A Zarr store there is replaced: cleared here, before the
+        run, so that no old sample outlives it; a file or a folder holding anything else
+        is refused.
     selection : Selection
+
+    Raises
+    ------
+    ValueError
+        If `path` is a file, or a non-empty folder that is not a Zarr store.
     """
 
     def __init__(self, path, selection: Selection) -> None:
@@ -372,26 +466,7 @@ class ZarrSink:
         self.path = os.fspath(path)
         self.selection = selection
         self._written = False
-
-    def _labels(self) -> dict:
-        selection, mechanism = self.selection, self.selection.mechanism
-        labels = {}
-        if selection.coordinates:
-            labels["coordinate"] = [f"{name}.{c}" for name in mechanism.body_names for c in COORDINATE_NAMES]
-        if selection.point_names:
-            labels |= {"point": list(selection.point_names), "component": list(POINT_COMPONENTS)}
-        if selection.joint_indices:
-            kinds = [type(mechanism.joints[k]) for k in selection.joint_indices]
-            outputs = build_output_pattern(mechanism, joints=selection.joint_indices)
-            labels |= {
-                "joint": list(selection.joint_labels),
-                "derivative": list(JOINT_DERIVATIVES),
-                "joint_quantity": ("joint", [kind.output_names[0] for kind in kinds]),
-                "joint_unit": ("joint", ["rad" if angle else "m" for angle in outputs.row_is_angle]),
-            }
-        if selection.forces is not None:
-            labels |= {"force": list(selection.forces.labels), "force_unit": ("force", list(selection.forces.units))}
-        return labels
+        _clear_store(self.path)
 
     def _dataset(self, data: dict, with_labels: bool):
         import xarray as xr
@@ -402,7 +477,11 @@ class ZarrSink:
         variables = {key: (dims[key], values) for key, values in data.items() if key != "t"}
         coords = {"t": ("time", data["t"])}
         if with_labels:
-            coords |= self._labels()
+            selection = self.selection
+            forces = selection.forces
+            coords |= dataset_labels(selection.mechanism, selection.coordinates, selection.point_names,
+                                     selection.joint_indices, () if forces is None else forces.labels,
+                                     () if forces is None else forces.units)  # fmt: skip
         return xr.Dataset(variables, coords=coords)
 
     def write(self, first: int, data: dict) -> None:

@@ -73,10 +73,6 @@ class ReducedSystem:
         self.acceleration_rhs = np.zeros(n_rows)
         self.weights = np.concatenate([assembler.weights[self.rows], assembler.pattern.coordinate_weights[self.held]])
 
-    @property
-    def driver_values(self) -> np.ndarray:
-        return self.assembler.driver_values
-
     def set_time(self, t: float) -> None:
         self.assembler.set_time(t)
         np.take(self.assembler.velocity_rhs, self.rows, out=self.velocity_rhs[: self.rows.size])

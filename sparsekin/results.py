@@ -115,7 +115,8 @@ class KinematicsResult:
         The path that solved the run: ``"compiled"`` (the compiled dense loop all the
         way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
         ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
-        much fill-in after the first sample) or ``"superlu"``.
+        much fill-in at the first sample), ``"superlu"``, or ``"none"`` for a model with
+        nothing to solve (no body, no equation).
     recorded_points : tuple of str
         Points whose motion the run recorded (`point_tracks`).
     point_tracks : array, shape (n_times, n_recorded_points, 6), or None
@@ -374,23 +375,22 @@ class KinematicsResult:
             raise ImportError('to_xarray needs xarray: pip install "sparsekin[zarr]"') from None
         if self.store is not None:
             return xr.open_zarr(self.store)
-        from .recording import JOINT_DERIVATIVES, POINT_COMPONENTS
+        from .recording import dataset_labels
 
-        variables, coords = {}, {"t": ("time", np.asarray(self.times))}
+        variables = {}
         if self.coordinates is not None:
-            coords["coordinate"] = [f"{b}.{c}" for b in self.body_names for c in ("x", "y", "angle")]
             for key, array in (("q", self.coordinates), ("qd", self.velocities), ("qdd", self.accelerations)):
                 variables[key] = (("time", "coordinate"), np.asarray(array))
         if self.recorded_points:
-            coords |= {"point": list(self.recorded_points), "component": list(POINT_COMPONENTS)}
             variables["points"] = (("time", "point", "component"), np.asarray(self.point_tracks))
         if self.recorded_joints:
-            labels = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
-            coords |= {"joint": labels, "derivative": list(JOINT_DERIVATIVES)}
             variables["joints"] = (("time", "joint", "derivative"), np.asarray(self.joint_tracks))
         if self.force_labels:
-            coords |= {"force": list(self.force_labels), "force_unit": ("force", list(self.force_units))}
             variables["forces"] = (("time", "force"), np.asarray(self.force_tracks))
+        coords = {"t": ("time", np.asarray(self.times))} | dataset_labels(
+            self.mechanism, self.coordinates is not None, self.recorded_points, self.recorded_joints,
+            self.force_labels, self.force_units,
+        )  # fmt: skip
         return xr.Dataset(variables, coords=coords)
 
 

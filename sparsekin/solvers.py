@@ -35,17 +35,15 @@ velocities and accelerations are solved with the Jacobian there, to the same acc
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._compiled import CompiledForces, solve_compiled, supports_compiled
 from .dynamics import ForceSolver, build_load_pattern
-from .errors import AnalysisInterrupted, ConvergenceError, LimitWarning
+from .errors import AnalysisInterrupted, LimitWarning, SparsekinError, warn_caller
 from .laws import Spline
 from .model import Mechanism
 from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
-from .pattern import ConstraintPattern, build_pattern, build_point_map
+from .pattern import ConstraintPattern, build_pattern, build_point_map, per_element
 from .recording import MemorySink, Recorder, Selection, ZarrSink
 from .results import KinematicsResult, PointMotion
 from .stepper import (
@@ -91,7 +89,8 @@ def solve_kinematics(
         Largest accepted residual: lengths relative to the size of the model, angles in
         rad; within `sparsekin.stepper.TOLERANCE_RANGE`.
     max_iterations : int
-        Most Newton corrections at one time, at least 1.
+        Most Newton corrections at one time before it converges, at least 1 (a chord
+        Newton's final polishing correction, `sparsekin.newton`, comes on top).
     linear_solver : {"auto", "dense", "refactor", "superlu"}
         How the linear systems are solved (see the module docstring).  ``"auto"`` takes
         ``"dense"`` (the compiled loop) up to `COMPILED_MAX_COORDINATES` coordinates and
@@ -124,6 +123,8 @@ def solve_kinematics(
         ``build_pattern(m)`` of a mechanism ``m`` with the same bodies, joints, drivers and
         drawing as `mechanism` (only the parameters of driver laws may differ): a sweep
         over law parameters builds it once for many variants.  Default: built here.
+        Checked against `mechanism`: the same numbers of bodies and of equations per joint
+        and driver, and the same drawn body frames.
 
     Returns
     -------
@@ -157,6 +158,11 @@ def solve_kinematics(
         Once for each element with ``limits`` whose own coordinate leaves them, at the
         first sample outside.
 
+    Notes
+    -----
+    Any error raised once the time loop has begun leaves the samples solved before it in
+    the store (if there is one); a `SparsekinError` also carries them in ``error.result``.
+
     Examples
     --------
     >>> from sparsekin import Body, Mechanism, Revolute, RotationalDriver, Linear
@@ -183,11 +189,8 @@ def solve_kinematics(
         raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
     if pattern is None:
         pattern = build_pattern(mechanism)
-    elif not isinstance(pattern, ConstraintPattern) or (pattern.n_bodies, pattern.n_equations) != (
-        mechanism.n_bodies, mechanism.n_equations
-    ):  # fmt: skip
-        raise ValueError(f"`pattern` must be the ConstraintPattern of a mechanism like `mechanism` "
-                         f"({mechanism.n_bodies} bodies, {mechanism.n_equations} equations).")  # fmt: skip
+    else:
+        _check_pattern(pattern, mechanism)
     selection = Selection(mechanism, coordinates, points, joints, forces, pattern=pattern)
     n = pattern.n_coordinates
     if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
@@ -213,9 +216,9 @@ def solve_kinematics(
             result = run.solve(compiled)
     finally:
         for state in run.recorder.limit_crossings:
-            warnings.warn(f"{state.label} left its limits: {state.quantity} {state.value:.6g} {state.unit} at "
-                          f"t = {state.time:.6g} s, outside [{state.limits[0]:g}, {state.limits[1]:g}]",
-                          LimitWarning, stacklevel=3)  # fmt: skip
+            warn_caller(f"{state.label} left its limits: {state.quantity} {state.value:.6g} {state.unit} at "
+                        f"t = {state.time:.6g} s, outside [{state.limits[0]:g}, {state.limits[1]:g}]",
+                        LimitWarning)  # fmt: skip
     return result
 
 
@@ -234,17 +237,17 @@ class _Run:
         self._result = None
 
     def solve(self, compiled: bool) -> KinematicsResult:
+        """Solve every sample; on any error the samples recorded so far are kept (in the
+        store too) and become the ``result`` of the error (`AnalysisInterrupted` on Ctrl-C)."""
         stepper, times = self.stepper, self.times
-        k = 0
         try:
             if stepper is None:
                 empty = np.zeros(0)
                 no_forces = np.zeros(self.recorder.selection.n_force_columns)
                 for k in range(times.size):
                     self.recorder.add(times[k], empty, empty, empty, no_forces)
-                return self.result(times.size)
-            if compiled:
-                k = self._solve_compiled()
+                return self.result()
+            k = self._solve_compiled() if compiled else 0
             if k == 0:
                 self.iterations[0] = stepper.start(times[0])
                 self._first = (times[0], stepper.coordinates.copy())
@@ -255,12 +258,23 @@ class _Run:
             for k in range(k, times.size):
                 self.iterations[k] = stepper.advance(times[k])
                 self._record(k)
-        except ConvergenceError as error:
-            error.result = self.result(k)
+        except BaseException as error:
+            result = self._result_after(error)
+            if isinstance(error, KeyboardInterrupt) and result is not None:
+                raise AnalysisInterrupted(result) from None
+            if isinstance(error, SparsekinError):
+                error.result = result
             raise
-        except KeyboardInterrupt:
-            raise AnalysisInterrupted(self.result(k)) from None
-        return self.result(times.size)
+        return self.result()
+
+    def _result_after(self, error: BaseException) -> KinematicsResult | None:
+        """The samples recorded before `error`, or None (with a note on `error`) if they
+        cannot be written: the error that stopped the run is the one raised."""
+        try:
+            return self.result()
+        except Exception as failure:  # best effort: `error` is the one raised
+            error.add_note(f"the samples solved before this error could not be kept: {failure!r}")
+            return None
 
     def _record(self, k: int) -> None:
         stepper = self.stepper
@@ -320,11 +334,12 @@ class _Run:
         self.path = "compiled"
         return done
 
-    def result(self, n_solved: int) -> KinematicsResult:
-        """The result of the samples solved (once: it closes the recorder)."""
+    def result(self) -> KinematicsResult:
+        """The result of the samples recorded (once: it closes the recorder)."""
         if self._result is not None:
             return self._result
         arrays = self.recorder.finish()
+        n_solved = arrays["t"].shape[0]  # every sample recorded has its iterations
         stepper, mechanism = self.stepper, self.mechanism
         selection = self.recorder.selection
         counts = (0, 0, 0) if stepper is None else (stepper.n_factorizations, stepper.n_solves, stepper.n_refactorizations)
@@ -368,14 +383,41 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
         raise ValueError("`times` must be finite.")
     if np.any(np.diff(array) <= 0.0):
         raise ValueError("`times` must be strictly increasing.")
-    for driver in mechanism.declared("drivers"):
-        for field_name in driver.law_fields:
-            law = getattr(driver, field_name)
-            if isinstance(law, Spline):
-                first, last = law.time_range
-                if array[0] < first or array[-1] > last:
-                    raise ValueError(
-                        f"`times` span [{array[0]:g}, {array[-1]:g}] s but the {field_name} of driver "
-                        f"{driver.describe()!r}, a spline, is defined on [{first:g}, {last:g}] s."
-                    )
+    for kind in ("drivers", "loads"):
+        for element in mechanism.declared(kind):
+            laws = element.laws()
+            if kind == "drivers":
+                names = element.law_fields
+            else:  # a load's components: its value, or value[c] of a force's (fx, fy)
+                names = ("value",) if len(laws) == 1 else tuple(f"value[{c}]" for c in range(len(laws)))
+            for name, law in zip(names, laws):
+                if isinstance(law, Spline):
+                    first, last = law.time_range
+                    if array[0] < first or array[-1] > last:
+                        raise ValueError(
+                            f"`times` span [{array[0]:g}, {array[-1]:g}] s but the {name} of {kind[:-1]} "
+                            f"{element.describe()!r}, a spline, is defined on [{first:g}, {last:g}] s."
+                        )
     return array
+
+
+def _check_pattern(pattern, mechanism: Mechanism) -> None:
+    """`pattern` must be that of a mechanism with the bodies, equations and drawing of `mechanism`."""
+    if not isinstance(pattern, ConstraintPattern):
+        got = type(pattern).__name__
+        raise ValueError(f"`pattern` must be a ConstraintPattern (build_pattern), got {got}.")
+    if (pattern.n_bodies, pattern.n_equations) != (mechanism.n_bodies, mechanism.n_equations):
+        why = (f"it has {pattern.n_bodies} bodies and {pattern.n_equations} equations, `mechanism` "
+               f"{mechanism.n_bodies} and {mechanism.n_equations}")  # fmt: skip
+    else:
+        counts = np.concatenate([per_element(mechanism, kind, lambda element: element.n_equations)
+                                 for kind in ("joints", "drivers")])  # fmt: skip
+        if counts.size + 1 != pattern.element_first_row.size or not np.array_equal(
+            np.diff(pattern.element_first_row), counts
+        ):  # fmt: skip
+            why = "its joints and drivers have other numbers of equations"
+        elif not np.array_equal(pattern.initial_coordinates, mechanism.frames().ravel()):
+            why = "its bodies are drawn elsewhere"
+        else:
+            return
+    raise ValueError(f"`pattern` must be the ConstraintPattern of a mechanism like `mechanism`: {why}.")

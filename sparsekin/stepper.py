@@ -107,8 +107,10 @@ class KinematicStepper:
         equations are left out with a `RedundantConstraintWarning`).
     linear_solver : {"auto", "dense", "refactor", "superlu"} or object
         How the linear systems are solved (see `sparsekin.solve_kinematics`), or a
-        linear solver object with ``factor(jacobian)``, ``solve(rhs, out=None)`` and the
-        counters ``n_factorizations``, ``n_refactorizations``, ``n_solves``.
+        linear solver object with ``factor(jacobian)``, ``solve(rhs, out=None, *,
+        transposed=False)`` (``transposed=True`` solves with the transposed Jacobian, for
+        the forces) and the counters ``n_factorizations``, ``n_refactorizations``,
+        ``n_solves`` (`sparsekin.linalg.LinearSolver`).
     tolerance : float
         Largest accepted residual: lengths relative to the model size, angles in rad.
     max_iterations : int
@@ -237,13 +239,17 @@ class KinematicStepper:
         try:
             corrections = self._solve_positions(q, chord=False)
             self._solve_rates(q, velocity, acceleration)
+            if self.auto and fill_is_heavy(self.linear_solver, self.pattern):
+                # SuperLU factors the Jacobian at the converged position again: the forces of
+                # this sample solve with it, and the next sample's chord Newton starts from it.
+                self.use_linear_solver(SuperLUSolver(), path="superlu-chord")
+                self.factorizer()
+                self._factored = True
         except (NoConvergence, SingularMatrix) as failure:
             raise self.diagnosis.cannot_start(self.system, self.assembler, t, drawn, _reason(failure)) from None
         self._check_left_out(t, first=True)
         self._accept(t)
         self._first = (t, self.coordinates.copy())
-        if self.auto and fill_is_heavy(self.linear_solver, self.pattern):
-            self.use_linear_solver(SuperLUSolver(), path="superlu-chord")
         return corrections
 
     def _suggest_ordering(self, t: float) -> None:
@@ -407,9 +413,11 @@ class KinematicStepper:
     def use_linear_solver(self, linear_solver, path: str | None = None) -> None:
         """Go on with another linear solver (its counts add to the stepper's).
 
-        ``"auto"`` does this after the first sample when a refactorization's fill-in makes
-        it slower than SuperLU (`fill_is_heavy`): the refactorization's factors are freed,
-        the next sample runs plain Newton, then chord Newton again.
+        ``"auto"`` does this at the first sample when a refactorization's fill-in makes it
+        slower than SuperLU (`fill_is_heavy`): the refactorization's factors are freed and
+        `start` factors the Jacobian at the converged position with the new solver.  Called
+        alone, it leaves the new solver without a factorization: the next sample runs
+        plain Newton, then chord Newton again.
         """
         left = self.linear_solver
         self._retired += (left.n_factorizations, left.n_refactorizations, left.n_solves)

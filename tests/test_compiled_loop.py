@@ -27,6 +27,7 @@ from sparsekin import (
     Revolute,
     RotationalDriver,
     Spline,
+    Torque,
     Translational,
     TranslationalDriver,
     solve_kinematics,
@@ -219,9 +220,28 @@ def test_custom_laws_are_not_supported():
                      AbsoluteDriver("slider", "angle", law=Linear(rate=0.0))],
         )  # fmt: skip
         assert not supports_compiled(mechanism)
-        with pytest.raises(ValueError, match=r"`drivers\[1\]\.law` must be one of Harmonic, Linear"):
+        expected = (r"^the laws of `mechanism` must be Harmonic, Linear, Polynomial, Spline for the compiled "
+                    rf"loop; driver '.*x.*' has a {type(law).__name__}\.$")  # fmt: skip
+        with pytest.raises(ValueError, match=expected):
             run_compiled(mechanism, [0.0, 1.0])
     assert supports_compiled(task5())
+
+
+def test_custom_load_laws_are_not_supported_either():
+    """`solve_compiled` refuses what `supports_compiled` refuses: the loads' laws too."""
+
+    class Custom:
+        def evaluate(self, t, initial):
+            return 1.0 + t, 1.0, 0.0
+
+    mechanism = Mechanism(
+        points={}, bodies=[Body("slider", origin=(0.0, 0.0), mass=1.0, inertia=0.1)], joints=[],
+        drivers=[AbsoluteDriver("slider", axis, law=Linear(rate=1.0)) for axis in ("x", "y", "angle")],
+        loads=[Torque("slider", value=Custom())],
+    )  # fmt: skip
+    assert not supports_compiled(mechanism)
+    with pytest.raises(ValueError, match=r"compiled loop; load 'torque on slider' has a Custom\.$"):
+        run_compiled(mechanism, [0.0, 1.0])
 
 
 def test_output_arrays_are_checked():

@@ -461,3 +461,9 @@ def test_a_model_drawn_at_a_dead_centre_is_refused_at_t_0():
                        r'"guide"\), equation driven value depends on joints\[0\] .*so the drivers leave a motion free: '
                        r"crank rotates about O \(0, 0\), rod rotates about B"):  # fmt: skip
         solve_kinematics(mechanism, [0.0, 0.1])
+
+
+def test_the_redundancy_warning_points_at_the_call_of_solve_kinematics():
+    with pytest.warns(RedundantConstraintWarning) as caught:
+        solve_kinematics(triple_parallelogram(), np.linspace(0.0, 0.2, 3))
+    assert [w.filename for w in caught if issubclass(w.category, RedundantConstraintWarning)] == [__file__]

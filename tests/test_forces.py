@@ -490,3 +490,30 @@ def test_a_model_without_masses_or_loads_computes_no_forces_unless_asked():
     np.testing.assert_array_equal(asked.force_tracks, 0.0)
     with pytest.raises(ValueError, match=r'`forces`: no driver or joint is called "Z"'):
         sk.solve_kinematics(mechanism, [0.0], forces=["Z"])
+
+
+def test_a_load_given_by_a_spline_is_refused_outside_its_times():
+    """A spline is not extrapolated, in a load as in a driver: the analysis is refused."""
+    spline = sk.Spline((0.0, 0.5, 1.0), (0.0, 2.0, 1.0))
+
+    def crank(*loads):
+        return sk.Mechanism(
+            points={"O": (0.0, 0.0), "A": (0.1, 0.0)},
+            bodies=[sk.Body("crank", origin="O", points=("O", "A"), mass=1.0, inertia=0.01)],
+            joints=[sk.Revolute(("crank", "ground"), at="O")],
+            drivers=[sk.RotationalDriver(("crank", "ground"), law=sk.Linear(rate=2.0))],
+            loads=loads,
+        )
+
+    late = np.linspace(0.0, 2.0, 5)
+    expected = (r"^`times` span \[0, 2\] s but the value of load 'torque on crank', a spline, is defined on "
+                r"\[0, 1\] s\.$")  # fmt: skip
+    with pytest.raises(ValueError, match=expected):
+        sk.solve_kinematics(crank(sk.Torque("crank", value=spline)), late)
+    with pytest.raises(ValueError, match=r"the value\[1\] of load 'force on crank at A', a spline, is "):
+        sk.solve_kinematics(crank(sk.Force("crank", at="A", value=(1.0, spline))), late)
+    times = np.linspace(0.0, 1.0, 5)
+    result = sk.solve_kinematics(crank(sk.Torque("crank", value=spline)), times)
+    # turning steadily about its centre of mass, the crank is held against the load alone
+    load = spline.evaluate(times, 0.0)[0]
+    np.testing.assert_allclose(result.driver_force(0).force, -load, rtol=0, atol=1e-12)

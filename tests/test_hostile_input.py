@@ -394,3 +394,41 @@ def test_check_command_refuses_a_bad_time(capsys: pytest.CaptureFixture):
 def test_analyse_jacobian_refuses_bad_input(jacobian, expected):
     with pytest.raises(ValueError, match=expected):
         analyse_jacobian(jacobian)
+
+
+def test_a_polynomial_names_its_bad_coefficient():
+    from sparsekin import Polynomial
+
+    with pytest.raises(ModelError, match=r"^coefficients\[1\]: expected a finite number, got nan$"):
+        Polynomial((0.0, float("nan")))
+    with pytest.raises(ModelError, match=r"^coefficients\[2\]: expected a number, got "):
+        Polynomial((None, 1.0, "x"))
+
+
+def test_a_pattern_of_another_mechanism_is_refused():
+    from sparsekin import AbsoluteDriver, Body, Linear, Mechanism, Revolute
+    from sparsekin.pattern import build_pattern
+
+    def slider(joints, drivers, origin="O"):
+        return Mechanism(points={"O": (0.0, 0.0), "P": (1.0, 0.5)}, bodies=[Body("slider", origin=origin)],
+                         joints=joints, drivers=drivers)  # fmt: skip
+
+    def turning(axis="angle"):
+        return AbsoluteDriver("slider", axis, law=Linear(rate=1.0))
+
+    pinned = slider([Revolute(("slider", "ground"), at="O")], [turning()])
+    times = [0.0, 0.5]
+    assert solve_kinematics(pinned, times, pattern=build_pattern(pinned)).complete
+    driven = slider([], [turning(axis) for axis in ("x", "y", "angle")])
+    moved = slider([Revolute(("slider", "ground"), at="P")], [turning()], origin="P")
+    with pytest.raises(ValueError, match=r"^`pattern` must be a ConstraintPattern \(build_pattern\), got dict\.$"):
+        solve_kinematics(pinned, times, pattern={})
+    cases = [
+        (build_pattern(task5()), "it has 10 bodies and 30 equations, `mechanism` 1 and 3"),
+        (build_pattern(driven), "its joints and drivers have other numbers of equations"),
+        (build_pattern(moved), "its bodies are drawn elsewhere"),
+    ]
+    for pattern, why in cases:
+        with pytest.raises(ValueError, match=rf"^`pattern` must be the ConstraintPattern of a mechanism like "
+                           rf"`mechanism`: {why}\.$"):  # fmt: skip
+            solve_kinematics(pinned, times, pattern=pattern)

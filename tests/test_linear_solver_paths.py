@@ -128,7 +128,7 @@ def test_auto_refactors_a_model_above_the_compiled_size():
 
 def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
     """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on with
-    SuperLU (and chord Newton) after the first sample; the motion is the same."""
+    SuperLU (and chord Newton) from the first sample on; the motion is the same."""
     from sparsekin import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
@@ -138,3 +138,23 @@ def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
     # one SuperLU factorization per sample (chord), besides the refactorization's first
     assert result.n_factorizations <= 1 + result.n_times + result.newton_iterations[:2].sum()
     assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
+
+
+def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(monkeypatch):
+    """Leaving the refactorization at the first sample, ``auto`` factors the Jacobian there
+    again with SuperLU: the forces of that sample are solved with it (they failed with "no
+    factorization"), and every sample's forces are those of ``linear_solver="superlu"``."""
+    from sparsekin import stepper
+
+    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
+    grid = testset.lattice(6, 8)
+    bodies = tuple(replace(body, mass=2.0, inertia=0.2) for body in grid.bodies)
+    mechanism, times = replace(grid, bodies=bodies, gravity=(0.0, -9.81)), np.linspace(0.0, 1.0, 11)
+    result = solve_kinematics(mechanism, times, forces="all")
+    reference = solve_kinematics(mechanism, times, forces="all", linear_solver="superlu")
+    assert result.linear_solver == "superlu-chord" and result.complete
+    assert result.force_labels == reference.force_labels and len(result.force_labels) > 100
+    # one SuperLU factorization per sample: at the switch, then at each converged position
+    assert result.n_factorizations == 1 + result.n_times
+    scale = np.abs(reference.force_tracks).max()
+    np.testing.assert_allclose(result.force_tracks, reference.force_tracks, rtol=0, atol=1e-9 * scale)

@@ -363,3 +363,30 @@ def test_dense_lu_kernels_from_compiled_code(rng):
     solutions = np.empty((3, 8))
     assert _solve_in_a_compiled_loop(matrices, rhs, np.empty(8, dtype=np.int64), solutions)
     np.testing.assert_allclose(solutions, np.linalg.solve(matrices, rhs[..., None])[..., 0], rtol=1e-10)
+
+
+def test_a_failed_fresh_factorization_leaves_the_fill_in_the_solver_order(rng):
+    """The guard trips, and the fresh factorization chooses a new column order, then fails:
+    the assembler must fill in the new order from then on, or the next refactorization
+    reads every value at the wrong place."""
+    from sparsekin.newton import Factorizer
+
+    family = Family("task5_chain")
+    assembler = Assembler(family.mechanism, family.pattern)  # one that fills in factor order
+    jacobian = family.jacobian_at(0)
+    other = splu(jacobian.T.tocsc(), permc_spec="MMD_AT_PLUS_A")  # a pivot order that is not COLAMD's
+    solver = RefactorSolver()
+    solver.suggest(other.perm_r, other.perm_c)
+    factor = Factorizer(assembler, solver)
+    assembler.set_time(family.times[0])
+    assembler.fill_residual_jacobian(family.coordinates[0])
+    factor()
+    assert solver.layout_version == 1 and np.array_equal(assembler.csr_positions, solver.value_positions)
+    assembler.values[0] = np.inf  # the guard trips; SuperLU's COLAMD order is analysed, then fails
+    with pytest.raises(SingularMatrix, match="non-finite"):
+        factor()
+    assert solver.layout_version == 2 and np.array_equal(assembler.csr_positions, solver.value_positions)
+    assembler.set_time(family.times[1])
+    assembler.fill_residual_jacobian(family.coordinates[1])
+    factor()
+    check_solves(solver, family.jacobian_at(1), rng)

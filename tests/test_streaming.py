@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from examples_loader import EXAMPLES
-from sparsekin import AnalysisInterrupted, LimitWarning, load_model, solve_kinematics, testset
+from sparsekin import AnalysisInterrupted, LimitWarning, SparsekinError, load_model, solve_kinematics, testset
+from sparsekin import recording
 from sparsekin.cli import main
 from sparsekin.linalg import RefactorSolver
 from sparsekin.stepper import KinematicStepper
@@ -86,6 +87,8 @@ def test_an_interrupt_keeps_every_sample_solved(name, tmp_path):
         solve_kinematics(mechanism, times, points=points, store=tmp_path / "run.zarr", progress=interrupt)
     result = caught.value.result
     assert isinstance(caught.value, KeyboardInterrupt) and stop_at <= result.n_times < times.size
+    # the counts describe the samples returned (task5: between two chunks of the compiled loop)
+    assert result.newton_iterations.size == result.n_times and not result.complete
     np.testing.assert_array_equal(np.asarray(result.coordinates), reference.coordinates[: result.n_times])
     dataset = xarray.open_zarr(tmp_path / "run.zarr")
     assert dataset.sizes["time"] == result.n_times
@@ -97,9 +100,12 @@ def test_limits_are_watched_in_a_run_without_coordinates(tmp_path):
 
     mechanism = testset.task5()
     joints = tuple(replace(j, limits=(0.7, 0.86)) if j.name == "actuator1" else j for j in mechanism.joints)
-    with pytest.warns(LimitWarning, match=r'joints\[12\] "actuator1" .* left its limits: stroke 0\.86'):
+    expected = r'joints\[12\] "actuator1" .* left its limits: stroke 0\.86'
+    with pytest.warns(LimitWarning, match=expected) as caught:
         solve_kinematics(replace(mechanism, joints=joints), np.linspace(0.0, 2.0, 201), coordinates=False, points=["K"],
                          store=tmp_path / "run.zarr")  # fmt: skip
+    limits = [warning.filename for warning in caught if issubclass(warning.category, LimitWarning)]
+    assert limits == [__file__]  # the call of solve_kinematics
 
 
 # ---------------------------------------------------------------------- the command line
@@ -177,3 +183,94 @@ def test_a_long_chain_takes_its_first_pivot_order_from_a_short_one():
     reference = solve_kinematics(mechanism, times, linear_solver="superlu")
     scale = stepper.pattern.length_scale
     np.testing.assert_allclose(tiled.coordinates, reference.coordinates, rtol=0, atol=1e-11 * scale)
+
+
+# ---------------------------------------------------------------------- errors, interrupts and the store
+CHAIN = (lambda: testset.four_bar_chain(60), np.linspace(0.0, 1.0, 101))  # the Python loop, one chunk
+
+
+ERRORS = [RuntimeError("the caller's own error"), SparsekinError("a sparsekin error")]
+
+
+@pytest.mark.parametrize("error", ERRORS, ids=["other", "sparsekin"])
+def test_any_error_in_the_loop_keeps_the_samples_solved_in_the_store(error, tmp_path):
+    build, times = CHAIN
+    mechanism = build()
+    reference = solve_kinematics(mechanism, times)
+
+    def fail(done, total):
+        if done == 40:
+            raise error
+
+    with pytest.raises(type(error), match=str(error)) as caught:
+        solve_kinematics(mechanism, times, points=["A0"], store=tmp_path / "run.zarr", progress=fail)
+    dataset = xarray.open_zarr(tmp_path / "run.zarr")  # the chunk not yet full was written
+    np.testing.assert_array_equal(dataset["t"].values, times[:40])
+    np.testing.assert_array_equal(dataset["q"].values, reference.coordinates[:40])
+    if isinstance(error, SparsekinError):
+        result = caught.value.result
+        assert result.n_times == result.newton_iterations.size == 40 and not result.complete
+        np.testing.assert_array_equal(np.asarray(result.coordinates), reference.coordinates[:40])
+
+
+def test_a_ctrl_c_during_a_write_never_writes_a_chunk_twice(tmp_path, monkeypatch):
+    """SIGINT while a chunk is appended to the store: the interrupt is taken once the
+    write is done and counted, so the end of the run does not append the chunk again."""
+    build, times = CHAIN
+    mechanism = build()
+    reference = solve_kinematics(mechanism, times)
+    monkeypatch.setattr(recording, "MAX_CHUNK_SAMPLES", 16)
+    write, calls = recording.ZarrSink.write, []
+
+    def interrupted_write(self, first, data):
+        write(self, first, data)
+        calls.append(first)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)  # Ctrl-C at the end of the second chunk's append
+
+    monkeypatch.setattr(recording.ZarrSink, "write", interrupted_write)
+    with pytest.raises(AnalysisInterrupted) as caught:
+        solve_kinematics(mechanism, times, store=tmp_path / "run.zarr")
+    result = caught.value.result
+    assert calls == [0, 16] and result.n_times == result.newton_iterations.size == 32
+    dataset = xarray.open_zarr(tmp_path / "run.zarr")
+    np.testing.assert_array_equal(dataset["t"].values, times[:32])
+    np.testing.assert_array_equal(dataset["q"].values, reference.coordinates[:32])
+
+
+def test_to_xarray_in_memory_has_the_variables_and_labels_of_a_store(tmp_path):
+    mechanism, times = load_model(EXAMPLES / "task5_dynamics.toml"), np.linspace(0.0, 1.0, 11)
+    options = {"points": ["K"], "joints": "all", "forces": "all"}
+    memory = solve_kinematics(mechanism, times, **options).to_xarray()
+    stored = solve_kinematics(mechanism, times, store=tmp_path / "run.zarr", **options).to_xarray()
+    assert set(memory.data_vars) == set(stored.data_vars) == {"q", "qd", "qdd", "points", "joints", "forces"}
+    assert set(memory.coords) == set(stored.coords)
+    assert {"joint_quantity", "joint_unit", "force_unit"} <= set(memory.coords)
+    for name in [*memory.data_vars, *memory.coords]:
+        assert memory[name].dims == stored[name].dims, name
+        np.testing.assert_array_equal(memory[name].values, stored[name].values, err_msg=name)
+
+
+def test_a_store_path_is_checked_and_an_old_store_cleared_before_the_run(tmp_path):
+    mechanism, times = testset.four_bar_chain(3), np.linspace(0.0, 1.0, 11)
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    (folder / "keep.txt").write_text("mine")
+    with pytest.raises(ValueError, match=r"^`store` '.*notes' is a folder that is not a Zarr store and not "):
+        solve_kinematics(mechanism, times, store=folder)
+    assert (folder / "keep.txt").read_text() == "mine"
+    (tmp_path / "file").write_text("mine")
+    with pytest.raises(ValueError, match=r"^`store` '.*file' is a file, not a Zarr store; "):
+        solve_kinematics(mechanism, times, store=tmp_path / "file")
+    store = tmp_path / "run.zarr"
+    solve_kinematics(mechanism, times, store=store)
+    later = times + 5.0
+
+    def fail(done, total):
+        raise RuntimeError("stopped at the first sample")
+
+    with pytest.raises(RuntimeError, match="stopped at the first sample"):  # the Python loop: sample by sample
+        solve_kinematics(mechanism, later, store=store, progress=fail, linear_solver="superlu")
+    np.testing.assert_array_equal(xarray.open_zarr(store)["t"].values, later[:1])  # no sample of the old run
+    (tmp_path / "empty").mkdir()
+    assert solve_kinematics(mechanism, times, store=tmp_path / "empty").n_times == times.size
