@@ -127,6 +127,9 @@ class ModelReport:
     n_loads : int
     gravity : (gx, gy)
         m/s².
+    has_forces : bool
+        Whether a run computes forces by default: a body has a mass or an inertia, or a
+        load acts (`Mechanism.has_forces`).
     """
 
     name: str
@@ -149,6 +152,7 @@ class ModelReport:
     n_massless: int = 0
     n_loads: int = 0
     gravity: tuple[float, float] = (0.0, 0.0)
+    has_forces: bool = False
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -197,7 +201,8 @@ class ModelReport:
 
     @property
     def sound(self) -> bool:
-        """No problem: assembled, no redundant equation, no free motion."""
+        """No problem: assembled, no redundant equation, no free motion, no element outside
+        its limits (`problems` is empty)."""
         return not self.problems
 
     def __str__(self) -> str:
@@ -304,6 +309,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         n_massless=n_massless,
         n_loads=mechanism.n_loads,
         gravity=mechanism.gravity,
+        has_forces=mechanism.has_forces,
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -417,7 +423,7 @@ def format_report(report: ModelReport) -> str:
 
 def _masses_line(report: ModelReport) -> str:
     """Total mass, massless moving bodies, loads and gravity: what the forces will rest on."""
-    if not report.total_mass and not report.n_loads:
+    if not report.has_forces:
         return "masses and loads: none (a run computes no forces)"
     if report.n_massless == 0:
         bodies = "every moving body has a mass"

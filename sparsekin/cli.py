@@ -15,8 +15,8 @@ when the analysis stops, the clip runs up to the stop and marks it.
 ``sparsekin check MODEL.toml`` assembles the model and prints its degrees of freedom, the
 rank of its Jacobian, its redundant equations and its free motions
 (`sparsekin.check.check_model`).  Exit status: 0 for a sound model, 1 when it has
-a problem (redundant equations, free motions, or it cannot be assembled), 2 on a bad
-model file or bad arguments.
+a problem (redundant equations, free motions, an element outside its limits, or it
+cannot be assembled), 2 on a bad model file or bad arguments.
 
 ``sparsekin sweep MODEL.toml --vary PATH=START:STOP:N ...`` solves many variants on Dask
 (`sparsekin.sweeps`) and writes ``sweep.zarr`` and ``variants.csv``; exit status 0 once
@@ -273,7 +273,8 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
     Raises
     ------
     CommandError
-        If no end time is given, a number is out of range or a point is unknown.
+        If no end time is given, a number is out of range, a point is unknown, or
+        ``--quasi-static`` is given for a run that computes no forces.
     """
     analysis = mechanism.analysis
     times = resolve_times(arguments, mechanism)
@@ -313,11 +314,19 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
     else:
         forces = None
         notes.append(f"{n_elements} drivers and joints: no forces written (give --forces D1,J2 or all)")
+    quasi_static = bool(getattr(arguments, "quasi_static", False))
+    if quasi_static and forces is None:
+        if force_text is not None:
+            why = "--forces none leaves every force out"
+        elif not mechanism.has_forces:
+            why = "the model has no mass or load, so no forces are computed (give --forces D1,J2 or all)"
+        else:
+            why = f"{n_elements} drivers and joints: no forces are computed by default (give --forces D1,J2 or all)"
+        raise CommandError(f"--quasi-static changes the forces, but {why}")
     directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
     return RunSettings(
         times, tuple(point_names), directory, arguments.plot, joint_indices, coordinates,
-        getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces,
-        bool(getattr(arguments, "quasi_static", False)),
+        getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces, quasi_static,
     )  # fmt: skip
 
 
@@ -551,7 +560,7 @@ def add_sweep_command(subparsers) -> None:
     parser.add_argument("--vary", action="append", default=[], metavar="PATH=START:STOP:N",
                         help="N values of a parameter from START to STOP; paths joined by commas take the same "
                         "values; several --vary make a grid of every combination")  # fmt: skip
-    parser.add_argument("--samples", type=int, metavar="N", help="random variants (at each grid point)")
+    parser.add_argument("--samples", type=int, metavar="N", help="random variants (at each grid point), with --perturb")
     parser.add_argument("--perturb", action="append", default=[], metavar="points=SIGMA",
                         help="move every point's drawn position by a normal deviation of SIGMA m")  # fmt: skip
     parser.add_argument("--seed", type=int, metavar="S", help="seed of the random deviations (default: fresh, "
@@ -582,8 +591,8 @@ def add_sweep_command(subparsers) -> None:
                         "<model name>)")  # fmt: skip
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
                         'the stop times against the varied parameter (needs "sparsekin[plot]")')  # fmt: skip
-    parser.add_argument("--plot-point", metavar="P", help="the point whose paths are drawn (default: the first "
-                        "point recorded)")  # fmt: skip
+    parser.add_argument("--plot-point", metavar="P", help="with --plot, the point whose paths are drawn (default: "
+                        "the first point recorded)")  # fmt: skip
     parser.set_defaults(handler=sweep_command)
 
 
@@ -597,7 +606,8 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         For a bad argument, a bad model file or an output folder that cannot be written.
     """
     _require_distributed()
-    from .sweeps import VariantSet, sweep, write_variants_csv
+    from .solvers import _checked_times
+    from .sweeps import VariantSet, default_worker_count, sweep, write_variants_csv
 
     mechanism = load_model(arguments.model)
     try:
@@ -620,6 +630,12 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         raise CommandError(f"--workers must be a whole number >= 1, got {arguments.workers}")
     if arguments.variants_per_task is not None and arguments.variants_per_task < 1:
         raise CommandError(f"--variants-per-task must be a whole number >= 1, got {arguments.variants_per_task}")
+    try:  # what every variant's run would refuse, e.g. times outside a spline law's range: once, here
+        _checked_times(settings.times, mechanism)
+    except ValueError as error:
+        raise CommandError(str(error)) from None
+    if arguments.plot_point is not None and not arguments.plot_figures:
+        raise CommandError("--plot-point chooses the point of the sweep's figures: give --plot with it")
     plot_point = None
     if arguments.plot_figures:
         _require_matplotlib()
@@ -672,7 +688,13 @@ def sweep_command(arguments: argparse.Namespace) -> int:
 
         written += [plot_sweep_paths(result, plot_point, settings.directory), plot_stop_times(result, settings.directory)]
     counts = ", ".join(f"{status} {count}" for status, count in result.counts.items())
-    workers = "the scheduler's workers" if arguments.scheduler else f"{arguments.workers or 'one per core'} workers"
+    if arguments.scheduler:
+        workers = "the scheduler's workers"
+    elif arguments.workers:
+        workers = f"{arguments.workers} worker{'s' * (arguments.workers != 1)}"
+    else:
+        count = default_worker_count()
+        workers = f"{count} worker{'s' * (count != 1)} (one per core)"
     print("\n".join([
         f"{mechanism.name}: {result.n_variants} variants, {settings.times.size} samples each, "
         f"t = 0 … {settings.times[-1]:g} s",
@@ -852,11 +874,11 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
 
         written += plot_point_motion(result, settings.point_names, directory)
         written += plot_point_paths(result, settings.point_names, directory)
+        written += plot_driver_forces(result, directory)  # from the recorded forces, without the coordinates
         if result.coordinates is None:
             _report("note: actuators.png and mechanism.png need every body's coordinates: give --coordinates")
             return written
         written += plot_actuators(result, directory)
-        written += plot_driver_forces(result, directory)
         shown = None
         if mechanism.n_bodies > MAX_DRAWN_BODIES:
             shown = [mechanism.body_names[k] for k in range(MAX_DRAWN_BODIES)]
@@ -922,10 +944,17 @@ def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
     """Write time and the force columns the run recorded, every float by `repr`.
 
     The header is ``t,motor.force,motor.power,pivot.fx,pivot.fy,...``
-    (`sparsekin.dynamics.ForceOutputs`); for None, the column ``t`` alone.
+    (`sparsekin.dynamics.ForceOutputs`).  A model with masses or loads but no driver or
+    joint has no force column: the column ``t`` alone, as ``joints.csv`` without joints;
+    for None, the header alone.
     """
     labels = () if result is None else result.force_labels
-    table = np.empty((0, 1 + len(labels))) if result is None else np.column_stack([result.times, result.force_tracks])
+    if result is None:
+        table = np.empty((0, 1 + len(labels)))
+    elif result.force_tracks is None:
+        table = result.times[:, np.newaxis]
+    else:
+        table = np.column_stack([result.times, result.force_tracks])
     with open(path, "w", encoding="utf-8", newline="") as file:
         file.write(",".join(["t", *labels]) + "\n")
         file.writelines(",".join(map(repr, row)) + "\n" for row in table.tolist())

@@ -13,10 +13,15 @@ triangular solve, no factorization.  The constraints apply −Φqᵀ λ to the b
   the quantity it drives (a stroke or distance apart, a relative angle
   counter-clockwise), and its power is that force times the quantity's rate;
 * a joint's reaction on ``bodies[0]`` from ``bodies[1]`` is −Φqᵀ λ restricted to the
-  joint's rows and to the columns of ``bodies[0]`` (of ``bodies[1]``, negated, when
-  ``bodies[0]`` is the ground: the joint's equations depend only on the relative
-  position of its bodies, so its forces on them are opposite), with the moment taken
-  about the joint's point (`~sparsekin.elements.Joint.reaction_point`).
+  joint's rows and to the columns of ``bodies[0]``, with the moment taken about the
+  joint's point (`~sparsekin.elements.Joint.reaction_point`).  When ``bodies[0]`` is the
+  ground, which has no columns, it is minus the sum of what those rows apply to every
+  other body they involve: the joint's equations depend only on the relative positions
+  of its bodies, so the forces of its rows on all of them, the ground included, balance.
+  For a two-body joint that is −(the force on ``bodies[1]``); a gear's rows also act on
+  its carrier (``angle(ground) − angle(k) = −ratio · (angle(j) − angle(k))`` puts
+  −ratio·λ on the planet j and (1 + ratio)·λ on the carrier k), so its torque on the
+  ground is −λ, as for a gear whose ``bodies[0]`` moves.
 
 The drivers' powers and the loads' power then add up to the rate of change of kinetic
 plus potential energy (tests/test_forces.py checks it).  With ``quasi_static`` the
@@ -26,7 +31,13 @@ configuration (a slow hydraulic machine).
 A model with redundant equations has many λ: the equations left out carry none in the
 solve; the answer given is the one of minimum norm, λ − W (WᵀW)⁻¹ Wᵀ λ with W the
 dependencies of the equations at the sample (one more transposed solve per redundant
-equation), up to `MAX_MIN_NORM_EQUATIONS` of them.
+equation), up to `MAX_MIN_NORM_EQUATIONS` of them.  That norm adds squares of newtons
+(the multipliers of position equations) to squares of newton-metres (those of angle
+equations, e.g. a rigid or translational joint's angle row), unweighted: when a
+redundant set mixes both kinds, how the load is shared among them depends on the unit
+of length (metres here: in millimetres the angle rows' multipliers would be a thousand
+times larger and the split would differ).  Any of those answers holds the motion; only
+their split among the redundant joints is a convention.
 
 `build_load_pattern` packs the masses and loads once; `ForceOutputs` says which columns
 a run records and how each is made; `ForceSolver` evaluates them after each sample of the
@@ -204,7 +215,7 @@ class ForceOutputs:
             units += ["N", "N", "N·m"][: len(names)]
         self.labels, self.units = tuple(labels), tuple(units)
         side, side_is_first, point_body, point_local = _reaction_geometry(mechanism, pattern, self.joint_indices)
-        entries = _reaction_entries(pattern, np.array(self.joint_indices, dtype=np.int64), side)
+        entries = _reaction_entries(pattern, np.array(self.joint_indices, dtype=np.int64), side, side_is_first)
         self._csr_arrays = ForceOutputArrays(
             _ints(driver_row), _ints(driver_rows), _ints(driver_column), *entries, side, side_is_first, point_body,
             point_local, _ints(joint_column), np.array(joint_torque, dtype=bool),
@@ -276,9 +287,15 @@ def _reaction_geometry(mechanism: Mechanism, pattern: ConstraintPattern, joints:
     return side, side_is_first, point_body, point_local
 
 
-def _reaction_entries(pattern: ConstraintPattern, joints: np.ndarray, side: np.ndarray):
-    """The Jacobian entries of each chosen joint's rows in the columns of its side body:
-    (CSR position, row, joint slot, component)."""
+def _reaction_entries(pattern: ConstraintPattern, joints: np.ndarray, side: np.ndarray, side_is_first: np.ndarray):
+    """The Jacobian entries of each chosen joint's rows that make its reaction:
+    (CSR position, row, joint slot, component).
+
+    Those in the columns of its side body; when ``bodies[0]`` is the ground, also those in
+    the angle columns of any third body the rows involve (a gear's carrier), counted as
+    angle entries of the side body: the reaction on the ground is minus the sum over
+    every other body (see the module docstring), and a torque needs no arm.
+    """
     first_row = pattern.element_first_row
     starts, ends = first_row[joints], first_row[joints + 1]
     n_rows = ends - starts
@@ -289,8 +306,18 @@ def _reaction_entries(pattern: ConstraintPattern, joints: np.ndarray, side: np.n
     entry_row = np.repeat(rows, counts)
     entry_joint = np.repeat(row_joint, counts)
     positions = np.repeat(indptr[rows] - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()), dtype=np.int64)
-    component = pattern.indices[positions].astype(np.int64) - 3 * side[entry_joint]
-    keep = (component >= 0) & (component < 3)
+    columns = pattern.indices[positions].astype(np.int64)
+    component = columns - 3 * side[entry_joint]
+    own = (component >= 0) & (component < 3)
+    third = ~own & ~side_is_first[entry_joint]  # bodies[0] is the ground: another body's share counts
+    if np.any(third & (columns % 3 != 2)):
+        joint = int(joints[entry_joint[np.flatnonzero(third & (columns % 3 != 2))[0]]])
+        raise NotImplementedError(
+            f"joints[{joint}]: bodies[0] is the ground and the joint's equations push a third body; its reaction "
+            "would need that body's forces moved to the joint's point (only a third body's torque is counted)"
+        )
+    keep = own | third
+    component = np.where(own, component, 2)
     return _ints(positions[keep]), _ints(entry_row[keep]), _ints(entry_joint[keep]), _ints(component[keep])
 
 

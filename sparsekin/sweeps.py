@@ -99,7 +99,7 @@ _PERTURB_KINDS = ("points",)
 
 
 # ---------------------------------------------------------------------- the description
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class VariantSet:
     """The variants of a sweep: a grid of values by path, and random samples.
 
@@ -111,7 +111,7 @@ class VariantSet:
         number, (n, 2) for a point's position.  The variants are the cartesian product of
         the axes, the first axis slowest.
     samples : int
-        Random samples at each grid point (default 1).
+        Random samples at each grid point (default 1; more than 1 needs `perturb_points`).
     perturb_points : float, optional
         Standard deviation of the normal deviation added to each coordinate of every
         point's drawn position (the model's own points and every copy's), m.  None: no
@@ -193,6 +193,9 @@ class VariantSet:
             raise ValueError(f"`seed` must be a whole number >= 0, got {self.seed!r}.")
         if not self.grid and sigma is None:
             raise ValueError("nothing to vary: give `grid` values, or `perturb_points`.")
+        if self.samples > 1 and sigma is None:
+            raise ValueError(f"`samples` = {self.samples} needs `perturb_points`: without a deviation every sample "
+                             "is the same variant.")  # fmt: skip
 
     # ------------------------------------------------------------------ shape
     @property
@@ -293,6 +296,9 @@ class VariantSet:
             raise ValueError(
                 "nothing to vary: give --vary PATH=START:STOP:N, or --samples N --perturb points=SIGMA"
             )
+        if samples is not None and samples > 1 and sigma is None:
+            raise ValueError(f"--samples {samples} needs --perturb points=SIGMA: without a deviation every sample is "
+                             "the same variant")  # fmt: skip
         return cls({key if len(key) > 1 else key[0]: values for key, values in grid.items()},
                    samples=samples or 1, perturb_points=sigma, seed=seed)  # fmt: skip
 
@@ -388,9 +394,7 @@ class VariantDesign:
                     raise ModelError(f"expected {expected} as values", element=path)
                 targets[path] = target
                 for value in (values[0], values[-1]) if values.ndim == 1 else ():
-                    _changed_law(
-                        mechanism, target, float(value)
-                    )  # a value the law refuses, e.g. a negative rate
+                    _check_law_value(mechanism, target, float(value))  # e.g. a negative rate
         self.targets = targets
         #: Whether variants differ in their drawing (then each needs its own pattern).
         self.geometry_varies = variants.perturb_points is not None or any(
@@ -550,26 +554,26 @@ def _resolve_within(
         if name[-2:] in (".x", ".y") and name[:-2] in points:
             return _Target(path, unit, point=name[:-2], component=".x.y".index(name[-2:]) // 2)
         hint = ""
-        if unit is None and mechanism_has_copy_point(points, name):
+        if unit is None and _looks_like_copy_point(name):
             hint = "; a repeated unit's point is varied for every copy with units.UNIT.points.NAME"
         raise ModelError(f'{owner} has no point "{name}" (known: {_validate.known_list(list(points))}){hint}',
                          element=path)  # fmt: skip
     raise ModelError(f"expected {PATH_FORMS}", element=path)
 
 
-def mechanism_has_copy_point(points: Mapping, name: str) -> bool:
-    """Whether `name` looks like a copy's point (``u17.Q``) while `points` are a model's own."""
-    return "." in name and name not in points
+def _looks_like_copy_point(name: str) -> bool:
+    """Whether an unknown point name looks like a copy's point (``u17.Q``)."""
+    return "." in name
 
 
-def _changed_law(mechanism: Mechanism, target: _Target, value: float):
-    """The target law with `value`: checks that the law takes it (ModelError naming the path)."""
+def _check_law_value(mechanism: Mechanism, target: _Target, value: float) -> None:
+    """Check that the target's law takes `value` (a ModelError naming the path otherwise)."""
     if target.is_point:
-        return None
+        return
     drivers = mechanism.own("drivers") if target.unit is None else next(
         c.unit.drivers for c in mechanism.copies if c.unit.name == target.unit
     )  # fmt: skip
-    return _changed_driver(drivers[target.driver], target, value)
+    _changed_driver(drivers[target.driver], target, value)
 
 
 def _changed_driver(driver, target: _Target, value: float):
@@ -974,6 +978,11 @@ def sweep(
     ------
     ModelError
         For a path that names no parameter, or a value it does not take.
+    ValueError
+        For an argument `solve_kinematics` would refuse (times outside a spline law's
+        range, an unknown point, a bad tolerance ...): raised before any task is
+        submitted.  An exception raised later comes from a task that failed (not a
+        variant: those are results) and stops the sweep.
     ImportError
         Without dask and distributed (``pip install "sparsekin[distributed]"``).
 
@@ -994,6 +1003,7 @@ def sweep(
     from .newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
     from .recording import Selection
     from .solvers import _checked_times
+    from .stepper import LINEAR_SOLVERS, checked_max_iterations, checked_tolerance
 
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
@@ -1004,15 +1014,20 @@ def sweep(
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
     if variants_per_task is not None and (isinstance(variants_per_task, bool) or int(variants_per_task) < 1):
         raise ValueError(f"`variants_per_task` must be a whole number >= 1, got {variants_per_task!r}.")
+    # every argument a task would refuse is refused here, before a cluster starts
+    tolerance = checked_tolerance(DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    max_iterations = checked_max_iterations(NEWTON_MAXITER if max_iterations is None else max_iterations)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
+    if not isinstance(quasi_static, (bool, np.bool_)):
+        raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
     selection = Selection(mechanism, coordinates, points, joints, forces)
     chosen = selection.forces
     options = dict(coordinates=bool(coordinates), points=selection.point_names or None,
                    joints=list(selection.joint_indices) or None, linear_solver=linear_solver,
                    forces=None if chosen is None else [*(f"drivers[{d}]" for d in chosen.driver_indices),
                                                        *(f"joints[{j}]" for j in chosen.joint_indices)],
-                   quasi_static=bool(quasi_static),
-                   tolerance=DEFAULT_TOLERANCE if tolerance is None else tolerance,
-                   max_iterations=NEWTON_MAXITER if max_iterations is None else max_iterations)  # fmt: skip
+                   quasi_static=bool(quasi_static), tolerance=tolerance, max_iterations=max_iterations)  # fmt: skip
     layout = _layout(design, times, selection)
     own_cluster = None
     if client is None:
@@ -1021,7 +1036,9 @@ def sweep(
     elif isinstance(client, str):
         client = own_cluster = distributed.Client(client)
     try:
-        n_threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values()) or 1
+        # Client.nthreads asks the scheduler for every worker (scheduler_info()["workers"]
+        # lists at most five in distributed 2025.4 … 2026.6: dask/distributed#9045)
+        n_threads = sum(client.nthreads().values()) or 1
         bytes_per_variant = 8 * times.size * sum(int(np.prod(shape)) for shape in layout.shapes.values())
         ranges = task_ranges(design.n_variants, n_threads, bytes_per_variant, variants_per_task)
         size = ranges[0][1] - ranges[0][0]
@@ -1058,6 +1075,11 @@ def sweep(
     )  # fmt: skip
 
 
+def default_worker_count() -> int:
+    """Worker processes of a local cluster when none is given: one per core this process may use."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def _local_cluster(workers: int | None):
     """A local cluster: the scheduler in this process, `workers` single-threaded worker processes."""
     import logging
@@ -1065,7 +1087,7 @@ def _local_cluster(workers: int | None):
     from distributed import LocalCluster
 
     if workers is None:
-        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        workers = default_worker_count()
     if isinstance(workers, bool) or int(workers) < 1:
         raise ValueError(f"`workers` must be a whole number >= 1, got {workers!r}.")
     return LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0",

@@ -104,7 +104,9 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
     Parameters
     ----------
     mechanism : Mechanism
-        A mechanism whose drivers (the model's own) drive one quantity each.
+        A mechanism whose repeated units (if any) have no drivers.  The two drivers moved
+        must drive one quantity each; the others are held at their values at t = 0, each
+        law of a driver of several (a path driver) on its own.
     point : str
         A named point.
     drivers : pair of int or str
@@ -124,8 +126,8 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
     Raises
     ------
     ModelError
-        For an unknown point or driver, a driver with several laws, a mechanism whose
-        repeated units have drivers, or a range that cannot be found.
+        For an unknown point or driver, a moved driver with several laws, a mechanism
+        whose repeated units have drivers, or a range that cannot be found.
     ConvergenceError
         If the mechanism cannot be assembled at t = 0.
     """
@@ -216,10 +218,10 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
         status of those not reached, boundary value or None, q before the boundary)."""
         direction = 1.0 if targets.size == 0 or targets[-1] >= origin else -1.0
         laws = dict(held)
-        laws |= {k: Linear(rate=0.0, start=v) for k, v in fixed.items()}
-        laws[moving] = Linear(rate=direction, start=origin)
+        laws |= {k: {"law": Linear(rate=0.0, start=v)} for k, v in fixed.items()}
+        laws[moving] = {"law": Linear(rate=direction, start=origin)}
         variant = dataclasses.replace(
-            mechanism, drivers=tuple(dataclasses.replace(d, law=laws[k]) for k, d in enumerate(mechanism.drivers))
+            mechanism, drivers=tuple(dataclasses.replace(d, **laws[k]) for k, d in enumerate(mechanism.drivers))
         )  # fmt: skip
         stepper = KinematicStepper(variant, tolerance=tolerance, pattern=pattern)
         solved: list = []
@@ -313,15 +315,14 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
 
 
 def _held_laws(mechanism: Mechanism, pattern, at_start: np.ndarray) -> dict:
-    """Every own driver with one law held at its value at t = 0 (a constant `Linear` law)."""
-    held = {}
+    """Every driver's laws held at their values at t = 0: driver index -> {law field: a
+    constant `Linear` law}, each law of a driver of several (a path driver's ``law_x``,
+    ``law_y``) held on its own row."""
+    held: dict[int, dict] = {}
     for row, k in enumerate(pattern.driven_driver.tolist()):
-        if mechanism.drivers[k].law_fields == ("law",):
-            held[k] = Linear(rate=0.0, start=float(at_start[row]))
-    for k, driver in enumerate(mechanism.drivers):
-        if k not in held:
-            raise ModelError(f"drivers[{k}] drives {len(driver.law_fields)} quantities; the workspace holds drivers "
-                             "of one law only", element=f"drivers[{k}]")  # fmt: skip
+        fields = held.setdefault(k, {})
+        field_name = mechanism.drivers[k].law_fields[len(fields)]  # a driver's rows follow its law fields
+        fields[field_name] = Linear(rate=0.0, start=float(at_start[row]))
     return held
 
 

@@ -517,3 +517,103 @@ def test_a_load_given_by_a_spline_is_refused_outside_its_times():
     # turning steadily about its centre of mass, the crank is held against the load alone
     load = spline.evaluate(times, 0.0)[0]
     np.testing.assert_allclose(result.driver_force(0).force, -load, rtol=0, atol=1e-12)
+
+
+# ---------------------------------------------------------------------- gears: the reaction on the ground
+def planetary(sun="ground", ratio=0.5, inertia=0.02, swapped=False):
+    """An arm turning about O carries a planet pivoted at P (its centre of mass) that meshes
+    with a sun gear about O: the ground, or a body held still by a driver (``sun="sun"``).
+    The gear is ``bodies = [sun, planet]`` (ratio R_planet / R_sun), or with `swapped` the
+    same constraint written ``[planet, sun]`` (ratio R_sun / R_planet)."""
+    bodies = [sk.Body("arm", origin="O", points=("O", "P"), mass=1.0, inertia=0.1, com="C"),
+              sk.Body("planet", origin="P", points=("P",), mass=0.5, inertia=inertia)]  # fmt: skip
+    joints = [sk.Revolute(("arm", "ground"), at="O"), sk.Revolute(("planet", "arm"), at="P")]
+    drivers = [sk.RotationalDriver(("arm", "ground"), law=sk.Harmonic(amplitude=1.0, omega=3.0), name="motor")]
+    if sun != "ground":
+        bodies.append(sk.Body(sun, origin="O", points=("O",)))
+        joints.append(sk.Revolute((sun, "ground"), at="O"))
+        drivers.append(sk.RotationalDriver((sun, "ground"), law=sk.Linear(rate=0.0), name="brake"))
+    gear = sk.Gear(("planet", sun), ratio=1.0 / ratio, carrier="arm", name="mesh") if swapped else sk.Gear(
+        (sun, "planet"), ratio=ratio, carrier="arm", name="mesh")  # fmt: skip
+    return sk.Mechanism(points={"O": (0.0, 0.0), "P": (0.3, 0.0), "C": (0.1, 0.05)}, bodies=bodies,
+                        joints=[*joints, gear], drivers=drivers, gravity=(0.0, -G))  # fmt: skip
+
+
+def test_a_gear_on_the_ground_reports_the_torque_on_the_ground():
+    """The planet's moment balance about its centre (its pivot and its centre of mass) gives
+    the gear's torque on it, I α; the tooth force acts on the sun at the sun's pitch radius,
+    R_sun = R_planet / ratio, so its torque on the sun is I α / ratio.  The ground as the
+    sun, a moving sun held by a brake (whose torque balances the gear's), and the same gear
+    written the other way round must all say so."""
+    ratio, inertia = 0.5, 0.02
+    times = np.linspace(0.0, 2.0, 41)
+    grounded = sk.solve_kinematics(planetary("ground", ratio, inertia), times)
+    planet = grounded.mechanism.body_names.index("planet")
+    alpha = grounded.accelerations.reshape(times.size, -1, 3)[:, planet, 2]
+    on_planet = inertia * alpha
+    assert np.abs(on_planet).max() > 0.1  # N·m: the planet accelerates
+    atol = 1e-9
+    np.testing.assert_allclose(grounded.reaction("mesh").torque, on_planet / ratio, rtol=0, atol=atol)
+    np.testing.assert_allclose(grounded.reaction("mesh").force, 0.0, rtol=0, atol=atol)
+    written_back = sk.solve_kinematics(planetary("ground", ratio, inertia, swapped=True), times)
+    np.testing.assert_allclose(written_back.reaction("mesh").torque, on_planet, rtol=0, atol=atol)  # on the planet
+    held = sk.solve_kinematics(planetary("sun", ratio, inertia), times)
+    np.testing.assert_allclose(held.reaction("mesh").torque, on_planet / ratio, rtol=0, atol=atol)
+    np.testing.assert_allclose(held.driver_force("brake").force, -on_planet / ratio, rtol=0, atol=atol)
+
+
+def test_check_counts_an_inertia_as_a_run_does():
+    """A body with an inertia and no mass: the run computes forces, and check says so."""
+    from sparsekin.check import check_model
+
+    mechanism = sk.Mechanism(
+        points={"O": (0.0, 0.0), "A": (0.5, 0.0)},
+        bodies=[sk.Body("crank", origin="O", points=("O", "A"), inertia=0.3)],
+        joints=[sk.Revolute(("crank", "ground"), at="O", name="pivot")],
+        drivers=[sk.RotationalDriver(("crank", "ground"), law=sk.Polynomial(coefficients=(0.0, 0.0, 1.0)),
+                                     name="motor")],  # fmt: skip
+    )
+    result = sk.solve_kinematics(mechanism, [0.0, 0.5])
+    np.testing.assert_allclose(result.driver_force("motor").force, 0.3 * 2.0, rtol=1e-12)  # I α, α = 2 rad/s²
+    report = str(check_model(mechanism))
+    assert "a run computes no forces" not in report
+    assert "masses: total 0 kg; 1 of 1 moving bodies have no mass (crank); 0 loads; no gravity" in report
+
+
+# ---------------------------------------------------------------------- the command line, edge cases
+def test_plot_without_the_coordinates_still_draws_the_forces(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    from sparsekin.cli import main
+
+    assert main(["run", str(EXAMPLE), "--t-end", "1", "--steps", "11", "--no-coordinates", "--plot", "--out",
+                 str(tmp_path)]) == 0  # fmt: skip
+    assert (tmp_path / "forces.png").stat().st_size > 0 and (tmp_path / "forces.csv").is_file()
+    assert not (tmp_path / "mechanism.png").exists()
+
+
+def test_loads_without_drivers_or_joints_write_the_time_column_alone(tmp_path, capsys):
+    from sparsekin.cli import main
+
+    model = tmp_path / "bare.toml"
+    model.write_text('name = "bare"\n\n[points]\nP = [0.0, 0.0]\n\n[[loads]]\ntype = "force"\nbody = "ground"\n'
+                     'at = "P"\nvalue = [0.0, -1.0]\n', encoding="utf-8")  # fmt: skip
+    assert sk.load_model(model).has_forces
+    assert main(["run", str(model), "--t-end", "1", "--steps", "3", "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert (tmp_path / "out" / "forces.csv").read_text(encoding="utf-8").splitlines() == ["t", "0.0", "0.5", "1.0"]
+
+
+@pytest.mark.parametrize("model, options, reason", [
+    ("task5.toml", [], "the model has no mass or load"),
+    ("task5_dynamics.toml", ["--forces", "none"], "--forces none leaves every force out"),
+])  # fmt: skip
+def test_quasi_static_without_forces_is_refused(tmp_path, capsys, model, options, reason):
+    from sparsekin.cli import main
+
+    path = EXAMPLE.parent / model
+    status = main(["run", str(path), "--t-end", "1", "--steps", "3", "--quasi-static", *options, "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and err.startswith("sparsekin: error: --quasi-static changes the forces")
+    assert reason in err
+    assert not (tmp_path / "points.csv").exists()

@@ -115,6 +115,11 @@ def test_task5_amplitudes_above_0054_lock_up_when_a_single_run_does(swept, task5
     )  # the single run of README: "singular ... t = 0.755244 s"
     assert swept.t_stop[k] == 0.75
     assert "singular configuration" in swept.messages[k] and swept.messages[0] == ""
+    # README: the lock-ups of 0.055 … 0.07 m (t_failure) and the last samples solved before them
+    # (t_stop); each the single run's, bit for bit (test_sweep_equals_serial_runs_bit_for_bit)
+    locking = np.flatnonzero(AMPLITUDES >= 0.055)
+    assert np.round(swept.t_failure[locking], 3).tolist() == [0.944, 0.755, 0.66, 0.592]
+    np.testing.assert_allclose(swept.t_stop[locking], [0.94, 0.75, 0.65, 0.59], rtol=0, atol=1e-12)
 
 
 def test_a_sweep_records_the_forces_of_each_variant_as_a_serial_run_does(client, tmp_path):
@@ -218,12 +223,73 @@ def run_cli(arguments, capsys):
     (["--perturb", "points=0.001"], "--perturb needs --samples N"),
     (["--perturb", "joints=0.1", "--samples", "2"], r"--perturb joints=0\.1: expected points=SIGMA"),
     (["--vary", "drivers[0].law.amplitude=0.03:0.07:3", "--workers", "0"], "--workers must be a whole number >= 1"),
+    (["--vary", "drivers[0].law.amplitude=0.03:0.07:3", "--samples", "3"], r"--samples 3 needs --perturb points=SIGMA"),
+    (["--vary", "drivers[0].law.amplitude=0.03:0.07:3", "--plot-point", "K"], r"--plot-point .*: give --plot with it"),
+    (["--vary", "drivers[0].law.amplitude=0.03:0.07:3", "--quasi-static"],
+     r"--quasi-static changes the forces, but the model has no mass or load"),
 ])  # fmt: skip
 def test_cli_mistakes_exit_2_with_one_line(arguments, message, capsys, tmp_path):
     status, _, err = run_cli(["sweep", TASK5, *arguments, "--out", tmp_path], capsys)
     assert status == 2
     assert err.count("\n") == 1 and err.startswith("sparsekin: error: ")
     assert __import__("re").search(message, err), err
+
+
+def no_cluster(workers):
+    raise AssertionError("a cluster was started for a sweep that should have been refused before")
+
+
+def test_times_outside_a_spline_law_are_refused_before_any_cluster(capsys, tmp_path, monkeypatch):
+    """As `run` does: one line, exit status 2, not a task failing on the workers (exit 3)."""
+    monkeypatch.setattr("sparsekin.sweeps._local_cluster", no_cluster)
+    harmonic = 'law = { type = "harmonic", amplitude = 0.05, omega = 1.5 }'
+    spline = 'law = { type = "spline", times = [0.0, 0.5, 1.0], values = [0.8246211, 0.84, 0.8246211] }'
+    model = tmp_path / "spline.toml"
+    model.write_text(TASK5.read_text(encoding="utf-8").replace(harmonic, spline, 1), encoding="utf-8")
+    status, _, err = run_cli(["sweep", model, "--vary", f"{BOTH[1]}=0.03:0.07:3", "--t-end", 2, "--steps", 21,
+                              "--out", tmp_path / "out"], capsys)  # fmt: skip
+    assert status == 2 and err.count("\n") == 1, err
+    assert err.startswith("sparsekin: error: `times` span [0, 2] s but the law of driver") and "spline" in err
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ValueError, match=r"a spline, is defined on \[0, 1\] s"):
+        sk.sweep(sk.load_model(model), {BOTH[1]: [0.04]}, TIMES, workers=1)
+
+
+@pytest.mark.parametrize("option, message", [
+    (dict(tolerance=-1.0), r"`tolerance` must be a positive number|`tolerance` must be a number in"),
+    (dict(max_iterations=0), r"`max_iterations` must be a whole number >= 1"),
+    (dict(linear_solver="lu"), r"`linear_solver` must be one of"),
+])  # fmt: skip
+def test_options_every_task_would_refuse_are_refused_before_any_cluster(task5, monkeypatch, option, message):
+    monkeypatch.setattr("sparsekin.sweeps._local_cluster", no_cluster)
+    with pytest.raises(ValueError, match=message):
+        sk.sweep(task5, {BOTH[0]: [0.04, 0.05]}, TIMES, workers=1, **option)
+
+
+def test_samples_without_a_deviation_are_refused():
+    with pytest.raises(ValueError, match=r"`samples` = 3 needs `perturb_points`"):
+        VariantSet({BOTH[0]: [0.04, 0.05]}, samples=3)
+    assert VariantSet({BOTH[0]: [0.04, 0.05]}, samples=3, perturb_points=0.0).n_variants == 6
+
+
+def test_variant_sets_compare_by_identity():
+    """A frozen dataclass's generated == would compare the dicts of arrays and raise."""
+    first, second = VariantSet({BOTH[0]: [0.04, 0.05]}, seed=1), VariantSet({BOTH[0]: [0.04, 0.05]}, seed=1)
+    assert first == first and first != second
+    assert len({first, second}) == 2
+
+
+def test_every_worker_thread_counts_beyond_five_workers(task5):
+    """Four tasks per worker thread: with six workers, 24 tasks (distributed 2025.4 … 2026.6
+    listed at most five workers in scheduler_info, dask/distributed#9045)."""
+    import logging
+
+    with distributed.LocalCluster(n_workers=6, threads_per_worker=1, processes=False, dashboard_address=":0",
+                                  silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as client:  # fmt: skip
+        client.wait_for_workers(6, timeout=60)
+        result = sk.sweep(task5, {BOTH[0]: np.linspace(0.03, 0.05, 48)}, TIMES[:3], client, coordinates=False,
+                          points=["K"])  # fmt: skip
+    assert result.n_tasks == 24 and (result.status == "complete").all()
 
 
 def test_cli_without_the_extra_names_it(capsys, tmp_path, monkeypatch):

@@ -76,6 +76,31 @@ def test_limits_mark_the_grid_points_outside_them(task5):
     assert limited.limits_left == (task5.element_label("joints", k),)
 
 
+def test_a_path_driver_not_moved_is_held_law_by_law(task5, space):
+    """A marker body beside Task 5, its point P on a path (law_x, law_y) and its angle
+    driven: the workspace over the two strokes holds both of P's laws at their values at
+    t = 0 (P stays where it is drawn, though its laws move fast), and K's map is Task 5's."""
+    marker = dataclasses.replace(
+        task5,
+        points={**task5.points, "P": (2.0, 2.0)},
+        bodies=(*task5.bodies, sk.Body("marker", origin="P", points=("P",))),
+        drivers=(*task5.drivers,
+                 sk.PathDriver("marker", point="P", law_x=sk.Linear(rate=5.0), law_y=sk.Harmonic(amplitude=1.0,
+                                                                                                     omega=9.0)),
+                 sk.AbsoluteDriver("marker", coordinate="angle", law=sk.Linear(rate=3.0))),
+    )  # fmt: skip
+    on_p = sk.workspace(marker, "P", grid=(6, 8), ranges=RANGES)
+    solved = np.isfinite(on_p.positions[..., 0])
+    assert solved.sum() > 20
+    np.testing.assert_array_equal(on_p.status, space.status)
+    np.testing.assert_allclose(on_p.positions[solved], np.broadcast_to([2.0, 2.0], on_p.positions[solved].shape),
+                               rtol=0, atol=1e-12)  # fmt: skip
+    on_k = sk.workspace(marker, "K", grid=(6, 8), ranges=RANGES)
+    np.testing.assert_allclose(on_k.positions, space.positions, rtol=0, atol=1e-9, equal_nan=True)
+    with pytest.raises(sk.ModelError, match=r"drivers\[2\] drives 2 quantities; expected one"):
+        sk.workspace(marker, "K", drivers=(0, 2), ranges=RANGES)
+
+
 @pytest.mark.parametrize("arguments, message", [
     (dict(point="Q"), 'point: unknown point "Q"'),
     (dict(point="K", drivers=(0, 0)), r"drivers: expected two different drivers"),
