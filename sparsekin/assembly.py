@@ -184,6 +184,13 @@ class Assembler:
             self._primitives, q, self._turns, self._target, self.weights, self.residual, self._jac_buffer
         )
 
+    def filled_motion(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The coordinates and velocities of the last `fill_acceleration_rhs`, with the
+        ground appended as a body of zeros, and ``(cos, sin)`` of every body's angle there
+        (the kernels' ``q``, ``qd`` and ``turns``).  The arrays themselves, not copies: the
+        next refill changes them."""
+        return self._q, self._qd, self._turns
+
     def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
         """Refill `acceleration_rhs` (gamma plus the targets' second derivative)."""
         q, qd, turns = self._q, self._qd, self._turns

@@ -52,7 +52,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _force_kernels, _kernels
+from . import _force_kernels
 from .laws import LawPacker, LawTable, fill_laws
 from .loads import LoadArrays, MassArrays, pack_loads
 from .model import Mechanism
@@ -337,25 +337,26 @@ class ForceSolver:
                  quasi_static: bool = False) -> None:  # fmt: skip
         self.loads, self.outputs, self.inertial = loads, outputs, not quasi_static
         n = pattern.n_coordinates
-        self._q, self._qd, self._qdd, self._b = (np.zeros(n + 3) for _ in range(4))
-        self._turns = np.zeros((pattern.n_bodies + 1, 2))
+        self._qdd, self._b = np.zeros(n + 3), np.zeros(n + 3)
         self._laws = [np.zeros(loads.n_laws) for _ in range(3)]
         self.multipliers = np.zeros(pattern.n_equations)
         self._work = np.zeros((len(outputs.joint_indices), 3))
         self.row = np.zeros(outputs.n_columns)
 
     def evaluate(self, stepper) -> np.ndarray:
-        """The force columns at the stepper's current sample (`row`, reused)."""
-        q, qd, qdd = self._q, self._qd, self._qdd
-        q[:-3], qd[:-3], qdd[:-3] = stepper.coordinates, stepper.velocities, stepper.accelerations
-        _kernels.fill_body_turns(q, self._turns)
+        """The force columns at the stepper's current sample (`row`, reused), right after its
+        `start` or `advance`: the assembler's arrays (Jacobian values, the coordinates and
+        velocities of its last acceleration refill) are then those of that sample."""
+        assembler = stepper.assembler
+        q, qd, turns = assembler.filled_motion()
+        qdd = self._qdd
+        qdd[:-3] = stepper.accelerations
         self.loads.evaluate(stepper.time, *self._laws)
-        _force_kernels.fill_applied_forces(self.loads.arrays, q, qd, qdd, self._turns, self._laws[0], self.inertial,
+        _force_kernels.fill_applied_forces(self.loads.arrays, q, qd, qdd, turns, self._laws[0], self.inertial,
                                            self._b)  # fmt: skip
         self._solve_multipliers(stepper, self._b[:-3])
-        assembler = stepper.assembler
         _force_kernels.fill_force_outputs(
-            self.outputs.arrays(assembler.csr_positions), assembler.values, self.multipliers, q, self._turns,
+            self.outputs.arrays(assembler.csr_positions), assembler.values, self.multipliers, q, turns,
             assembler.velocity_rhs, self._work, self.row,
         )  # fmt: skip
         return self.row
