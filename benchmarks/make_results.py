@@ -2,7 +2,7 @@
 
 Usage:
 
-* ``python3 benchmarks/make_results.py`` runs `COMMAND` (the full sizes, 8 minutes on
+* ``python3 benchmarks/make_results.py`` runs `COMMAND` (the full sizes, 15 minutes on
   this project's machines) and writes benchmarks/results.json and benchmarks/RESULTS.md;
 * ``python3 benchmarks/make_results.py results.json [RESULTS.md]`` only writes the tables
   from an earlier run's JSON.
