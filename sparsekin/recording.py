@@ -236,33 +236,13 @@ class Recorder:
 
     def add(self, t: float, coordinates, velocities, accelerations, forces=None) -> None:
         """One solved sample (and its force columns, when the selection has some)."""
-        self._limits.watch(t, coordinates)
-        row = self._rows
-        self._t[row] = t
-        if self._forces is not None:
-            self._forces[row] = forces
-        states = (coordinates, velocities, accelerations)
-        if self._q is not None:
-            for buffer, state in zip(self._q, states):
-                buffer[row] = state
-        if self._carriers.size:
-            for buffer, state in zip(self._frames, states):
-                buffer[row] = state.reshape(-1, 3)[self._carriers]
-        if self.selection.joint_indices:
-            from .results import own_coordinates
-
-            values = own_coordinates(self._outputs, *(state[None] for state in states))
-            self._joints[row] = np.stack([value[0] for value in values], axis=1)
-        self._rows += 1
-        if self._rows == self.size:
-            self.flush()
+        self.add_block(np.array([t]), coordinates[None], velocities[None], accelerations[None],
+                       None if forces is None else forces[None])  # fmt: skip
 
     def add_block(self, times, coordinates, velocities, accelerations, forces=None) -> None:
-        """Solved samples, one per row of the arrays (the compiled loop's): copied by slices."""
-        if self.selection.joint_indices or self._limits.active:
-            for k in range(len(times)):  # these need a kernel call per sample anyway
-                self.add(times[k], coordinates[k], velocities[k], accelerations[k], None if forces is None else forces[k])
-            return
+        """Solved samples, one per row of the arrays (the compiled loop's a block at a time):
+        copied by slices, the joints' own coordinates and the limits by one kernel call."""
+        self._limits.watch(times, coordinates)
         done = 0
         while done < len(times):
             row = self._rows
@@ -276,6 +256,10 @@ class Recorder:
             if self._carriers.size:
                 for buffer, state in zip(self._frames, states):
                     buffer[rows] = state.reshape(m, -1, 3)[:, self._carriers]
+            if self.selection.joint_indices:
+                from .results import own_coordinates
+
+                self._joints[rows] = np.stack(own_coordinates(self._outputs, *states), axis=2)
             if self._forces is not None:
                 self._forces[rows] = forces[block]
             self._rows += m
@@ -372,22 +356,26 @@ class _LimitWatch:
         self._low, self._high = limits[:, 0], limits[:, 1]
         self._open = np.ones(len(self._elements), dtype=bool)  # not yet outside
 
-    def watch(self, t: float, coordinates) -> None:
+    def watch(self, times, coordinates) -> None:
+        """Samples at `times` (s) with `coordinates` (one row each): each element still
+        within its limits that leaves them is recorded at its first sample outside."""
         if not self.active or not self._open.any():
             return
         from .results import LimitState, own_coordinates
 
-        rest = np.zeros((1, coordinates.size))
-        values = own_coordinates(self._outputs, coordinates[None], rest, rest)[0][0]
+        rest = np.zeros_like(coordinates)
+        values = own_coordinates(self._outputs, coordinates, rest, rest)[0]
         outside = self._open & ((values < self._low) | (values > self._high))
-        for e in np.flatnonzero(outside).tolist():
-            kind, k = self._elements[e]
-            element = getattr(self._mechanism, kind)[k]
+        crossed = np.flatnonzero(outside.any(axis=0))
+        first = outside[:, crossed].argmax(axis=0)
+        for e, k in sorted(zip(crossed.tolist(), first.tolist()), key=lambda pair: pair[1]):  # in time order
+            kind, index = self._elements[e]
+            element = getattr(self._mechanism, kind)[index]
             quantity = type(element).output_names[0] if kind == "joints" else element.type_name
             unit = "rad" if self._outputs.row_is_angle[e] else "m"
-            self.crossings.append(LimitState(self._mechanism.element_label(kind, k), quantity, unit, float(values[e]),
-                                             element.limits, float(t), False))  # fmt: skip
-        self._open &= ~outside
+            self.crossings.append(LimitState(self._mechanism.element_label(kind, index), quantity, unit,
+                                             float(values[k, e]), element.limits, float(times[k]), False))  # fmt: skip
+        self._open[crossed] = False
 
 
 #: What the top of a Zarr store holds: a format 2 group or array (and its consolidated
