@@ -142,7 +142,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     -------
     int
         Exit status: 0 on success, 1 when ``check`` finds a problem in the model, 2 on a bad
-        model or bad arguments, 3 when the analysis stopped.
+        model or bad arguments, 3 when the analysis stopped, 130 on Ctrl-C (a command
+        that has solved samples writes them first).
     """
     parser = build_parser()
     try:
@@ -155,6 +156,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         _report(f"error: {error}")
     except OSError as error:  # an output folder or file that cannot be written
         _report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
+    except KeyboardInterrupt:  # before any sample was solved (the commands handle it after)
+        _report("interrupted: nothing solved yet, nothing written")
+        return EXIT_INTERRUPTED
     return EXIT_USAGE
 
 

@@ -144,9 +144,7 @@ class _Reader:
         self.folder = folder
         #: Keys whose TOML value is changed before it reaches the Python class.
         self.converters: dict[str, Callable[[Any, str], Any]] = {
-            "law": self.law,
-            "law_x": self.law,
-            "law_y": self.law,
+            **{field: self.law for kind in DRIVER_KINDS.values() for field in kind.law_fields},
             "file": self.spline_file,
             "offset": _number_or_initial,
             "start": _number_or_initial,

@@ -147,7 +147,7 @@ class Factorizer:
 
 def solve_positions(
     system, linear_solver, q, tolerance=DEFAULT_TOLERANCE, max_iterations=NEWTON_MAXITER, chord=False,
-    factor=None, restart=None,
+    factor=None, restart=None, work=None,
 ) -> int:  # fmt: skip
     """Newton–Raphson from `q`, which it refines in place; returns the number of corrections.
 
@@ -171,6 +171,9 @@ def solve_positions(
     restart : ndarray, optional
         A copy of the original `q` that the caller keeps anyway (the predictor); by
         default one is made when `chord`.
+    work : ndarray, optional
+        Scratch of `q`'s shape for the corrections, kept by a caller that solves many
+        samples (no allocation per correction); by default one is made here.
 
     Returns
     -------
@@ -188,16 +191,17 @@ def solve_positions(
     """
     if factor is None:
         factor = Factorizer(system, linear_solver)
+    correction = np.empty_like(q) if work is None else work
     if chord:
         start = q.copy() if restart is None else restart
         try:
-            return _newton(system, linear_solver, q, tolerance, max_iterations, True, factor)
+            return _newton(system, linear_solver, q, tolerance, max_iterations, True, factor, correction)
         except (NoConvergence, SingularMatrix):
             q[:] = start
-    return _newton(system, linear_solver, q, tolerance, max_iterations, False, factor)
+    return _newton(system, linear_solver, q, tolerance, max_iterations, False, factor, correction)
 
 
-def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor) -> int:
+def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor, correction) -> int:
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
         norm = system.fill_residual_jacobian(q)
@@ -205,7 +209,7 @@ def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor) 
         if verdict == CONVERGED:
             factor()
             if polishes(iteration, norm, tolerance, chord):
-                q -= linear_solver.solve(system.residual)
+                q -= linear_solver.solve(system.residual, out=correction)
                 return iteration + 1
             return iteration
         if verdict != CORRECT:
@@ -213,5 +217,5 @@ def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor) 
         if not chord:
             factor()
         previous_norm = norm
-        q -= linear_solver.solve(system.residual)
+        q -= linear_solver.solve(system.residual, out=correction)
     raise AssertionError("newton_verdict stops at max_iterations")  # pragma: no cover

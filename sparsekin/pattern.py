@@ -178,6 +178,13 @@ def per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
     return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
 
 
+def limited_elements(mechanism: Mechanism) -> dict[str, list[int]]:
+    """The indices of the joints and of the drivers that carry ``limits``, found from the
+    declared elements (a repeat's unit once), without building its copies."""
+    return {kind: np.flatnonzero(per_element(mechanism, kind, lambda e: getattr(e, "limits", None) is not None)).tolist()
+            for kind in ("joints", "drivers")}  # fmt: skip
+
+
 def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     """Compute the packed equations and the Jacobian pattern of `mechanism`.
 

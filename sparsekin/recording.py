@@ -44,7 +44,7 @@ from .dynamics import ForceOutputs
 from .elements import COORDINATE_NAMES
 from .geometry import carried_motion
 from .model import Mechanism
-from .pattern import build_output_pattern, build_pattern, build_point_map
+from .pattern import build_output_pattern, build_pattern, build_point_map, limited_elements
 
 __all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES",
            "dataset_labels"]
@@ -348,8 +348,7 @@ class _LimitWatch:
         if not self.active:
             return
         self._mechanism = mechanism
-        limited = {kind: [k for k, e in enumerate(getattr(mechanism, kind)) if getattr(e, "limits", None) is not None]
-                   for kind in ("joints", "drivers")}  # fmt: skip
+        limited = limited_elements(mechanism)
         self._outputs = build_output_pattern(mechanism, joints=limited["joints"], drivers=limited["drivers"])
         self._elements = [(kind, k) for kind in ("joints", "drivers") for k in limited[kind]]
         limits = np.array([getattr(mechanism, kind)[k].limits for kind, k in self._elements], dtype=float)

@@ -26,7 +26,7 @@ import numpy as np
 from . import _kernels, _validate
 from .geometry import carried_motion
 from .model import Mechanism
-from .pattern import OutputPattern, PointMap, build_output_pattern
+from .pattern import OutputPattern, PointMap, build_output_pattern, limited_elements
 
 __all__ = ["KinematicsResult", "PointMotion", "CoordinateMotion", "DriverForce", "Reaction", "LimitState",
            "element_index", "own_coordinates", "limit_states"]
@@ -467,10 +467,12 @@ def limit_states(mechanism: Mechanism, outputs: OutputPattern, values: np.ndarra
     """Each element with ``limits``: its coordinate at the first sample outside them, or at
     the last sample if it stays within.  `values` are the own coordinates (n_times, n_rows)."""
     states = []
+    limited = limited_elements(mechanism)
     for kind, rows in (("joints", outputs.row_of_joint), ("drivers", outputs.row_of_driver)):
-        for index, element in enumerate(getattr(mechanism, kind)):
-            limits = getattr(element, "limits", None)
-            if limits is None or rows[index] < 0:
+        for index in limited[kind]:
+            element = getattr(mechanism, kind)[index]
+            limits = element.limits
+            if rows[index] < 0:
                 continue
             row = int(rows[index])
             column = values[:, row]

@@ -250,7 +250,6 @@ class _Run:
             k = self._solve_compiled() if compiled else 0
             if k == 0:
                 self.iterations[0] = stepper.start(times[0])
-                self._first = (times[0], stepper.coordinates.copy())
                 self._record(0)
                 k = 1
             elif k < times.size:

@@ -192,6 +192,7 @@ class KinematicStepper:
         self.coordinates, self.velocities, self.accelerations = np.zeros(n), np.zeros(n), np.zeros(n)
         self._next = (np.zeros(n), np.zeros(n), np.zeros(n))
         self._predicted = np.zeros(n)  # the predictor of the current step, for the branch guard
+        self._correction = np.zeros(n)  # Newton's corrections
         self._coordinate_weights = pattern.coordinate_weights
         self._first: tuple[float, np.ndarray] | None = None  # (t, q) of the first sample
         self.time: float | None = None
@@ -255,12 +256,12 @@ class KinematicStepper:
     def _suggest_ordering(self, t: float) -> None:
         """A chain of many repeated units: the refactorization's first pivot order tiled from
         a short chain (`sparsekin.ordering`), not from SuperLU on the whole chain."""
-        solver = getattr(self.linear_solver, "_target", self.linear_solver)  # also under a timing wrapper
-        if (isinstance(solver, RefactorSolver) and self.mechanism.copies and self.system is self.assembler
+        suggest = getattr(self.linear_solver, "suggest", None)  # a RefactorSolver's (also under a wrapper)
+        if (suggest is not None and self.mechanism.copies and self.system is self.assembler
                 and self.pattern.n_coordinates >= MIN_TILED_COORDINATES):  # fmt: skip
             ordering = tiled_ordering(self.mechanism, self.pattern, t)
             if ordering is not None:
-                solver.suggest(*ordering)
+                suggest(*ordering)
 
     def resume(self, t: float, coordinates, velocities, accelerations, first: tuple[float, np.ndarray]) -> None:
         """Continue from a sample solved elsewhere (the compiled loop), at time `t`.
@@ -293,9 +294,10 @@ class KinematicStepper:
         t = float(t)
         h = t - self.time
         q, velocity, acceleration = self._next
-        np.multiply(self.velocities, h, out=q)  # the Taylor predictor
+        np.multiply(self.velocities, h, out=q)  # the Taylor predictor, without a temporary
         q += self.coordinates
-        q += (0.5 * h * h) * self.accelerations
+        np.multiply(self.accelerations, 0.5 * h * h, out=self._predicted)
+        q += self._predicted
         np.copyto(self._predicted, q)
         self.system.set_time(t)
         try:
@@ -327,7 +329,7 @@ class KinematicStepper:
         self._factored = False
         corrections = solve_positions(
             self.system, self.linear_solver, q, self.tolerance, self.max_iterations, use_chord, self.factorizer,
-            self._predicted,
+            self._predicted, self._correction,
         )  # fmt: skip
         self._factored = True
         return corrections
@@ -360,7 +362,8 @@ class KinematicStepper:
             t_next = end if last else t + h
             np.multiply(velocity, step, out=trial)
             trial += q
-            trial += (0.5 * step * step) * acceleration
+            np.multiply(acceleration, 0.5 * step * step, out=self._predicted)
+            trial += self._predicted
             np.copyto(self._predicted, trial)
             self.system.set_time(t_next)
             try:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import gc
 import math
 from contextlib import contextmanager
-from dataclasses import replace
 
 import numpy as np
 
@@ -83,37 +82,27 @@ def _stroke_lengths() -> tuple[float, float]:
     )
 
 
-def _task5_unit(points, suffix: str, base: str, phase: float, amplitude: float):
-    """Bodies, joints and drivers of one Task 5 unit whose points are `points` (global)."""
+def _task5_unit(base: str, amplitude: float, offsets=None):
+    """Bodies, joints and drivers of one Task 5 on the points `TASK5_POINTS`, its ground
+    pivots on `base`; the strokes' offsets are `offsets` (default: the drawn lengths)."""
     angle = {}
     for _, cylinder, rod, start, end in _TASK5_ACTUATORS:
-        (x0, y0), (x1, y1) = points[start + suffix], points[end + suffix]
+        (x0, y0), (x1, y1) = TASK5_POINTS[start], TASK5_POINTS[end]
         angle[cylinder] = angle[rod] = math.atan2(y1 - y0, x1 - x0)
-    bodies = [
-        Body(name + suffix, origin=carried[0] + suffix, angle=angle.get(name, 0.0),
-             points=tuple(p + suffix for p in carried))
-        for name, carried in _TASK5_BODIES.items()
-    ]  # fmt: skip
-    joints = [
-        Revolute((i + suffix, base if j == "base" else j + suffix), at=at + suffix) for i, j, at in _TASK5_PINS
-    ]
-    joints += [
-        Translational((cylinder + suffix, rod + suffix), axis=(start + suffix, end + suffix), name=name + suffix)
-        for name, cylinder, rod, start, end in _TASK5_ACTUATORS
-    ]
-    drivers = [
-        TranslationalDriver(
-            name + suffix,
-            law=Harmonic(amplitude=amplitude, omega=TASK5_OMEGA, phase=phase, offset=None if phase == 0 else length),
-        )
-        for (name, *_), length in zip(_TASK5_ACTUATORS, _stroke_lengths())
-    ]
+    bodies = [Body(name, origin=carried[0], angle=angle.get(name, 0.0), points=tuple(carried))
+              for name, carried in _TASK5_BODIES.items()]  # fmt: skip
+    joints = [Revolute((i, base if j == "base" else j), at=at) for i, j, at in _TASK5_PINS]
+    joints += [Translational((cylinder, rod), axis=(start, end), name=name)
+               for name, cylinder, rod, start, end in _TASK5_ACTUATORS]  # fmt: skip
+    offsets = [None] * len(_TASK5_ACTUATORS) if offsets is None else offsets
+    drivers = [TranslationalDriver(name, law=Harmonic(amplitude=amplitude, omega=TASK5_OMEGA, offset=offset))
+               for (name, *_), offset in zip(_TASK5_ACTUATORS, offsets)]  # fmt: skip
     return bodies, joints, drivers
 
 
 def task5(amplitude: float = 0.05) -> Mechanism:
     """The Task 5 linkage; both strokes follow L0 + amplitude · sin(1.5 t) m."""
-    bodies, joints, drivers = _task5_unit(TASK5_POINTS, "", "ground", 0.0, amplitude)
+    bodies, joints, drivers = _task5_unit("ground", amplitude)
     return Mechanism(points=TASK5_POINTS, bodies=bodies, joints=joints, drivers=drivers, name="task5")
 
 
@@ -142,8 +131,7 @@ def task5_chain_unit(amplitude: float = 0.03) -> Unit:
     Drawn at phase 0; `task5_chain` draws copy k at its phase (a cycle of the points).
     Both strokes follow ``L0 + amplitude · sin(1.5 t + phase)``, L0 their length at phase 0.
     """
-    bodies, joints, drivers = _task5_unit(TASK5_POINTS, "", "prev.c10", 0.0, amplitude)
-    drivers = [replace(driver, law=replace(driver.law, offset=length)) for driver, length in zip(drivers, _stroke_lengths())]
+    bodies, joints, drivers = _task5_unit("prev.c10", amplitude, offsets=_stroke_lengths())
     return Unit("task5", points=TASK5_POINTS, bodies=bodies, joints=joints, drivers=drivers)
 
 

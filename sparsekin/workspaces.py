@@ -132,7 +132,7 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
         If the mechanism cannot be assembled at t = 0.
     """
     from .newton import DEFAULT_TOLERANCE
-    from .pattern import build_output_pattern, build_pattern, build_point_map
+    from .pattern import build_output_pattern, build_pattern, build_point_map, limited_elements
     from .results import element_index, own_coordinates
     from .stepper import KinematicStepper
 
@@ -186,8 +186,7 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
     held = _held_laws(mechanism, pattern, at_start)
 
     locate = build_point_map(mechanism).locate(point)
-    limited = {kind: [k for k, e in enumerate(getattr(mechanism, kind)) if getattr(e, "limits", None) is not None]
-               for kind in ("joints", "drivers")}  # fmt: skip
+    limited = limited_elements(mechanism)
     outputs = build_output_pattern(mechanism, **limited) if limited["joints"] or limited["drivers"] else None
     limited_elements = [(kind, k) for kind in ("joints", "drivers") for k in limited[kind]]
     left: set[str] = set()

@@ -109,15 +109,15 @@ def test_limits_are_watched_in_a_run_without_coordinates(tmp_path):
 
 
 # ---------------------------------------------------------------------- the command line
-def run_until_interrupted(arguments: list[str], out: Path, marker: Path) -> subprocess.CompletedProcess:
-    """Start ``sparsekin run``, send SIGINT once `marker` exists and a second has passed."""
+def run_until_interrupted(arguments: list[str], out: Path, marker: Path, settle: float) -> subprocess.CompletedProcess:
+    """Start ``sparsekin run``, send SIGINT once `marker` exists and `settle` seconds have passed."""
     environment = dict(os.environ, PYTHONPATH=str(ROOT))
     process = subprocess.Popen([sys.executable, "-m", "sparsekin", "run", *arguments, "--out", str(out), "--quiet"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=environment)  # fmt: skip
     deadline = time.monotonic() + 240
     while not marker.exists() and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.1)
-    time.sleep(1.0)
+    time.sleep(settle)
     process.send_signal(signal.SIGINT)
     out_text, error_text = process.communicate(timeout=240)
     return subprocess.CompletedProcess(process.args, process.returncode, out_text, error_text)
@@ -128,10 +128,11 @@ def test_ctrl_c_writes_every_sample_solved_and_exits_130(tmp_path, format_):
     model = EXAMPLES / "four_bar_chain.toml"  # 2001 bodies: about a millisecond a step
     out = tmp_path / "out"
     arguments = [str(model), "--t-end", "1.2", "--steps", "200001", "--points", "u999.Q", "--format", format_]
-    marker = out / ("results.zarr" if format_ == "zarr" else "points.csv")
-    if format_ == "csv":  # the CSV is written at the end; wait for the run to have begun
-        marker = out
-    finished = run_until_interrupted(arguments, out, marker)
+    if format_ == "zarr":  # the time variable appears with the first chunk written: samples are solved
+        marker, settle = out / "results.zarr" / "t", 0.5
+    else:  # the CSV is written at the end; wait for the run to have begun, and some more
+        marker, settle = out, 3.0
+    finished = run_until_interrupted(arguments, out, marker, settle)
     assert finished.returncode == 130, finished.stderr
     written = int(finished.stderr.split("interrupted: wrote ")[1].split(" of ")[0])
     assert 0 < written < 200001
@@ -145,6 +146,18 @@ def test_ctrl_c_writes_every_sample_solved_and_exits_130(tmp_path, format_):
         assert tip.shape[0] == written
     angle = math.pi / 2 + times
     np.testing.assert_allclose(tip, np.c_[1000 + np.cos(angle), np.sin(angle)], atol=1e-8)
+
+
+def test_ctrl_c_before_the_first_sample_exits_130_without_a_traceback(tmp_path, capsys, monkeypatch):
+    from sparsekin import cli
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_solve", interrupted)  # Ctrl-C while the pattern is being built
+    assert main(["run", str(EXAMPLES / "task5.toml"), "--out", str(tmp_path / "out")]) == 130
+    assert capsys.readouterr().err == "sparsekin: interrupted: nothing solved yet, nothing written\n"
+    assert not (tmp_path / "out" / "points.csv").exists()
 
 
 def test_on_a_large_model_run_writes_what_a_person_reads(tmp_path, capsys):
