@@ -30,7 +30,7 @@ def rng():
 
 #: Doctests that need an optional dependency, and the extra that installs it: skipped
 #: (with that reason) when it is missing.
-OPTIONAL_DOCTESTS = {"sparsekin.results.KinematicsResult.to_dataframe": ("pandas", "pandas")}
+OPTIONAL_DOCTESTS = {"sparsekin.results.kinematics.KinematicsResult.to_dataframe": ("pandas", "pandas")}
 
 
 def pytest_collection_modifyitems(config, items):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from sparsekin import testset
-from sparsekin.model import Mechanism
+from sparsekin.model.mechanism import Mechanism
 
 __all__ = ["FAMILIES", "SIZES", "SMOKE_MAX_BODIES", "DENSE_MAX_BODIES", "build", "steps_per_round"]
 

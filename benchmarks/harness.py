@@ -35,11 +35,11 @@ import numpy as np
 from scipy.sparse import coo_array
 from scipy.sparse.linalg import spsolve
 
-from sparsekin.assembly import Assembler
-from sparsekin.linalg import RefactorSolver, SuperLUSolver
-from sparsekin.model import Mechanism
-from sparsekin.pattern import build_pattern
-from sparsekin.stepper import KinematicStepper, fill_is_heavy
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
+from sparsekin.model.mechanism import Mechanism
+from sparsekin.engine.pattern import build_pattern
+from sparsekin.solve.stepper import KinematicStepper, fill_is_heavy
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -138,7 +138,7 @@ class _Timed:
 class Stepper:
     """The time loop of `solve_kinematics`, one step at a time, with phase timers.
 
-    A `sparsekin.stepper.KinematicStepper` whose assembler and linear solver are wrapped
+    A `sparsekin.solve.stepper.KinematicStepper` whose assembler and linear solver are wrapped
     in timers.  The ``sparsekin`` path follows ``linear_solver="auto"``'s rule above
     `COMPILED_MAX_COORDINATES`: a refactorization, or SuperLU with chord Newton when its
     fill-in is heavy.

@@ -58,7 +58,7 @@ def setup(family: str, copies: int, folder: Path) -> dict:
     """Read the model file and build its pattern: what a run does before its first sample."""
     path = write_model(family, copies, folder)
     from sparsekin import load_model
-    from sparsekin.pattern import build_pattern
+    from sparsekin.engine.pattern import build_pattern
 
     start = time.perf_counter()
     mechanism = load_model(path)

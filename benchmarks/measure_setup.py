@@ -22,7 +22,7 @@ from families import STEP, build  # noqa: E402
 from harness import Stepper  # noqa: E402
 
 from sparsekin import testset  # noqa: E402
-from sparsekin.pattern import build_pattern  # noqa: E402
+from sparsekin.engine.pattern import build_pattern  # noqa: E402
 
 
 def _peak_rss_bytes() -> int:

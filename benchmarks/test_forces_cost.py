@@ -5,7 +5,7 @@
 * ``test_chain_step``: ``task5_chain`` with the masses of examples/task5_dynamics.toml on
   every copy, under gravity: one time step of the refactorization path (positions,
   velocities, accelerations), then the same step and the forces of its drivers only, or
-  of every driver and joint (`sparsekin.dynamics.ForceSolver`: one transposed solve, the
+  of every driver and joint (`sparsekin.engine.forces.ForceSolver`: one transposed solve, the
   applied and inertial forces, the reactions).
 
 Issue 11's target: forces cost at most 30 % of the kinematic step, on Task 5 and at 10^6
@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from sparsekin import load_model, solve_kinematics, testset
-from sparsekin.dynamics import ForceSolver, build_load_pattern
-from sparsekin.recording import Selection
-from sparsekin.stepper import KinematicStepper
+from sparsekin.engine.forces import ForceSolver, build_load_pattern
+from sparsekin.results.recording import Selection
+from sparsekin.solve.stepper import KinematicStepper
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "task5_dynamics.toml"
 TIMES = np.linspace(0.0, 10.0, 10_001)

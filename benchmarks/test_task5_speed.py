@@ -11,9 +11,9 @@ import pytest
 from examples_loader import load_example
 
 from sparsekin import solve_kinematics
-from sparsekin.assembly import Assembler
-from sparsekin.linalg import SuperLUSolver
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.linalg import SuperLUSolver
+from sparsekin.engine.pattern import build_pattern
 
 TIMES = np.linspace(0.0, 10.0, 10_001)
 

@@ -4,7 +4,7 @@
     python3 docs/make_element_reference.py --check  # exit 1 if docs/elements.md is stale
 
 The page is generated, never edited by hand: each kind's class docstring, file keys,
-equations and own coordinate come from `sparsekin.elements` and `sparsekin.laws`.
+equations and own coordinate come from `sparsekin.model.elements` and `sparsekin.model.laws`.
 tests/test_docs.py runs the check.
 """
 
@@ -14,8 +14,8 @@ import inspect
 import sys
 from pathlib import Path
 
-from sparsekin.elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
-from sparsekin.laws import BUILT_IN_LAWS
+from sparsekin.model.elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
+from sparsekin.model.laws import BUILT_IN_LAWS
 
 PAGE = Path(__file__).resolve().parent / "elements.md"
 

@@ -78,8 +78,7 @@ from .errors import (
     SingularJacobianError,
     SparsekinError,
 )
-from .laws import Harmonic, Law, Linear, Polynomial, Spline
-from .elements import (
+from .model.elements import (
     AbsoluteDriver,
     DistanceDriver,
     Force,
@@ -95,12 +94,13 @@ from .elements import (
     Translational,
     TranslationalDriver,
 )
-from .model import GROUND, Analysis, Body, Mechanism
-from .modelfile import load_model, save_model
-from .results import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
-from .solvers import solve_kinematics
-from .stepper import KinematicStepper
-from .units import Cycle, Repeat, Step, Unit
+from .model.laws import Harmonic, Law, Linear, Polynomial, Spline
+from .model.mechanism import GROUND, Analysis, Body, Mechanism
+from .model.modelfile import load_model, save_model
+from .model.units import Cycle, Repeat, Step, Unit
+from .results.kinematics import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
+from .solve.kinematics import solve_kinematics
+from .solve.stepper import KinematicStepper
 
 __all__ = [
     "GROUND",
@@ -162,9 +162,10 @@ __version__ = "0.1.0"
 #: Names imported on first use, so that ``import sparsekin`` loads neither Dask nor the
 #: sweep machinery, nor the rank analysis and its scipy modules that a run does not need
 #: (every ``sparsekin run`` pays for what ``import sparsekin`` imports): name -> module.
-_LAZY = {"sweep": "sweeps", "VariantSet": "sweeps", "SweepResult": "sweeps",
-         "workspace": "workspaces", "Workspace": "workspaces", "check_model": "check", "ModelReport": "check",
-         "analyse_jacobian": "rank", "JacobianAnalysis": "rank"}  # fmt: skip
+_LAZY = {"sweep": "studies.sweeps", "VariantSet": "studies.sweeps", "SweepResult": "studies.sweeps",
+         "workspace": "studies.workspaces", "Workspace": "studies.workspaces",
+         "check_model": "analysis.check", "ModelReport": "analysis.check",
+         "analyse_jacobian": "analysis.rank", "JacobianAnalysis": "analysis.rank"}  # fmt: skip
 
 
 def __getattr__(name: str):

@@ -7,8 +7,8 @@ exception).
 
 numba decides whether a cached compilation is fresh from a stamp of the one source file
 that defines the function.  A compiled function also carries the code of every function
-it calls from other files (the time loop of `sparsekin._compiled` inlines the kernels of
-`sparsekin._kernels`, the laws and the dense LU), so an edit of a kernel would leave the
+it calls from other files (the time loop of `sparsekin.solve._compiled` inlines the kernels of
+`sparsekin.engine._kernels`, the laws and the dense LU), so an edit of a kernel would leave the
 loop's cache stale.  `register_cache_locator` installs a cache locator for the functions
 of this package whose stamp is a digest of *every* module of the package that compiles
 code: a change to any of them is a cache miss for all, and nothing on disk is deleted.
@@ -33,10 +33,10 @@ def package_stamp() -> str:
     global _stamp
     if _stamp is None:
         digest = hashlib.sha256()
-        for path in sorted(_PACKAGE.glob("*.py")):
+        for path in sorted(_PACKAGE.rglob("*.py")):
             source = path.read_bytes()
             if b"njit" in source:
-                digest.update(path.name.encode() + b"\0" + source)
+                digest.update(path.relative_to(_PACKAGE).as_posix().encode() + b"\0" + source)
         _stamp = digest.hexdigest()
     return _stamp
 
@@ -63,7 +63,7 @@ def register_cache_locator() -> bool:
 
             @classmethod
             def from_function(cls, py_func, py_file):
-                if Path(py_file).resolve().parent != _PACKAGE:
+                if _PACKAGE not in Path(py_file).resolve().parents:
                     return None
                 return super().from_function(py_func, py_file)
 

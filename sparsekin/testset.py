@@ -12,7 +12,7 @@ known independently of the solver:
   its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
   the horizontal bars translate.
 
-The two chains are a unit repeated (`sparsekin.units.Repeat`), as their model files
+The two chains are a unit repeated (`sparsekin.model.units.Repeat`), as their model files
 ``examples/task5_chain.toml`` and ``examples/four_bar_chain.toml`` write them: a million
 bodies are a few arrays, not a million objects.
 """
@@ -25,10 +25,10 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .laws import Harmonic, Linear
-from .elements import Revolute, RotationalDriver, Translational, TranslationalDriver
-from .model import Body, Mechanism
-from .units import Cycle, Repeat, Unit
+from .model.elements import Revolute, RotationalDriver, Translational, TranslationalDriver
+from .model.laws import Harmonic, Linear
+from .model.mechanism import Body, Mechanism
+from .model.units import Cycle, Repeat, Unit
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "task5_unit_phases"]
 
@@ -116,7 +116,7 @@ def _task5_points_at_phases(amplitude: float) -> np.ndarray:
 
     One sweep over a period, at small steps so that Newton follows the branch.
     """
-    from .solvers import solve_kinematics
+    from .solve.kinematics import solve_kinematics
 
     steps_per_phase = 40
     times = np.linspace(0.0, 2 * np.pi / TASK5_OMEGA, TASK5_CHAIN_PHASES * steps_per_phase + 1)

@@ -2,7 +2,7 @@
 
 `constraint_residual(mechanism, q, t)` evaluates every joint and driver equation of a
 mechanism one element at a time, from global point positions.  It shares no code with
-`sparsekin.pattern` or `sparsekin._kernels`; the tests compare those against it.
+`sparsekin.engine.pattern` or `sparsekin.engine._kernels`; the tests compare those against it.
 """
 
 from __future__ import annotations

@@ -61,7 +61,7 @@ def red_pixels(frame: np.ndarray) -> int:
 # ---------------------------------------------------------------------- frame times
 @pytest.mark.parametrize("samples", [11, 101, 1001])
 def test_a_ten_second_run_makes_a_ten_second_clip_whatever_its_samples(samples):
-    from sparsekin.plotting import frame_times
+    from sparsekin.plots import frame_times
 
     result = solve_kinematics(task5(), np.linspace(0.0, 10.0, samples))
     times = frame_times(result, fps=20)
@@ -75,7 +75,7 @@ def test_interpolated_frames_are_within_hermite_s_error_bound_of_positions_solve
     """Cubic Hermite interpolation on positions and velocities: between samples h apart the
     error is at most h⁴/384 · max|q⁗| (the classical bound), and none at the samples.
     max|q⁗| comes from second differences of the accelerations of a run at 1 ms."""
-    from sparsekin.plotting import interpolate_coordinates
+    from sparsekin.plots import interpolate_coordinates
 
     mechanism = task5()
     fine = solve_kinematics(mechanism, np.linspace(0.0, 4.0, 4001))
@@ -93,7 +93,7 @@ def test_interpolated_frames_are_within_hermite_s_error_bound_of_positions_solve
 
 
 def test_times_outside_the_analysis_are_refused(task5_result):
-    from sparsekin.plotting import interpolate_coordinates
+    from sparsekin.plots import interpolate_coordinates
 
     with pytest.raises(ValueError, match=r"`times` must lie within the analysis, \[0, 4\] s"):
         interpolate_coordinates(task5_result, [4.5])
@@ -101,7 +101,7 @@ def test_times_outside_the_analysis_are_refused(task5_result):
 
 # ---------------------------------------------------------------------- GIF
 def test_gif_has_the_frames_and_duration_of_the_clip_on_fixed_axes(tmp_path, image, task5_result):
-    from sparsekin.plotting import animate
+    from sparsekin.plots import animate
 
     clip = animate(task5_result, tmp_path / "task5.gif", trace=["K"], fps=10)
     frames, durations = gif_frames(image, tmp_path / "task5.gif")
@@ -123,7 +123,7 @@ def test_gif_has_the_frames_and_duration_of_the_clip_on_fixed_axes(tmp_path, ima
 
 
 def test_gif_durations_add_up_at_a_rate_that_is_no_whole_number_of_hundredths(tmp_path, image):
-    from sparsekin.plotting import animate
+    from sparsekin.plots import animate
 
     result = solve_kinematics(task5(), np.linspace(0.0, 1.0, 21))
     animate(result, tmp_path / "fast.gif", fps=30, labels=False)
@@ -133,7 +133,7 @@ def test_gif_durations_add_up_at_a_rate_that_is_no_whole_number_of_hundredths(tm
 
 
 def test_a_lock_up_is_animated_up_to_the_stop_and_marked(tmp_path, image, lock_up):
-    from sparsekin.plotting import STOP_HOLD, animate
+    from sparsekin.plots import STOP_HOLD, animate
 
     result = lock_up.result
     assert lock_up.time == pytest.approx(0.755244, abs=1e-6)
@@ -147,7 +147,7 @@ def test_a_lock_up_is_animated_up_to_the_stop_and_marked(tmp_path, image, lock_u
 
 
 def test_bad_arguments_are_refused(tmp_path, task5_result, image):
-    from sparsekin.plotting import animate
+    from sparsekin.plots import animate
 
     with pytest.raises(ValueError, match=r"`path` must end in .gif or .mp4, got 'clip.avi'"):
         animate(task5_result, tmp_path / "clip.avi")
@@ -164,7 +164,7 @@ def test_bad_arguments_are_refused(tmp_path, task5_result, image):
 def test_mp4_has_the_frames_and_duration_of_the_clip(tmp_path, image):
     imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg", reason='MP4 needs imageio-ffmpeg: pip install '
                                          '"sparsekin[animate]"')  # fmt: skip
-    from sparsekin.plotting import animate
+    from sparsekin.plots import animate
 
     result = solve_kinematics(task5(), np.linspace(0.0, 2.0, 41))
     clip = animate(result, tmp_path / "task5.mp4", trace=["K"], fps=15)
@@ -248,7 +248,7 @@ def test_animate_command_without_its_extra_names_it(tmp_path, capsys, monkeypatc
 
 @pytest.mark.parametrize("suffix, module, package", [(".gif", "PIL", "Pillow"), (".mp4", "imageio_ffmpeg", "imageio-ffmpeg")])
 def test_animate_without_its_extra_names_it(tmp_path, monkeypatch, task5_result, suffix, module, package):
-    from sparsekin.plotting import animate
+    from sparsekin.plots import animate
 
     monkeypatch.setitem(sys.modules, module, None)
     with pytest.raises(ImportError, match=rf'^{package} is needed here: pip install "sparsekin\[animate\]"$'):

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from sparsekin import testset
-from sparsekin.assembly import Assembler
-from sparsekin.linalg import RefactorSolver
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.linalg import RefactorSolver
+from sparsekin.engine.pattern import build_pattern
 
 
 @pytest.fixture(scope="module")

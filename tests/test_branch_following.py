@@ -19,7 +19,8 @@ import math
 import numpy as np
 import pytest
 
-from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, solve_kinematics, stepper
+from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, solve_kinematics
+from sparsekin.solve import stepper
 from sparsekin.testset import task5
 
 CRANK, COUPLER, ROCKER, GROUND = 0.1, 0.3, 0.202, 0.4  # m

@@ -9,7 +9,7 @@ import pytest
 
 from sparsekin import solve_kinematics
 from sparsekin.cli import main, point_table, write_coordinates, write_points_csv
-from sparsekin.modelfile import load_model
+from sparsekin.model.modelfile import load_model
 
 TASK5 = Path(__file__).resolve().parents[1] / "examples" / "task5.toml"
 TASK5_BODIES = [f"c{k}" for k in range(1, 11)]

@@ -1,4 +1,4 @@
-"""The compiled time loop (`sparsekin._compiled`) against the Python path and closed forms.
+"""The compiled time loop (`sparsekin.solve._compiled`) against the Python path and closed forms.
 
 The Python path (`solve_kinematics`: SuperLU, plain Newton) is the reference.  Plain Newton
 in the compiled loop (``chord=False``) takes the same iterates up to rounding: same
@@ -32,13 +32,13 @@ from sparsekin import (
     TranslationalDriver,
     solve_kinematics,
 )
-from sparsekin._compiled import (
+from sparsekin.solve._compiled import (
     LoopStatus,
     solve_compiled,
     supports_compiled,
 )
-from sparsekin.assembly import Assembler
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 from sparsekin.testset import four_bar_chain, lattice, task5, task5_chain
 
 #: Agreement of chord Newton with the Python path (see the module docstring).

@@ -32,8 +32,8 @@ from sparsekin import (
     Translational,
     TranslationalDriver,
 )
-from sparsekin.assembly import Assembler
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 
 POINTS = {"P": (0.3, -0.2), "Q": (1.1, 0.4), "R": (-0.6, 0.9)}
 LAW = Linear(rate=0.0)

@@ -36,13 +36,13 @@ from sparsekin import (
     load_model,
     solve_kinematics,
 )
-from sparsekin.assembly import Assembler
+from sparsekin.engine.assembly import Assembler
 from sparsekin.cli import main
-from sparsekin.check import check_model
-from sparsekin.describe import equation_label
-from sparsekin.rank import analyse_jacobian
+from sparsekin.analysis.check import check_model
+from sparsekin.analysis.describe import equation_label
+from sparsekin.analysis.rank import analyse_jacobian
 from sparsekin.errors import RedundantConstraintWarning, SingularConfigurationError
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.pattern import build_pattern
 from sparsekin.testset import task5, task5_chain
 
 DATA = Path(__file__).resolve().parent / "data"

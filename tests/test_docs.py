@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from sparsekin.elements import DRIVER_KINDS, JOINT_KINDS
-from sparsekin.laws import BUILT_IN_LAWS
+from sparsekin.model.elements import DRIVER_KINDS, JOINT_KINDS
+from sparsekin.model.laws import BUILT_IN_LAWS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

@@ -269,8 +269,8 @@ def test_an_element_without_an_own_coordinate_is_named():
 
 
 def test_an_element_asked_twice_has_one_output_row_with_its_own_rates():
-    from sparsekin.pattern import build_output_pattern
-    from sparsekin.results import own_coordinates
+    from sparsekin.engine.pattern import build_output_pattern
+    from sparsekin.engine.outputs import own_coordinates
 
     mechanism = scotch_yoke()
     times = np.linspace(0.0, 0.5, 11)

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import sparsekin as sk
-from sparsekin.assembly import Assembler
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 
 G = 9.81
 
@@ -564,7 +564,7 @@ def test_a_gear_on_the_ground_reports_the_torque_on_the_ground():
 
 def test_check_counts_an_inertia_as_a_run_does():
     """A body with an inertia and no mass: the run computes forces, and check says so."""
-    from sparsekin.check import check_model
+    from sparsekin.analysis.check import check_model
 
     mechanism = sk.Mechanism(
         points={"O": (0.0, 0.0), "A": (0.5, 0.0)},

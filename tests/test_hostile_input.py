@@ -34,8 +34,8 @@ from scipy.sparse import csr_array
 
 from sparsekin import ModelError, SparsekinError, load_model, solve_kinematics
 from sparsekin.cli import main
-from sparsekin.check import check_model
-from sparsekin.rank import analyse_jacobian
+from sparsekin.analysis.check import check_model
+from sparsekin.analysis.rank import analyse_jacobian
 from sparsekin.testset import task5
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -407,7 +407,7 @@ def test_a_polynomial_names_its_bad_coefficient():
 
 def test_a_pattern_of_another_mechanism_is_refused():
     from sparsekin import AbsoluteDriver, Body, Linear, Mechanism, Revolute
-    from sparsekin.pattern import build_pattern
+    from sparsekin.engine.pattern import build_pattern
 
     def slider(joints, drivers, origin="O"):
         return Mechanism(points={"O": (0.0, 0.0), "P": (1.0, 0.5)}, bodies=[Body("slider", origin=origin)],

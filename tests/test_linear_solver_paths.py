@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sparsekin import SingularConfigurationError, solve_kinematics, testset
-from sparsekin.stepper import COMPILED_MAX_COORDINATES
+from sparsekin.solve.stepper import COMPILED_MAX_COORDINATES
 
 FAMILIES = {
     "task5": (testset.task5, np.linspace(0.0, 4.0, 401)),
@@ -129,7 +129,7 @@ def test_auto_refactors_a_model_above_the_compiled_size():
 def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
     """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on with
     SuperLU (and chord Newton) from the first sample on; the motion is the same."""
-    from sparsekin import stepper
+    from sparsekin.solve import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)
@@ -144,7 +144,7 @@ def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(
     """Leaving the refactorization at the first sample, ``auto`` factors the Jacobian there
     again with SuperLU: the forces of that sample are solved with it (they failed with "no
     factorization"), and every sample's forces are those of ``linear_solver="superlu"``."""
-    from sparsekin import stepper
+    from sparsekin.solve import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     grid = testset.lattice(6, 8)

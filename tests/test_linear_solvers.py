@@ -15,9 +15,10 @@ from numba import njit
 from scipy.sparse import csr_array
 from scipy.sparse.linalg import splu, spsolve
 
-from sparsekin import _lu_kernels, solve_kinematics, testset
-from sparsekin.assembly import Assembler
-from sparsekin.linalg import (
+from sparsekin import solve_kinematics, testset
+from sparsekin.engine import _lu_kernels
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.linalg import (
     MAX_GROWTH,
     MIN_PIVOT_RATIO,
     DenseSolver,
@@ -25,7 +26,7 @@ from sparsekin.linalg import (
     SingularMatrix,
     SuperLUSolver,
 )
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.pattern import build_pattern
 
 #: Largest accepted normwise backward error of a solve.
 BACKWARD_ERROR = 1e-14
@@ -369,7 +370,7 @@ def test_a_failed_fresh_factorization_leaves_the_fill_in_the_solver_order(rng):
     """The guard trips, and the fresh factorization chooses a new column order, then fails:
     the assembler must fill in the new order from then on, or the next refactorization
     reads every value at the wrong place."""
-    from sparsekin.newton import Factorizer
+    from sparsekin.engine.newton import Factorizer
 
     family = Family("task5_chain")
     assembler = Assembler(family.mechanism, family.pattern)  # one that fills in factor order

@@ -14,8 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sparsekin.errors import ModelError
-from sparsekin.laws import Harmonic, Linear, Polynomial, Spline
-from sparsekin.elements import (
+from sparsekin.model.laws import Harmonic, Linear, Polynomial, Spline
+from sparsekin.model.elements import (
     AbsoluteDriver,
     DistanceDriver,
     Gear,
@@ -28,8 +28,8 @@ from sparsekin.elements import (
     Translational,
     TranslationalDriver,
 )
-from sparsekin.model import Analysis, Body, Mechanism
-from sparsekin.modelfile import load_model, save_model
+from sparsekin.model.mechanism import Analysis, Body, Mechanism
+from sparsekin.model.modelfile import load_model, save_model
 
 TASK5 = Path(__file__).resolve().parents[1] / "examples" / "task5.toml"
 

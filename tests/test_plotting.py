@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, Translational, solve_kinematics
-from sparsekin.modelfile import load_model
+from sparsekin.model.modelfile import load_model
 
 TASK5 = Path(__file__).resolve().parents[1] / "examples" / "task5.toml"
 
 
 def test_import_sparsekin_does_not_need_matplotlib():
-    code = "import sys, sparsekin, sparsekin.cli, sparsekin.plotting; sys.exit('matplotlib' in sys.modules)"
+    code = "import sys, sparsekin, sparsekin.cli, sparsekin.plots; sys.exit('matplotlib' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], timeout=300).returncode == 0
 
 
@@ -62,7 +62,7 @@ def test_plot_point_motion_writes_one_figure_per_point(tmp_path, matplotlib_imag
 
 
 def test_draw_mechanism_writes_the_drawing(tmp_path, matplotlib_image, task5):
-    from sparsekin.plotting import draw_mechanism
+    from sparsekin.plots import draw_mechanism
 
     mechanism, result = task5
     path = draw_mechanism(mechanism, result, tmp_path)
@@ -72,7 +72,7 @@ def test_draw_mechanism_writes_the_drawing(tmp_path, matplotlib_image, task5):
 
 
 def test_slider_crank_with_one_point_body_and_direction_guide(tmp_path, matplotlib_image):
-    from sparsekin.plotting import draw_mechanism
+    from sparsekin.plots import draw_mechanism
 
     mechanism = slider_crank()
     result = solve_kinematics(mechanism, np.linspace(0.0, 1.0, 21))
@@ -81,7 +81,7 @@ def test_slider_crank_with_one_point_body_and_direction_guide(tmp_path, matplotl
 
 
 def plot_point_motion_of(result, names, directory):
-    from sparsekin.plotting import plot_point_motion
+    from sparsekin.plots import plot_point_motion
 
     paths = plot_point_motion(result, names, directory)
     for path in paths:
@@ -91,7 +91,7 @@ def plot_point_motion_of(result, names, directory):
 
 @pytest.mark.parametrize("example", ["task5_distance", "planetary_gear"])
 def test_examples_with_every_element_kind_are_drawn(tmp_path, matplotlib_image, example):
-    from sparsekin.plotting import draw_mechanism, plot_actuators
+    from sparsekin.plots import draw_mechanism, plot_actuators
 
     mechanism = load_model(TASK5.with_name(f"{example}.toml"))
     result = solve_kinematics(mechanism, np.linspace(0.0, 1.0, 11))
@@ -104,10 +104,10 @@ def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
     """Each registered kind's `draw` runs on a model that has one of each."""
     from test_model_file import every_element_mechanism
 
-    from sparsekin import elements
-    from sparsekin.pattern import build_point_map
-    from sparsekin.plotting import draw_mechanism
-    from sparsekin.results import KinematicsResult
+    from sparsekin.model import elements
+    from sparsekin.engine.pattern import build_point_map
+    from sparsekin.plots import draw_mechanism
+    from sparsekin.results.kinematics import KinematicsResult
 
     mechanism = every_element_mechanism()  # drawn as given: it need not move
     kinds = {type(element) for element in (*mechanism.joints, *mechanism.drivers)}
@@ -124,7 +124,7 @@ def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
 # ---------------------------------------------------------------------- what a designer reads
 def captured_figures(monkeypatch):
     """The figures the plotting functions save, kept for inspection (they are still written)."""
-    from sparsekin import plotting
+    from sparsekin import plots as plotting
 
     figures = []
     save = plotting._save
@@ -138,7 +138,7 @@ def captured_figures(monkeypatch):
 
 
 def test_point_motion_shows_x_and_y_against_time(tmp_path, matplotlib_image, task5, monkeypatch):
-    from sparsekin.plotting import plot_point_motion
+    from sparsekin.plots import plot_point_motion
 
     _, result = task5
     figures = captured_figures(monkeypatch)
@@ -153,7 +153,7 @@ def test_point_motion_shows_x_and_y_against_time(tmp_path, matplotlib_image, tas
 
 
 def test_path_figure_is_the_point_s_path_with_equal_scales(tmp_path, matplotlib_image, task5, monkeypatch):
-    from sparsekin.plotting import PATH_TIME_MARKS, plot_point_paths
+    from sparsekin.plots import PATH_TIME_MARKS, plot_point_paths
 
     _, result = task5
     figures = captured_figures(monkeypatch)
@@ -178,7 +178,7 @@ def test_plot_option_writes_paths_and_actuators(tmp_path, capsys, matplotlib_ima
 
 def drawn_canvas(mechanism, coordinates):
     """A canvas on which every joint and driver of `mechanism` has drawn itself."""
-    from sparsekin.plotting import SYMBOL_SCALE, Canvas, _new_figure
+    from sparsekin.plots import SYMBOL_SCALE, Canvas, _new_figure
 
     _, axes = _new_figure((4.0, 4.0))
     canvas = Canvas(axes, mechanism, coordinates, size=SYMBOL_SCALE * 2.0)
@@ -250,7 +250,7 @@ def crowded_mechanism() -> Mechanism:
 def test_labels_do_not_overlap(matplotlib_image, example):
     """Every point and body is labelled, and no two label boxes overlap, as matplotlib
     measures them in the drawn figure (the text and its background box)."""
-    from sparsekin.plotting import _new_figure, draw_configuration
+    from sparsekin.plots import _new_figure, draw_configuration
 
     mechanism = crowded_mechanism() if example == "crowded" else load_model(TASK5.with_name(f"{example}.toml"))
     result = solve_kinematics(mechanism, np.linspace(0.0, 1.0, 3))
@@ -278,7 +278,7 @@ def test_labels_do_not_overlap(matplotlib_image, example):
 def test_a_part_of_a_long_chain_is_drawn_alone(matplotlib_image):
     """`bodies=` draws those bodies, the points they carry and the elements between them
     and the ground, on axes that fit them: the first 12 bodies of the 2001-body chain."""
-    from sparsekin.plotting import _new_figure, draw_configuration
+    from sparsekin.plots import _new_figure, draw_configuration
 
     chain = load_model(TASK5.with_name("four_bar_chain.toml"))
     result = solve_kinematics(chain, np.linspace(0.0, 0.2, 3))

@@ -2,7 +2,7 @@
 
 The references here build every copy as objects, one loop iteration per copy, the way a
 user would write a chain by hand (and the way the test set did before units existed);
-they share nothing with `sparsekin.units` but the element classes.  A repeat must give the
+they share nothing with `sparsekin.model.units` but the element classes.  A repeat must give the
 same elements (`Mechanism.expanded`), the same equations (the pattern's arrays and the
 residual and Jacobian at random configurations) and the same motion.
 """
@@ -34,10 +34,10 @@ from sparsekin import (
     solve_kinematics,
     testset,
 )
-from sparsekin.assembly import Assembler
-from sparsekin.model import Analysis
-from sparsekin.pattern import build_pattern
-from sparsekin.units import Cycle, Repeat, Step, Unit
+from sparsekin.engine.assembly import Assembler
+from sparsekin.model.mechanism import Analysis
+from sparsekin.engine.pattern import build_pattern
+from sparsekin.model.units import Cycle, Repeat, Step, Unit
 
 # ---------------------------------------------------------------------- the references, by hand
 
@@ -407,7 +407,7 @@ def test_a_mistake_in_a_unit_or_its_variations_is_one_line_naming_it(edits, mess
 
 
 def test_an_unknown_point_lists_a_few_names_without_walking_the_copies(monkeypatch):
-    from sparsekin.units import Copies
+    from sparsekin.model.units import Copies
 
     calls = []
     name = Copies.name
@@ -435,7 +435,7 @@ def test_a_model_point_that_a_unit_body_lists_rides_on_the_first_copy():
 
 
 def test_the_point_names_of_a_repeat_index_like_a_list():
-    from sparsekin.pattern import build_point_map
+    from sparsekin.engine.pattern import build_point_map
 
     mechanism = base_model(repeats=[
         Repeat(arm_unit(), count=4, prefix="a", offset=(1.0, 0.0), first={"prev.crank": "crank0"}),
@@ -455,8 +455,8 @@ def test_the_point_names_of_a_repeat_index_like_a_list():
 
 
 def test_an_own_driver_on_a_copy_beyond_the_short_chain_takes_superlus_order(monkeypatch):
-    from sparsekin import stepper
-    from sparsekin.ordering import tiled_ordering
+    from sparsekin.solve import stepper
+    from sparsekin.engine.ordering import tiled_ordering
 
     monkeypatch.setattr(stepper, "MIN_TILED_COORDINATES", 0)  # tile even this short chain
     long_chain = load_model(EXAMPLES / "four_bar_chain.toml")

@@ -16,10 +16,10 @@ import pytest
 
 from examples_loader import EXAMPLES
 from sparsekin import AnalysisInterrupted, LimitWarning, SparsekinError, load_model, solve_kinematics, testset
-from sparsekin import recording
+from sparsekin.results import recording
 from sparsekin.cli import main
-from sparsekin.linalg import RefactorSolver
-from sparsekin.stepper import KinematicStepper
+from sparsekin.engine.linalg import RefactorSolver
+from sparsekin.solve.stepper import KinematicStepper
 
 xarray = pytest.importorskip("xarray", reason='the Zarr tests need "sparsekin[zarr]"')
 ROOT = Path(__file__).resolve().parents[1]

@@ -27,7 +27,7 @@ pytest.importorskip("zarr")
 
 import sparsekin as sk  # noqa: E402
 from sparsekin.cli import main  # noqa: E402
-from sparsekin.sweeps import VariantSet, resolve_path  # noqa: E402
+from sparsekin.studies.sweeps import VariantSet, resolve_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 TASK5 = ROOT / "examples" / "task5.toml"
@@ -241,7 +241,7 @@ def no_cluster(workers):
 
 def test_times_outside_a_spline_law_are_refused_before_any_cluster(capsys, tmp_path, monkeypatch):
     """As `run` does: one line, exit status 2, not a task failing on the workers (exit 3)."""
-    monkeypatch.setattr("sparsekin.sweeps._local_cluster", no_cluster)
+    monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
     harmonic = 'law = { type = "harmonic", amplitude = 0.05, omega = 1.5 }'
     spline = 'law = { type = "spline", times = [0.0, 0.5, 1.0], values = [0.8246211, 0.84, 0.8246211] }'
     model = tmp_path / "spline.toml"
@@ -261,7 +261,7 @@ def test_times_outside_a_spline_law_are_refused_before_any_cluster(capsys, tmp_p
     (dict(linear_solver="lu"), r"`linear_solver` must be one of"),
 ])  # fmt: skip
 def test_options_every_task_would_refuse_are_refused_before_any_cluster(task5, monkeypatch, option, message):
-    monkeypatch.setattr("sparsekin.sweeps._local_cluster", no_cluster)
+    monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
     with pytest.raises(ValueError, match=message):
         sk.sweep(task5, {BOTH[0]: [0.04, 0.05]}, TIMES, workers=1, **option)
 

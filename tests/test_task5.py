@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sparsekin import ConvergenceError, solve_kinematics
-from sparsekin.assembly import Assembler
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 
 #: The MSC ADAMS export of point A (its header names the source; docs/task5.md).
 ADAMS_POINT_A = Path(__file__).resolve().parent / "data" / "adams_point_A.csv"

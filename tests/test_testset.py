@@ -9,8 +9,8 @@ import pytest
 
 from examples_loader import EXAMPLES
 from sparsekin import load_model, save_model, solve_kinematics, testset
-from sparsekin.assembly import Assembler
-from sparsekin.pattern import build_pattern
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 
 # Two independent Newton solutions agree to the convergence tolerance (1e-12 relative)
 # times the conditioning of the chain; 1e-9 of the model size leaves a wide margin.

@@ -1,8 +1,8 @@
 """Sphinx extension of the sparsekin site: what the pages show is made from the code at build time.
 
 * **Gallery.** A page per model file of ``examples/``: its opening comment as the text,
-  the drawing at t = 0 (`sparsekin.plotting.draw_mechanism`), a frame of its animation
-  with the ``[analysis].points`` traced (`sparsekin.plotting.save_frame`) and the file
+  the drawing at t = 0 (`sparsekin.plots.draw_mechanism`), a frame of its animation
+  with the ``[analysis].points`` traced (`sparsekin.plots.save_frame`) and the file
   itself; and an index with every frame, written to ``docs/gallery/``.  A new example is
   a new file in ``examples/`` (and its test in ``tests/test_gallery.py``);
   ``GALLERY_ORDER`` only sets the order.
@@ -130,8 +130,8 @@ def make_gallery(folder: Path) -> None:
     import numpy as np
 
     import sparsekin as sk
-    from sparsekin.pattern import build_point_map
-    from sparsekin.plotting import draw_mechanism, save_frame
+    from sparsekin.engine.pattern import build_point_map
+    from sparsekin.plots import draw_mechanism, save_frame
 
     (folder / "images").mkdir(parents=True)
     index = [

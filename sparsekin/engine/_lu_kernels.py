@@ -1,0 +1,369 @@
+"""numba kernels of the LU factorizations: sparse refactorization on a fixed pattern, dense LU.
+
+Symbols (for these kernels only):
+
+* ``B = Pr A Pc`` — the permuted matrix that is factored, ``B = L U``, stored by columns
+  (CSC): ``b_indptr``, ``b_rows`` (row indices already permuted) and values read either
+  straight from ``values`` or through ``gather`` (``B`` entry ``p`` is
+  ``values[gather[p]]``).  Entries within a column may come in any order, and repeated
+  rows are summed.
+* ``L`` — unit lower triangular, strictly lower part by columns: ``l_indptr``,
+  ``l_indices``, ``l_values``.
+* ``U`` — upper triangular, strictly upper part by columns (rows in a topological order
+  of the updates, see `analyse_lu_pattern`): ``u_indptr``, ``u_indices``, ``u_values``;
+  the reciprocals of its diagonal (the pivots) in ``u_inverse``: the solves multiply
+  by them, a division per column being on their critical path.
+* ``perm_r``, ``perm_c`` — row ``i`` of ``A`` is row ``perm_r[i]`` of ``B``, column ``c``
+  of ``A`` is column ``perm_c[c]`` of ``B``.
+* Right-hand sides and solutions have shape (n,).
+* Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
+  which the solves are bound by), int64 otherwise; ``*_indptr`` are always int64.
+
+The patterns of ``L`` and ``U`` are *structural*: every entry that can be nonzero for some
+values of ``B`` with the pivot sequence fixed, so a value that is exactly zero at one
+configuration keeps its place for the next.
+
+The dense pair `dense_lu_factor` / `dense_lu_solve` is meant to be called from other
+numba code (the compiled time loop) as well as from Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .._jit import JIT as _JIT
+
+#: Layout of the `stats` array filled by `refactor_lu`.
+#: (`sparsekin.engine.linalg` unpacks it in this order.)
+STAT_MIN_PIVOT_RATIO = 0  # smallest |pivot| / largest |candidate| of its column (1 = best)
+STAT_MAX_ABS_U = 1  # largest |U| entry, diagonal included
+STAT_MAX_ABS_B = 2  # largest |B| entry
+STAT_BAD_COLUMN = 3  # first column with a zero or non-finite pivot, else -1
+STAT_NON_FINITE = 4  # 0 if every entry of L and U is finite, NaN otherwise
+N_STATS = 5
+
+
+@njit(**_JIT)
+def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
+    """Structural patterns of L and U for ``B = L U`` with the diagonal as pivot sequence.
+
+    Left-looking symbolic factorization (Gilbert–Peierls): the pattern of column j is the
+    set of rows reachable from the rows of ``B(:, j)`` in the graph of the columns of L
+    already found.  The diagonal is always kept.  This one kernel allocates and returns
+    its outputs, whose sizes only the analysis finds (it grows them by doubling from the
+    capacities given).
+
+    Returns
+    -------
+    l_indptr, u_indptr : ndarray of int64, shape (n + 1,)
+    l_indices, u_indices : ndarray of the dtype of `b_rows`
+        Strictly lower part of L and strictly upper part of U by columns.  U's rows come in
+        a topological order of the updates (reverse postorder of the search), the order
+        the numeric left-looking factorization needs; L's in no particular order.
+    """
+    n = b_indptr.size - 1
+    l_indptr = np.zeros(n + 1, dtype=np.int64)
+    u_indptr = np.zeros(n + 1, dtype=np.int64)
+    l_indices = np.empty(max(l_capacity, n, 1), dtype=b_rows.dtype)
+    u_indices = np.empty(max(u_capacity, n, 1), dtype=b_rows.dtype)
+    mark = np.full(n, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)  # depth-first search: node ...
+    next_child = np.empty(n, dtype=np.int64)  # ... and the position of its next child in L
+    finished = np.empty(n, dtype=np.int64)  # rows < j of the pattern, in postorder
+    lower = np.empty(n, dtype=np.int64)  # rows > j of the pattern
+    for j in range(n):
+        n_finished = 0
+        n_lower = 0
+        mark[j] = j
+        for p in range(b_indptr[j], b_indptr[j + 1]):
+            r = b_rows[p]
+            if mark[r] == j:
+                continue
+            mark[r] = j
+            if r > j:
+                lower[n_lower] = r
+                n_lower += 1
+                continue
+            top = 0
+            stack[0] = r
+            next_child[0] = l_indptr[r]
+            while top >= 0:
+                k = stack[top]
+                position = next_child[top]
+                if position == l_indptr[k + 1]:
+                    finished[n_finished] = k
+                    n_finished += 1
+                    top -= 1
+                    continue
+                next_child[top] = position + 1
+                i = l_indices[position]
+                if mark[i] == j:
+                    continue
+                mark[i] = j
+                if i < j:
+                    top += 1
+                    stack[top] = i
+                    next_child[top] = l_indptr[i]
+                else:
+                    lower[n_lower] = i
+                    n_lower += 1
+        start = l_indptr[j]
+        if start + n_lower > l_indices.size:
+            grown = np.empty(max(2 * l_indices.size, start + n_lower), dtype=l_indices.dtype)
+            grown[:start] = l_indices[:start]
+            l_indices = grown
+        for t in range(n_lower):
+            l_indices[start + t] = lower[t]
+        l_indptr[j + 1] = start + n_lower
+        start = u_indptr[j]
+        if start + n_finished > u_indices.size:
+            grown = np.empty(max(2 * u_indices.size, start + n_finished), dtype=u_indices.dtype)
+            grown[:start] = u_indices[:start]
+            u_indices = grown
+        for t in range(n_finished):
+            u_indices[start + t] = finished[n_finished - 1 - t]
+        u_indptr[j + 1] = start + n_finished
+    return l_indptr, l_indices[: l_indptr[n]].copy(), u_indptr, u_indices[: u_indptr[n]].copy()
+
+
+@njit(**_JIT)
+def refactor_lu(
+    values, gather, b_indptr, b_rows,
+    l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse, work, stats,
+):  # fmt: skip
+    """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
+
+    B's entry p is ``values[gather[p]]``, or ``values[p]`` when `gather` is empty.
+    `work` (shape (n,)) must be zero on entry and is zero on return.  The factorization
+    stops at the first column whose pivot is zero or non-finite and records it in
+    ``stats[STAT_BAD_COLUMN]``; a non-finite entry of L or U makes
+    ``stats[STAT_NON_FINITE]`` NaN.
+    """
+    n = b_indptr.size - 1
+    direct = gather.size == 0
+    max_l = 1.0
+    max_u = 0.0
+    max_b = 0.0
+    probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
+    stats[STAT_BAD_COLUMN] = -1.0
+    for j in range(n):
+        if direct:
+            for p in range(b_indptr[j], b_indptr[j + 1]):
+                value = values[p]
+                work[b_rows[p]] += value  # repeated entries add up
+                max_b = max(max_b, abs(value))
+        else:
+            for p in range(b_indptr[j], b_indptr[j + 1]):
+                value = values[gather[p]]
+                work[b_rows[p]] += value
+                max_b = max(max_b, abs(value))
+        for p in range(u_indptr[j], u_indptr[j + 1]):  # in topological order
+            k = u_indices[p]
+            x_k = work[k]
+            work[k] = 0.0
+            u_values[p] = x_k
+            max_u = max(max_u, abs(x_k))
+            probe += 0.0 * x_k
+            for q in range(l_indptr[k], l_indptr[k + 1]):
+                work[l_indices[q]] -= l_values[q] * x_k
+        pivot = work[j]
+        work[j] = 0.0
+        if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
+            for q in range(l_indptr[j], l_indptr[j + 1]):
+                work[l_indices[q]] = 0.0
+            stats[STAT_BAD_COLUMN] = j
+            break
+        max_u = max(max_u, abs(pivot))
+        inverse = 1.0 / pivot
+        u_inverse[j] = inverse
+        for q in range(l_indptr[j], l_indptr[j + 1]):
+            i = l_indices[q]
+            entry = work[i] * inverse
+            work[i] = 0.0
+            l_values[q] = entry
+            max_l = max(max_l, abs(entry))
+            probe += 0.0 * entry
+    # |pivot| / max(|pivot|, max |candidate|) over the columns is 1 / max(1, max |L|).
+    stats[STAT_MIN_PIVOT_RATIO] = 1.0 / max_l
+    stats[STAT_MAX_ABS_U] = max_u
+    stats[STAT_MAX_ABS_B] = max_b
+    stats[STAT_NON_FINITE] = probe
+
+
+@njit(**_JIT)
+def solve_lu(
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
+    rhs, work, out, probe,
+):  # fmt: skip
+    """Solve ``A x = rhs`` with ``Pr A Pc = L U``: fill `out` (may be `rhs` itself).
+
+    `rhs`, `work` and `out` have shape (n,).  ``probe[0]`` becomes 0 if every entry of
+    the solution is finite, NaN otherwise.
+    """
+    n = rhs.size
+    for i in range(n):
+        work[perm_r[i]] = rhs[i]
+    for j in range(n):  # L y = Pr rhs, column by column
+        x_j = work[j]
+        for p in range(l_indptr[j], l_indptr[j + 1]):
+            work[l_indices[p]] -= l_values[p] * x_j
+    for j in range(n - 1, -1, -1):  # U z = y
+        x_j = work[j] * u_inverse[j]
+        work[j] = x_j
+        for p in range(u_indptr[j], u_indptr[j + 1]):
+            work[u_indices[p]] -= u_values[p] * x_j
+    total = 0.0
+    for i in range(n):  # x = Pc z
+        x_i = work[perm_c[i]]
+        out[i] = x_i
+        total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
+    probe[0] = total
+
+
+@njit(**_JIT)
+def solve_lu_transposed(
+    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
+    rhs, work, out, probe,
+):  # fmt: skip
+    """Solve ``A^T x = rhs`` with ``Pr A Pc = L U`` (``A^T = Pc U^T L^T Pr``): fill `out`.
+
+    `rhs`, `work` and `out` have shape (n,); `out` may be `rhs` itself.  ``probe[0]``
+    becomes 0 if every entry of the solution is finite, NaN otherwise.
+    """
+    n = rhs.size
+    for i in range(n):
+        work[perm_c[i]] = rhs[i]
+    for j in range(n):  # U^T y = Pc^T rhs: dot products with the columns of U
+        total = work[j]
+        for p in range(u_indptr[j], u_indptr[j + 1]):
+            total -= u_values[p] * work[u_indices[p]]
+        work[j] = total * u_inverse[j]
+    for j in range(n - 1, -1, -1):  # L^T z = y
+        total = work[j]
+        for p in range(l_indptr[j], l_indptr[j + 1]):
+            total -= l_values[p] * work[l_indices[p]]
+        work[j] = total
+    total = 0.0
+    for i in range(n):  # x = Pr^T z
+        x_i = work[perm_r[i]]
+        out[i] = x_i
+        total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
+    probe[0] = total
+
+
+@njit(**_JIT)
+def dense_lu_factor(a, pivots):
+    """LU with partial pivoting of a square matrix, in place; True unless a pivot fails.
+
+    Zeros are skipped: a row whose multiplier is zero is not updated, and when the pivot
+    row is mostly zeros only its nonzero columns are (linkage Jacobians have about four
+    nonzeros per row, and their factors stay nearly as sparse).  The rounding is that of
+    the plain algorithm.
+
+    Parameters
+    ----------
+    a : ndarray, shape (n, n), float64, C-contiguous
+        Overwritten by L (strictly lower part, unit diagonal implied) and U.
+    pivots : ndarray, shape (n,), int64
+        Filled with the row interchanges, as LAPACK's ``getrf`` but 0-based: at step k,
+        rows k and ``pivots[k] >= k`` were swapped.  Applying the swaps in order to the
+        rows of the original `a` gives ``L U``.
+
+    Returns
+    -------
+    bool
+        False if a pivot is exactly zero or not finite (the matrix is singular, or holds
+        an inf or NaN in a pivot's column); `a` and `pivots` are then only partly
+        factored.  A NaN elsewhere shows in the solution.
+    """
+    n = a.shape[0]
+    columns = np.empty(n, dtype=np.int64)  # nonzero columns of the pivot row, right of k
+    for k in range(n):
+        best = k
+        largest = abs(a[k, k])
+        for i in range(k + 1, n):
+            magnitude = abs(a[i, k])
+            if magnitude > largest:
+                largest = magnitude
+                best = i
+        pivots[k] = best
+        if not (largest > 0.0 and largest < math.inf):  # NaN fails both tests
+            return False
+        if best != k:
+            for c in range(n):
+                a[k, c], a[best, c] = a[best, c], a[k, c]
+        n_columns = 0
+        for c in range(k + 1, n):
+            if a[k, c] != 0.0:
+                columns[n_columns] = c
+                n_columns += 1
+        dense = 2 * n_columns > n - k - 1
+        inverse = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            if a[i, k] == 0.0:
+                continue
+            factor = a[i, k] * inverse
+            a[i, k] = factor
+            if dense:
+                for c in range(k + 1, n):
+                    a[i, c] -= factor * a[k, c]
+            else:
+                for t in range(n_columns):
+                    c = columns[t]
+                    a[i, c] -= factor * a[k, c]
+    return True
+
+
+@njit(**_JIT)
+def dense_lu_solve(a, pivots, b):
+    """Solve ``matrix @ x = b`` in place in `b` (shape (n,)) from `dense_lu_factor`'s output.
+
+    Column-oriented substitutions, so that a zero entry of the partial solution skips its
+    column (right-hand sides of kinematics are mostly zeros).
+    """
+    n = a.shape[0]
+    for k in range(n):
+        swap = pivots[k]
+        if swap != k:
+            b[k], b[swap] = b[swap], b[k]
+    for j in range(n):
+        x_j = b[j]
+        if x_j != 0.0:
+            for i in range(j + 1, n):
+                b[i] -= a[i, j] * x_j
+    for j in range(n - 1, -1, -1):
+        x_j = b[j] / a[j, j]
+        b[j] = x_j
+        if x_j != 0.0:
+            for i in range(j):
+                b[i] -= a[i, j] * x_j
+
+
+@njit(**_JIT)
+def dense_lu_solve_transposed(a, pivots, b):
+    """Solve ``matrix.T @ x = b`` in place in `b` from `dense_lu_factor`'s output.
+
+    ``P matrix = L U`` (P the row interchanges), so ``matrix.T = U.T L.T P``: forward
+    substitution with U.T, back substitution with the unit L.T, then the interchanges
+    undone in reverse order.  Both substitutions read rows of `a` (contiguous) and skip
+    the zero entries of the partial solution, as `dense_lu_solve` does with columns.
+    """
+    n = a.shape[0]
+    for j in range(n):  # U.T y = b: y_j, then take row j of U out of the rest
+        y_j = b[j] / a[j, j]
+        b[j] = y_j
+        if y_j != 0.0:
+            for i in range(j + 1, n):
+                b[i] -= a[j, i] * y_j
+    for j in range(n - 1, -1, -1):  # L.T z = y: z_j, then take row j of L out of the rest
+        z_j = b[j]
+        if z_j != 0.0:
+            for i in range(j):
+                b[i] -= a[j, i] * z_j
+    for k in range(n - 1, -1, -1):
+        swap = pivots[k]
+        if swap != k:
+            b[k], b[swap] = b[swap], b[k]

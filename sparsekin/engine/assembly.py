@@ -1,0 +1,202 @@
+"""The assembler: owns the constraint arrays and refills them in place.
+
+An `Assembler` is built once per mechanism from its `ConstraintPattern`.  It owns the
+residual, the CSR Jacobian (a ``scipy.sparse.csr_array`` whose pattern never changes), the
+acceleration right-hand side and the driver targets, and refills their values with the
+wiring of `sparsekin.engine._kernels`, the same functions the compiled time loop inlines.
+Nothing is allocated per call.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..model.laws import LawPacker, fill_laws
+from ..model.mechanism import Mechanism
+from . import _kernels
+from .pattern import ConstraintPattern
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_array
+
+__all__ = ["Assembler", "DriverLaws"]
+
+
+class DriverLaws:
+    """The laws of every driven row (`ConstraintPattern.driven_row`), evaluated together.
+
+    Built-in laws are evaluated in one numba call over a `sparsekin.model.laws.LawTable`, so
+    that a model with 10^5 drivers costs one call per time; other law objects are called
+    one by one.
+    """
+
+    def __init__(self, mechanism: Mechanism, initial: np.ndarray) -> None:
+        packer = LawPacker()
+        own = mechanism.own("drivers")
+        target = 0
+        for driver in own:
+            for law in driver.laws():
+                packer.add(law, np.array([target]), initial[target : target + 1])
+                target += 1
+        for copies in mechanism.copies:  # each unit law over all the copies, by arrays
+            per_copy = sum(driver.n_equations for driver in copies.unit.drivers)
+            within = 0
+            for e, driver in enumerate(copies.unit.drivers):
+                variations = copies.law_variations(e)
+                for field_name, law in zip(driver.law_fields, driver.laws()):
+                    targets = target + within + per_copy * np.arange(copies.count)
+                    packer.add(law, targets, initial[targets], variations.get(field_name))
+                    within += 1
+            target += per_copy * copies.count
+        self.table, self._others = packer.table(), packer.others
+        self._initial = initial
+        self.n_laws = target
+
+    def evaluate(self, t: float, value: np.ndarray, rate: np.ndarray, acceleration: np.ndarray) -> None:
+        """Fill the value and time derivatives of every law at time `t` (s)."""
+        fill_laws(self.table, float(t), value, rate, acceleration)
+        for k, law in self._others:
+            value[k], rate[k], acceleration[k] = law.evaluate(t, float(self._initial[k]))
+
+
+class Assembler:
+    """Residual, Jacobian and acceleration right-hand side of a mechanism, refilled in place.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    pattern : ConstraintPattern
+        From `sparsekin.engine.pattern.build_pattern`.
+
+    Attributes
+    ----------
+    residual : ndarray, shape (n_equations,)
+        Phi(q, t) = g(q) - target(t), after `fill_residual_jacobian`.
+    jacobian : scipy.sparse.csr_array, shape (n_equations, n_coordinates)
+        Phi_q, after `fill_residual_jacobian`.  Its pattern is fixed; only ``data`` changes.
+        After `fill_in_order`, a copy made on each access (for diagnostics).
+    values : ndarray, shape (nnz,)
+        The values of the Jacobian as the kernels write them: ``jacobian.data`` itself,
+        or after `fill_in_order` the same values in the order given there.
+    weights : ndarray, shape (n_equations,)
+        Weight of each row in the residual norm (`ConstraintPattern.residual_weights`).
+    velocity_rhs : ndarray, shape (n_equations,)
+        -Phi_t: the first time derivative of the targets, after `set_time`.
+    acceleration_rhs : ndarray, shape (n_equations,)
+        gamma plus the targets' second derivative, after `fill_acceleration_rhs`.
+    driver_values : ndarray, shape (n_driven,)
+        The laws' values at the last `set_time`, m or rad (one per driven row).
+    """
+
+    def __init__(self, mechanism: Mechanism, pattern: ConstraintPattern) -> None:
+        self.pattern = pattern
+        n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
+        # Coordinates and velocities with the ground appended as a body of zeros.
+        self._q = np.zeros(n_coordinates + 3)
+        self._qd = np.zeros(n_coordinates + 3)
+        # cos and sin of each body's angle in self._q (all angles 0 until the first fill)
+        self._turns = np.zeros((pattern.n_bodies + 1, 2))
+        self._turns[:, 0] = 1.0
+        # The CSR values, with one discard slot past the end for the ground's columns.
+        self._jac_buffer = np.zeros(pattern.nnz + 1)
+        self.values = self._jac_buffer[: pattern.nnz]
+        self._csr = None  # the CSR array over `values`, made when first asked for (`jacobian`)
+        self._primitives = pattern.primitives
+        self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
+        self.weights = pattern.residual_weights
+        self.residual = np.zeros(n_equations)
+        self.acceleration_rhs = np.zeros(n_equations)
+        self._target = pattern.target.copy()
+        self.velocity_rhs = np.zeros(n_equations)
+        self._target_acceleration = np.zeros(n_equations)
+        self.laws = DriverLaws(mechanism, pattern.driven_initial)
+        n_driven = pattern.driven_row.size
+        self.driver_values = np.zeros(n_driven)
+        self._driver_rates = np.zeros(n_driven)
+        self._driver_accelerations = np.zeros(n_driven)
+
+    @property
+    def jacobian(self) -> csr_array:
+        from scipy.sparse import csr_array  # here: the compiled loop of a small model never needs it
+
+        p = self.pattern
+        shape = (p.n_equations, p.n_coordinates)
+        if self._csr_position is not None:
+            return csr_array((self.values[self._csr_position], p.indices, p.indptr), shape=shape)
+        if self._csr is None:
+            self._csr = csr_array((self.values, p.indices, p.indptr), shape=shape)
+            if p.nnz and not np.shares_memory(self._csr.data, self._jac_buffer):
+                raise RuntimeError("scipy copied the Jacobian values; the in-place refill would be lost")
+        return self._csr
+
+    @property
+    def csr_positions(self) -> np.ndarray | None:
+        """Where the k-th CSR value of the Jacobian is in `values` (None: `values` is in CSR order)."""
+        return self._csr_position
+
+    def fill_in_order(self, positions: np.ndarray | None) -> None:
+        """Write the k-th CSR value of the Jacobian to ``values[positions[k]]`` from now on.
+
+        A linear solver that reads the values in its own order (`RefactorSolver`'s
+        ``value_positions``) then takes `values` as they are, without a gather; `jacobian`
+        becomes a copy in CSR order.  ``None`` returns to the CSR order.  The values
+        already there are moved to the new order, so that `values`, `csr_positions` and
+        `jacobian` always describe the last fill.
+        """
+        p = self.pattern
+        in_csr_order = self.values.copy() if self._csr_position is None else self.values[self._csr_position]
+        if positions is None:
+            self._primitives = p.primitives
+            self._csr_position = None
+            self.values[:] = in_csr_order
+            return
+        positions = np.asarray(positions, dtype=np.int64)
+        if positions.shape != (p.nnz,) or (
+            p.nnz and (positions.min() < 0 or positions.max() >= p.nnz or np.bincount(positions).min() != 1)
+        ):
+            raise ValueError(f"`positions` must be a permutation of range({p.nnz}).")
+        # the ground's discard slot stays where it is
+        self._primitives = p.primitives.with_slots(np.append(positions, p.nnz))
+        self._csr_position = positions
+        self.values[positions] = in_csr_order
+
+    def set_time(self, t: float) -> None:
+        """Evaluate the driver laws at time `t` (s) and update the targets."""
+        self.laws.evaluate(t, self.driver_values, self._driver_rates, self._driver_accelerations)
+        rows = self.pattern.driven_row
+        self._target[rows] = self.driver_values
+        self.velocity_rhs[rows] = self._driver_rates
+        self._target_acceleration[rows] = self._driver_accelerations
+
+    def fill_residual_jacobian(self, coordinates: np.ndarray) -> float:
+        """Refill `residual` and the values of `jacobian` at `coordinates`.
+
+        Returns
+        -------
+        float
+            The weighted residual norm max |residual| · weights (NaN if not finite).
+        """
+        q = self._q
+        q[:-3] = coordinates
+        return _kernels.fill_residual_jacobian(
+            self._primitives, q, self._turns, self._target, self.weights, self.residual, self._jac_buffer
+        )
+
+    def filled_motion(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The coordinates and velocities of the last `fill_acceleration_rhs`, with the
+        ground appended as a body of zeros, and ``(cos, sin)`` of every body's angle there
+        (the kernels' ``q``, ``qd`` and ``turns``).  The arrays themselves, not copies: the
+        next refill changes them."""
+        return self._q, self._qd, self._turns
+
+    def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
+        """Refill `acceleration_rhs` (gamma plus the targets' second derivative)."""
+        q, qd, turns = self._q, self._qd, self._turns
+        if not np.array_equal(q[:-3], coordinates):  # else `turns` is that of the last refill
+            q[:-3] = coordinates
+            _kernels.fill_body_turns(q, turns)
+        qd[:-3] = velocities
+        _kernels.fill_gamma(self._primitives, q, qd, turns, self.acceleration_rhs)
+        self.acceleration_rhs += self._target_acceleration

@@ -1,0 +1,590 @@
+"""Linear solvers for the Newton, velocity and acceleration systems, behind one interface.
+
+A linear solver factors the Jacobian (`factor`) and then solves any number of right-hand
+sides with that factorization (`solve`): one vector, or several at once as the columns
+of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocated `out`.
+
+* `SuperLUSolver` — scipy's SuperLU with the COLAMD ordering, a fresh factorization
+  every time.
+* `RefactorSolver` — a first SuperLU factorization fixes the ordering and the pivot
+  sequence; every later `factor` is a numeric refactorization on the fixed structural
+  patterns of L and U (numba kernels in `sparsekin.engine._lu_kernels`), guarded: when the fixed
+  pivots turn bad it falls back to a fresh SuperLU factorization with new pivoting.
+* `DenseSolver` — LAPACK's LU with partial pivoting on a dense copy, for small models
+  that the compiled loop cannot run (see the dense kernels of `sparsekin.engine._lu_kernels` for
+  compiled loops; docs/design-notes.md compares the paths).
+
+All three factor ``A = jacobian.T`` — for a CSR Jacobian that is the CSC array sharing its
+memory, which SuperLU takes without a copy — and solve ``jacobian @ x = rhs`` as the
+transposed system ``A.T @ x = rhs``.  Counters: ``n_factorizations`` (fresh
+factorizations, with their own pivoting), ``n_refactorizations`` (numeric refactorizations
+on a fixed pattern; `RefactorSolver` only) and ``n_solves`` (right-hand sides solved).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from . import _lu_kernels
+
+if TYPE_CHECKING:
+    from scipy.sparse import csc_array, csr_array
+
+__all__ = [
+    "LinearSolver",
+    "SuperLUSolver",
+    "RefactorSolver",
+    "DenseSolver",
+    "SingularMatrix",
+    "MIN_PIVOT_RATIO",
+    "MAX_GROWTH",
+]
+
+#: Guard of `RefactorSolver`: the smallest accepted ratio of a pivot to the largest
+#: candidate of its column (equivalently, max |L| <= 1 / MIN_PIVOT_RATIO): KLU's default
+#: pivot tolerance, far below what linkage Jacobians reach along their motions
+#: (docs/design-notes.md, "Sparse LU", pitfall 5).
+MIN_PIVOT_RATIO = 1e-3
+#: Guard of `RefactorSolver`: the largest accepted growth max |U| / max |A|, far above
+#: what motions reach and far below what a static pivot order gone bad does (same note).
+#: The rounding errors of LU scale with the growth: at 1e3 they stay below about
+#: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
+MAX_GROWTH = 1e3
+#: The column ordering of every SuperLU factorization.
+_ORDERING = "COLAMD"
+_NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
+
+
+def _splu(matrix: csc_array):
+    """SuperLU of a CSC matrix with `_ORDERING`.  scipy.sparse.linalg is imported here, on the
+    first factorization: a small model's run, all in the compiled loop, never loads it."""
+    from scipy.sparse.linalg import splu
+
+    return splu(matrix, permc_spec=_ORDERING)
+
+
+class SingularMatrix(RuntimeError):
+    """The factorization met an exactly zero pivot or produced non-finite values."""
+
+
+class LinearSolver(Protocol):
+    """What the position, velocity and acceleration solvers need from a linear solver."""
+
+    name: str
+    n_factorizations: int
+    n_refactorizations: int
+    n_solves: int
+
+    def factor(self, jacobian: csr_array) -> None:
+        """Factor `jacobian`; raise `SingularMatrix` if it cannot be factored."""
+        ...
+
+    def solve(
+        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
+    ) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs`` (``jacobian.T @ x = rhs`` if `transposed`)."""
+        ...
+
+
+def _checked_rhs(rhs, n: int, out) -> tuple[np.ndarray, np.ndarray]:
+    """`rhs` as a C-contiguous float array of shape (n,) or (n, n_rhs), and `out` checked or made."""
+    rhs = np.ascontiguousarray(rhs, dtype=float)
+    if rhs.ndim not in (1, 2) or rhs.shape[0] != n:
+        raise ValueError(f"`rhs` must have shape ({n},) or ({n}, n_rhs), got {rhs.shape}.")
+    if out is None:
+        return rhs, np.empty(rhs.shape)
+    if not (
+        isinstance(out, np.ndarray)
+        and out.shape == rhs.shape
+        and out.dtype == np.float64
+        and out.flags.c_contiguous
+    ):
+        raise ValueError(
+            f"`out` must be a C-contiguous float64 array of shape {rhs.shape}, got "
+            f"{getattr(out, 'shape', type(out).__name__)}."
+        )
+    return rhs, out
+
+
+def _index_dtype(largest: int) -> type:
+    """int32 when every index value fits (half the memory traffic), int64 otherwise."""
+    return np.int32 if largest < np.iinfo(np.int32).max else np.int64
+
+
+def _checked_square(jacobian) -> int:
+    """The size of `jacobian`, a square CSR array."""
+    if not (hasattr(jacobian, "format") and jacobian.format == "csr"):
+        raise ValueError(f"`jacobian` must be a scipy.sparse CSR array, got {type(jacobian).__name__}.")
+    n, m = jacobian.shape
+    if n != m:
+        raise ValueError(f"`jacobian` must be square, got shape {jacobian.shape}.")
+    return n
+
+
+class SuperLUSolver:
+    """scipy's SuperLU, factoring the CSC view ``jacobian.T`` (no copy, no conversion).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> solver = SuperLUSolver()
+    >>> solver.factor(csr_array(np.array([[2.0, 1.0], [0.0, 4.0]])))
+    >>> solver.solve(np.array([3.0, 4.0])).tolist()
+    [1.0, 1.0]
+    """
+
+    name = "superlu"
+
+    def __init__(self) -> None:
+        self._lu = None
+        self.n_factorizations = 0
+        self.n_refactorizations = 0
+        self.n_solves = 0
+
+    def factor(self, jacobian: csr_array) -> None:
+        """Factor `jacobian` (square CSR); raise `SingularMatrix` if it is exactly singular."""
+        self.n_factorizations += 1
+        try:
+            self._lu = _splu(jacobian.T)
+        except RuntimeError as error:  # "Factor is exactly singular"
+            self._lu = None
+            raise SingularMatrix(str(error)) from error
+
+    def solve(
+        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
+    ) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`.
+
+        Parameters
+        ----------
+        rhs : ndarray, shape (n,) or (n, n_rhs)
+            One right-hand side, or one per column.
+        out : ndarray, optional
+            C-contiguous float64 array of the shape of `rhs` to receive the solution.
+
+        Returns
+        -------
+        ndarray
+            The solution, `out` if given.
+        """
+        if self._lu is None:
+            raise RuntimeError(_NOT_FACTORED)
+        rhs = np.asarray(rhs, dtype=float)
+        if out is not None:
+            _checked_rhs(rhs, self._lu.shape[0], out)
+        # The factors are those of A = jacobian.T: jacobian @ x = rhs is the transposed system.
+        solution = self._lu.solve(rhs, trans="N" if transposed else "T")
+        if out is not None:
+            out[...] = solution
+            solution = out
+        self.n_solves += 1 if solution.ndim == 1 else solution.shape[1]
+        if not np.all(np.isfinite(solution)):
+            raise SingularMatrix("the solution is not finite")
+        return solution
+
+
+class RefactorSolver:
+    """Numeric refactorization on a fixed pattern, guarded by a fresh SuperLU factorization.
+
+    The first `factor` runs SuperLU on ``A = jacobian.T`` (COLAMD ordering, partial
+    pivoting) and keeps only its permutations: ``Pr A Pc = L U`` where row i of A is row
+    ``perm_r[i]`` of ``Pr A Pc`` and column c of A is its column ``perm_c[c]``.  From them
+    it computes the *structural* patterns of L and U (every entry that can be nonzero with
+    this pivot sequence; SuperLU's own L and U drop the values that happen to be zero).
+    Every later `factor` with the same pattern refactors numerically on those patterns;
+    if a pivot turns zero, non-finite or smaller than `min_pivot_ratio` times the largest
+    candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver falls
+    back to a fresh SuperLU factorization with new pivoting and a new analysis.
+
+    Parameters
+    ----------
+    min_pivot_ratio : float
+        Guard on the smallest pivot relative to its column (`MIN_PIVOT_RATIO`).
+    max_growth : float
+        Guard on the growth max |U| / max |A| (`MAX_GROWTH`).
+
+    Attributes
+    ----------
+    n_factorizations : int
+        Fresh factorizations: SuperLU with new pivoting, then the structural analysis.
+    n_refactorizations : int
+        Numeric refactorizations attempted on the fixed pattern (including those the guard
+        rejected, each of which is followed by a fresh factorization).
+    n_fallbacks : int
+        Refactorizations the guard rejected.
+    n_solves : int
+        Right-hand sides solved (a 2-D `rhs` of k columns counts k).
+    pivot_ratio, growth : float
+        Smallest pivot ratio and growth of the last numeric factorization.
+    layout_version : int
+        Incremented whenever `value_positions` changes (a new pattern, or a fresh
+        factorization that chose another column order).
+
+    Notes
+    -----
+    To skip the gather from ``jacobian.data`` at every refactorization, fill the values
+    straight into the factor's order and call `factor_ordered`: the entry
+    ``jacobian.data[k]`` goes to ``values[solver.value_positions[k]]``, so compose a fill's
+    slot map with `value_positions` once (and again whenever `layout_version` changes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> jacobian = csr_array(np.array([[2.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]]))
+    >>> solver = RefactorSolver()
+    >>> solver.factor(jacobian)
+    >>> jacobian.data *= 2.0  # same pattern, new values
+    >>> solver.factor(jacobian)
+    >>> (solver.n_factorizations, solver.n_refactorizations)
+    (1, 1)
+    >>> bool(np.allclose(jacobian @ solver.solve(np.ones(3)), 1.0))
+    True
+    """
+
+    name = "refactor"
+
+    def __init__(self, *, min_pivot_ratio: float = MIN_PIVOT_RATIO, max_growth: float = MAX_GROWTH) -> None:
+        if not (0.0 <= min_pivot_ratio <= 1.0):
+            raise ValueError(f"`min_pivot_ratio` must be in [0, 1], got {min_pivot_ratio!r}.")
+        if not (max_growth >= 1.0):
+            raise ValueError(f"`max_growth` must be >= 1, got {max_growth!r}.")
+        self.min_pivot_ratio = float(min_pivot_ratio)
+        self.max_growth = float(max_growth)
+        self.n_factorizations = 0
+        self.n_refactorizations = 0
+        self.n_fallbacks = 0
+        self.n_solves = 0
+        self.pivot_ratio = np.nan
+        self.growth = np.nan
+        self.layout_version = 0
+        self._n = -1
+        self._indptr = self._indices = None
+        self._factored = False
+        self._stats = np.zeros(_lu_kernels.N_STATS)
+        self._probe = np.zeros(1)
+        self._suggested = None
+
+    # ------------------------------------------------------------------ public
+    @property
+    def value_positions(self) -> np.ndarray:
+        """ndarray of int64, shape (nnz,): where ``jacobian.data[k]`` goes in factor order."""
+        self._require_analysis()
+        return self._value_positions
+
+    @property
+    def perm_r(self) -> np.ndarray:
+        """ndarray, shape (n,): row i of ``A = jacobian.T`` is row ``perm_r[i]`` of ``L U``."""
+        self._require_analysis()
+        return self._perm_r
+
+    @property
+    def perm_c(self) -> np.ndarray:
+        """ndarray, shape (n,): column c of ``A = jacobian.T`` is column ``perm_c[c]`` of ``L U``."""
+        self._require_analysis()
+        return self._perm_c
+
+    @property
+    def nnz_factors(self) -> int:
+        """Entries of L and U in the structural patterns, diagonal counted once."""
+        self._require_analysis()
+        return int(self._l_indptr[-1] + self._u_indptr[-1] + self._n)
+
+    def suggest(self, perm_r: np.ndarray, perm_c: np.ndarray) -> None:
+        """A pivot order for the next new pattern, instead of SuperLU's (`sparsekin.engine.ordering`).
+
+        The next `factor` of a pattern not analysed yet factors on it, under the usual
+        guard; if the guard rejects it, SuperLU decides as usual.  The permutations follow
+        `perm_r` and `perm_c`'s convention, for ``A = jacobian.T``.
+        """
+        self._suggested = (np.asarray(perm_r, dtype=np.int64), np.asarray(perm_c, dtype=np.int64))
+
+    def factor(self, jacobian: csr_array) -> None:
+        """Factor `jacobian` (square CSR): refactor if its pattern is the analysed one.
+
+        Raises
+        ------
+        SingularMatrix
+            If a fresh factorization meets an exactly zero or non-finite pivot.
+        """
+        n = _checked_square(jacobian)
+        self._factored = False
+        if not self._same_pattern(jacobian, n):
+            self._analyse_and_factor(jacobian.T)
+            return
+        data = jacobian.data if jacobian.data.dtype == np.float64 else jacobian.data.astype(float)
+        self.n_refactorizations += 1
+        if self._numeric(data, self._gather) and self._guard_accepts():
+            self._factored = True
+            return
+        self.n_fallbacks += 1
+        self._fresh_factor(jacobian.T)
+
+    def factor_ordered(self, values: np.ndarray) -> None:
+        """Refactor from values given in factor order (see `value_positions`).
+
+        Parameters
+        ----------
+        values : ndarray, shape (nnz,), float64
+            ``values[value_positions[k]]`` is the k-th CSR value of the Jacobian.  Read
+            as it is; if the guard trips, the fresh factorization may change
+            `value_positions` (see `layout_version`).
+        """
+        self._require_analysis()
+        if not (
+            isinstance(values, np.ndarray)
+            and values.shape == (self._nnz,)
+            and values.dtype == np.float64
+            and values.flags.c_contiguous
+        ):
+            raise ValueError(
+                f"`values` must be a contiguous float64 array of shape ({self._nnz},), got "
+                f"{getattr(values, 'shape', type(values).__name__)}."
+            )
+        self._factored = False
+        self.n_refactorizations += 1
+        if self._numeric(values, self._direct) and self._guard_accepts():
+            self._factored = True
+            return
+        self.n_fallbacks += 1
+        self._fresh_factor(self._transposed_csc(values[self._value_positions]))
+
+    def solve(
+        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
+    ) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`.
+
+        Parameters
+        ----------
+        rhs : ndarray, shape (n,) or (n, n_rhs)
+            One right-hand side, or one per column (solved column by column).
+        out : ndarray, optional
+            C-contiguous float64 array of the shape of `rhs` to receive the solution; may
+            be `rhs` itself.
+
+        Returns
+        -------
+        ndarray
+            The solution, `out` if given.
+
+        Raises
+        ------
+        SingularMatrix
+            If the solution is not finite.
+        """
+        if not self._factored:
+            raise RuntimeError(_NOT_FACTORED)
+        rhs, out = _checked_rhs(rhs, self._n, out)
+        # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
+        kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
+        factors = (self._perm_r, self._perm_c, self._l_indptr, self._l_indices, self._l_values,
+                   self._u_indptr, self._u_indices, self._u_values, self._u_inverse)  # fmt: skip
+        if rhs.ndim == 1:
+            kernel(*factors, rhs, self._solve_work, out, self._probe)
+            finite = self._probe[0] == 0.0
+        else:  # column by column
+            column = np.empty(self._n)
+            finite = True
+            for c in range(rhs.shape[1]):
+                kernel(*factors, np.ascontiguousarray(rhs[:, c]), self._solve_work, column, self._probe)
+                out[:, c] = column
+                finite &= self._probe[0] == 0.0
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        if not finite:
+            raise SingularMatrix("the solution is not finite")
+        return out
+
+    # ------------------------------------------------------------------ internals
+    def _require_analysis(self) -> None:
+        if self._indptr is None:
+            raise RuntimeError("no analysis yet: call `factor` with a Jacobian first.")
+
+    def _same_pattern(self, jacobian, n: int) -> bool:
+        if self._indptr is None or n != self._n:
+            return False
+        if jacobian.indptr is self._indptr and jacobian.indices is self._indices:
+            return True
+        return bool(
+            np.array_equal(jacobian.indptr, self._indptr) and np.array_equal(jacobian.indices, self._indices)
+        )
+
+    def _transposed_csc(self, data: np.ndarray) -> csc_array:
+        """``jacobian.T`` as a CSC array with the analysed pattern and the given values."""
+        from scipy.sparse import csc_array
+
+        return csc_array((data, self._indices, self._indptr), shape=(self._n, self._n))
+
+    def _analyse_and_factor(self, matrix: csc_array) -> None:
+        """A new pattern: take it, then factor afresh; forget it if that fails."""
+        if not matrix.has_canonical_format:
+            raise ValueError("`jacobian` must have sorted column indices without duplicates (canonical CSR).")
+        self._indptr, self._indices = matrix.indptr, matrix.indices
+        self._n, self._nnz = matrix.shape[0], matrix.nnz
+        self._perm_c = None
+        suggested, self._suggested = self._suggested, None
+        if suggested is not None and suggested[0].size == self._n and self._factor_on(matrix, *suggested):
+            return
+        self._perm_c = None
+        try:
+            self._fresh_factor(matrix)
+        except BaseException:
+            if self._perm_c is None:  # the analysis did not complete
+                self._indptr = self._indices = None
+            raise
+
+    def _factor_on(self, matrix: csc_array, perm_r: np.ndarray, perm_c: np.ndarray) -> bool:
+        """Analyse and factor with a given pivot order; False if a pivot is bad (guard)."""
+        self.n_factorizations += 1
+        data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
+        self._analyse(perm_r, perm_c, 2 * self._nnz)
+        if self._numeric(data, self._gather) and self._guard_accepts():
+            self._factored = True
+            return True
+        self.n_fallbacks += 1
+        return False
+
+    def _fresh_factor(self, matrix: csc_array) -> None:
+        """SuperLU with new pivoting, the structural analysis, then the numeric factors."""
+        self.n_factorizations += 1
+        data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
+        try:
+            lu = _splu(matrix)
+        except RuntimeError as error:  # "Factor is exactly singular"
+            raise SingularMatrix(str(error)) from error
+        perm_r = lu.perm_r.astype(np.int64)
+        perm_c = lu.perm_c.astype(np.int64)
+        capacity = lu.nnz
+        del lu
+        self._analyse(perm_r, perm_c, capacity)
+        # SuperLU's own pivots: accepted whatever the guard says, unless one is zero or not finite.
+        if not self._numeric(data, self._gather):
+            column = int(self._stats[_lu_kernels.STAT_BAD_COLUMN])
+            if column < 0:
+                raise SingularMatrix("the matrix holds non-finite values")
+            raise SingularMatrix(f"zero or non-finite pivot in column {column} of the permuted matrix")
+        self._factored = True
+
+    def _analyse(self, perm_r: np.ndarray, perm_c: np.ndarray, capacity: int) -> None:
+        """Pattern of ``B = Pr A Pc`` by columns, the maps to A's values, L and U patterns."""
+        n, nnz, indptr, indices = self._n, self._nnz, self._indptr, self._indices
+        index = _index_dtype(max(n, nnz))
+        if self._perm_c is None or not np.array_equal(perm_c, self._perm_c):
+            # Column j of B is column c = column_of[j] of A, i.e. row c of the CSR Jacobian,
+            # its entries in the CSR order: contiguous runs of jacobian.data.
+            column_of = np.empty(n, dtype=np.int64)
+            column_of[perm_c] = np.arange(n)
+            counts = np.diff(indptr).astype(np.int64)[column_of]
+            self._b_indptr = np.zeros(n + 1, dtype=np.int64)
+            np.cumsum(counts, out=self._b_indptr[1:])
+            gather = np.repeat(indptr[column_of].astype(np.int64) - self._b_indptr[:-1], counts)
+            gather += np.arange(nnz, dtype=np.int64)
+            self._value_positions = np.empty(nnz, dtype=np.int64)
+            self._value_positions[gather] = np.arange(nnz, dtype=np.int64)
+            self._gather = gather.astype(index)
+            self._direct = self._gather[:0]  # an empty gather: the values come in factor order
+            self._perm_c = perm_c.astype(index)
+            self.layout_version += 1
+        self._perm_r = perm_r.astype(index)
+        self._b_rows = self._perm_r[indices[self._gather]]
+        (self._l_indptr, self._l_indices, self._u_indptr, self._u_indices) = _lu_kernels.analyse_lu_pattern(
+            self._b_indptr, self._b_rows, capacity // 2, capacity // 2
+        )
+        self._l_values = np.zeros(self._l_indices.size)
+        self._u_values = np.zeros(self._u_indices.size)
+        self._u_inverse = np.zeros(n)
+        self._work = np.zeros(n)  # the refactorization's accumulator: zero between columns
+        self._solve_work = np.zeros(n)
+
+    def _numeric(self, values: np.ndarray, gather: np.ndarray) -> bool:
+        """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
+        stats = self._stats
+        _lu_kernels.refactor_lu(
+            values, gather, self._b_indptr, self._b_rows, self._l_indptr, self._l_indices, self._l_values,
+            self._u_indptr, self._u_indices, self._u_values, self._u_inverse, self._work, stats,
+        )  # fmt: skip
+        ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
+        self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
+        if bad_column >= 0 or non_finite != 0.0:
+            self.pivot_ratio = 0.0
+            return False
+        self.pivot_ratio = ratio
+        return True
+
+    def _guard_accepts(self) -> bool:
+        return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth
+
+
+class DenseSolver:
+    """LAPACK's LU with partial pivoting (``getrf``/``getrs``) on a dense copy, for small models.
+
+    The Jacobian is scattered into a preallocated C-ordered array, whose Fortran view is
+    ``A = jacobian.T``: LAPACK factors it in place, without a copy.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> solver = DenseSolver()
+    >>> solver.factor(csr_array(np.array([[2.0, 1.0], [0.0, 4.0]])))
+    >>> solver.solve(np.array([3.0, 4.0])).tolist()
+    [1.0, 1.0]
+    """
+
+    name = "dense"
+
+    def __init__(self) -> None:
+        self.n_factorizations = 0
+        self.n_refactorizations = 0
+        self.n_solves = 0
+        self._n = -1
+        self._factored = False
+        self._getrf = self._getrs = None  # LAPACK's, looked up at the first factorization
+
+    def factor(self, jacobian: csr_array) -> None:
+        """Factor `jacobian` (square CSR); raise `SingularMatrix` if a pivot is exactly zero."""
+        n = _checked_square(jacobian)
+        self._factored = False
+        if self._getrf is None:
+            import scipy.linalg
+
+            self._getrf, self._getrs = scipy.linalg.lapack.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+        if n != self._n:
+            self._n = n
+            self._dense = np.zeros((n, n))  # C order: its Fortran view ``.T`` is jacobian.T
+        self.n_factorizations += 1
+        dense = self._dense
+        dense.fill(0.0)
+        jacobian.toarray(out=dense)  # adds the values into `out`
+        lu, pivots, info = self._getrf(dense.T, overwrite_a=True)
+        if info > 0:
+            raise SingularMatrix(f"exactly zero pivot at step {info}")
+        if not np.all(np.isfinite(lu.diagonal())):
+            raise SingularMatrix("non-finite pivot: the Jacobian holds non-finite values")
+        self._lu, self._pivots = lu, pivots
+        self._factored = True
+
+    def solve(
+        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
+    ) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`.
+
+        Parameters and returns as `RefactorSolver.solve`.
+        """
+        if not self._factored:
+            raise RuntimeError(_NOT_FACTORED)
+        rhs = np.asarray(rhs, dtype=float)
+        if out is not None or rhs.ndim not in (1, 2) or rhs.shape[0] != self._n:
+            _checked_rhs(rhs, self._n, out)
+        # The factors are those of A = jacobian.T: jacobian @ x = rhs is LAPACK's trans=1.
+        solution, info = self._getrs(self._lu, self._pivots, rhs, trans=0 if transposed else 1)
+        if out is not None:
+            out[...] = solution
+            solution = out
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        if not np.all(np.isfinite(solution)):
+            raise SingularMatrix("the solution is not finite")
+        return solution

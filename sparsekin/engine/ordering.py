@@ -1,0 +1,169 @@
+"""A pivot order for a chain of repeated units, tiled from a short chain: no SuperLU on the long one.
+
+The first factorization of `RefactorSolver` runs SuperLU (COLAMD ordering, partial
+pivoting) to fix the order in which the equations are eliminated and the coordinate each
+is pivoted on; every later factorization reuses them.  On a chain of 10^5 repeated units
+that first SuperLU costs seconds and more memory than the rest of the run.  But a copy of
+a unit deep in a chain is eliminated like a copy deep in a short chain: `tiled_ordering`
+factors the same mechanism with a few copies of each unit, and repeats the order it found
+for a middle copy over every copy of the long chain (the first and last copies take the
+short chain's first and last).  When the units vary in a cycle (copies drawn at eleven
+phases, say), the short chain holds a whole cycle and each copy takes the order of the
+copy of its phase.
+
+The order is a suggestion: `RefactorSolver` refactors on it with its usual guard (pivot
+ratio, growth), and falls back to SuperLU when the guard trips.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..errors import ModelError
+from ..model.mechanism import Analysis, Mechanism
+from ..model.units import Cycle, Step
+from .assembly import Assembler
+from .pattern import ConstraintPattern, build_pattern
+
+__all__ = ["tiled_ordering", "MIN_TILED_COORDINATES"]
+
+#: Below this many coordinates SuperLU on the whole model is quick: no tiling.
+MIN_TILED_COORDINATES = 30_000
+#: Copies of each unit in the short chain besides the first and the last: a whole cycle of
+#: varied units (at most this many), or one.
+MAX_MIDDLE_COPIES = 64
+
+
+def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
+    """``(perm_r, perm_c)`` for the first factorization of ``jacobian.T`` (SuperLU's
+    convention: ``Pr A Pc = L U``), tiled from a short chain; None if the mechanism has no
+    repeats, names a copy that the short chain lacks (an own driver on ``u4999.crank``,
+    a repeat's `first`), or the tiling does not give a permutation.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    pattern : ConstraintPattern
+        ``build_pattern(mechanism)``; square.
+    t : float
+        The time of the first sample (the short chain's Jacobian is taken there, at its
+        drawing).
+    """
+    if not mechanism.copies or pattern.n_equations != pattern.n_coordinates:
+        return None
+    middles = [_middle_copies(copies) for copies in mechanism.copies]
+    try:
+        short = dataclasses.replace(
+            mechanism,
+            analysis=Analysis(),
+            repeats=tuple(dataclasses.replace(c.repeat, count=min(c.count, m + 2))
+                          for c, m in zip(mechanism.copies, middles)),  # fmt: skip
+        )
+    except ModelError:
+        # The model names a copy beyond the short chain (its own driver on ``u4999.crank``,
+        # another repeat's `first`): no short chain, SuperLU orders the long one.
+        return None
+    short_pattern = build_pattern(short)
+    assembler = Assembler(short, short_pattern)
+    assembler.set_time(t)
+    assembler.fill_residual_jacobian(short_pattern.initial_coordinates)
+    try:
+        from scipy.sparse.linalg import splu  # here: a long chain's run, not every run
+
+        lu = splu(assembler.jacobian.T.tocsc(), permc_spec="COLAMD")
+    except RuntimeError:  # singular at the drawing: let the long chain's own factorization say so
+        return None
+    # The short chain's assignment: equation e is eliminated at step perm_c[e], pivoted on
+    # the coordinate that goes to that step.
+    steps = lu.perm_c.astype(np.int64)
+    coordinate_at_step = np.empty_like(steps)
+    coordinate_at_step[lu.perm_r] = np.arange(steps.size)
+    pivot = coordinate_at_step[steps]
+
+    equation_map, equation_shift = _equation_map(mechanism, pattern, short, short_pattern, middles)
+    # big equation -> its representative in the short chain, shifted by whole copies
+    key = steps[equation_map] + equation_shift * steps.size
+    order = np.argsort(key, kind="stable")
+    perm_c = np.empty_like(order)
+    perm_c[order] = np.arange(order.size)
+    # its pivot: the representative's pivot coordinate, in the same shifted copy
+    short_pivot = pivot[equation_map]
+    pivot_body = short_pivot // 3
+    big_body = _unmap(pivot_body, equation_shift, mechanism, short)
+    if big_body is None:
+        return None
+    pivot_coordinate = 3 * big_body + short_pivot % 3
+    perm_r = np.full(pivot_coordinate.size, -1, dtype=np.int64)
+    perm_r[pivot_coordinate] = perm_c
+    if np.any(perm_r < 0):  # two equations pivoted on one coordinate: not a permutation
+        return None
+    return perm_r, perm_c
+
+
+def _middle_copies(copies) -> int:
+    """How many middle copies the short chain needs: a whole cycle of the variations."""
+    variations = copies.repeat.vary.values()
+    if any(isinstance(v, Step) for v in variations):
+        return 1  # no period: every middle copy takes the one middle copy's order
+    lengths = [len(v.values) for v in variations if isinstance(v, Cycle)]
+    return min(int(np.lcm.reduce(lengths)) if lengths else 1, MAX_MIDDLE_COPIES)
+
+
+def _representative(k: np.ndarray, count: int, short_count: int, middles: int) -> np.ndarray:
+    """The short chain's copy that copy k of the long one takes its order from."""
+    s = 1 + (k - 1) % middles
+    s = np.where(k == 0, 0, s)
+    if count > short_count:
+        s = np.where(k == count - 1, short_count - 1, s)
+    else:
+        s = k
+    return s
+
+
+def _equation_map(mechanism, pattern, short, short_pattern, middles):
+    """For every equation of the long chain: its representative in the short one, and the
+    copy shift."""
+    maps, shifts = [], []
+    for kind in ("joints", "drivers"):
+        first = 0 if kind == "joints" else mechanism.n_joints
+        first_short = 0 if kind == "joints" else short.n_joints
+        own = len(mechanism.own(kind))
+        element, element_short = [np.arange(own)], [np.arange(own)]
+        shift = [np.zeros(own, dtype=np.int64)]
+        for c, cs, m in zip(mechanism.copies, short.copies, middles):
+            size = c.n_joints if kind == "joints" else c.n_drivers
+            start = c.first_joint if kind == "joints" else c.first_driver
+            start_short = cs.first_joint if kind == "joints" else cs.first_driver
+            k = np.repeat(np.arange(c.count), size)
+            local = np.tile(np.arange(size), c.count)
+            s = _representative(k, c.count, cs.count, m)
+            element.append(start + k * size + local)
+            element_short.append(start_short + s * size + local)
+            shift.append(k - s)
+        element, element_short, shift = (np.concatenate(a) for a in (element, element_short, shift))
+        rows_first = pattern.element_first_row[first + element]
+        counts = pattern.element_first_row[first + element + 1] - rows_first
+        within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        maps.append(np.repeat(short_pattern.element_first_row[first_short + element_short], counts) + within)
+        shifts.append(np.repeat(shift, counts))
+    return np.concatenate(maps), np.concatenate(shifts)
+
+
+def _unmap(short_body, shift, mechanism, short):
+    """The long chain's body that is the short chain's body `short_body` moved by `shift`
+    copies of its repeat; None when that leaves the copies (or moves an own body)."""
+    out = np.full_like(short_body, -1)
+    own = short_body < len(short.own("bodies"))
+    if np.any(own & (shift != 0)):
+        return None
+    out[own] = short_body[own]
+    for c, cs in zip(mechanism.copies, short.copies):
+        inside = (short_body >= cs.first_body) & (short_body < cs.first_body + cs.count * cs.n_bodies)
+        within = short_body[inside] - cs.first_body
+        k = within // cs.n_bodies + shift[inside]
+        if np.any((k < 0) | (k >= c.count)):
+            return None
+        out[inside] = c.first_body + k * c.n_bodies + within % cs.n_bodies
+    return None if np.any(out < 0) else out

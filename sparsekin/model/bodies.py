@@ -1,0 +1,68 @@
+"""Bodies: rigid frames carrying named points, and the checks that the mechanism and its
+units share for them (a point's coordinates, a list of elements of given kinds)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from ..errors import ModelError
+from . import _validate
+from ._validate import FileKeys
+from .elements import PointRef
+
+__all__ = ["Body"]
+
+
+def _set(instance: object, field_name: str, value: object) -> None:
+    """Store the canonical form of a field (tuples for sequences, floats for numbers)."""
+    object.__setattr__(instance, field_name, value)
+
+
+@dataclass(frozen=True, slots=True)
+class Body:
+    """A rigid body with a frame at `origin`, turned by `angle` (rad), carrying `points`.
+
+    For forces: its `mass` (kg, default 0), its `inertia` about its centre of mass
+    (kg·m², default 0) and its centre of mass `com` (a point name or (x, y), drawn;
+    default the frame origin).
+    """
+
+    name: str
+    origin: PointRef
+    angle: float = 0.0
+    points: tuple[str, ...] = ()
+    mass: float | None = None
+    inertia: float | None = None
+    com: PointRef | None = None
+
+    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com"))
+
+    def __post_init__(self) -> None:
+        _validate.name(self.name, "name")
+        _set(self, "origin", _validate.point_reference(self.origin, "origin"))
+        _set(self, "angle", _validate.finite_float(self.angle, "angle"))
+        _set(self, "points", _validate.names(self.points, "points"))
+        for field_name in ("mass", "inertia"):
+            if getattr(self, field_name) is not None:
+                _set(self, field_name, _validate.non_negative_float(getattr(self, field_name), field_name))
+        if self.com is not None:
+            _set(self, "com", _validate.point_reference(self.com, "com"))
+
+
+def _point_pair(name: str, value: object) -> tuple[float, float]:
+    """The coordinates of point `name` as ``(x, y)``, checked."""
+    if type(value) is tuple and len(value) == 2 and type(value[0]) is type(value[1]) is float:
+        if abs(value[0]) <= _validate.MAX_MAGNITUDE and abs(value[1]) <= _validate.MAX_MAGNITUDE:
+            return value  # the common case, fast
+    return _validate.pair(value, f"points.{name}")
+
+
+def _tuple_of(items, kinds: tuple[type, ...], where: str) -> tuple:
+    if isinstance(items, (str, bytes, Mapping)) or not isinstance(items, Sequence):
+        raise ModelError(f"expected a list, got {type(items).__name__}", element=where)
+    for index, item in enumerate(items):
+        if type(item) not in kinds and not isinstance(item, kinds):
+            names = " or ".join(k.__name__ for k in kinds)
+            raise ModelError(f"expected {names}, got {type(item).__name__}", element=f"{where}[{index}]")
+    return tuple(items)
