@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from sparsekin import solve_kinematics
-from sparsekin.cli import main, point_table, write_coordinates, write_points_csv
+from sparsekin.cli import main
+from sparsekin.cli.files import point_table, write_coordinates, write_points_csv
 from sparsekin.model.modelfile import load_model
 
 TASK5 = Path(__file__).resolve().parents[1] / "examples" / "task5.toml"

@@ -307,7 +307,8 @@ def test_plot_option_without_the_coordinates_draws_what_was_recorded(tmp_path, c
 
 
 def test_plot_option_draws_the_first_bodies_of_a_long_chain(tmp_path, capsys, matplotlib_image):
-    from sparsekin.cli import MAX_DRAWN_BODIES, main
+    from sparsekin.cli import main
+    from sparsekin.cli.files import MAX_DRAWN_BODIES
 
     out = tmp_path / "out"
     chain = TASK5.with_name("four_bar_chain.toml")

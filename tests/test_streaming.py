@@ -149,12 +149,12 @@ def test_ctrl_c_writes_every_sample_solved_and_exits_130(tmp_path, format_):
 
 
 def test_ctrl_c_before_the_first_sample_exits_130_without_a_traceback(tmp_path, capsys, monkeypatch):
-    from sparsekin import cli
+    from sparsekin.cli import run
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_solve", interrupted)  # Ctrl-C while the pattern is being built
+    monkeypatch.setattr(run, "solve_for_command", interrupted)  # Ctrl-C while the pattern is being built
     assert main(["run", str(EXAMPLES / "task5.toml"), "--out", str(tmp_path / "out")]) == 130
     assert capsys.readouterr().err == "sparsekin: interrupted: nothing solved yet, nothing written\n"
     assert not (tmp_path / "out" / "points.csv").exists()

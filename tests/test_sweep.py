@@ -397,7 +397,7 @@ def test_external_scheduler_runs_the_same_sweep(task5, capsys, tmp_path):
 
 
 def test_unreachable_scheduler_is_a_usage_error(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr("sparsekin.cli.SCHEDULER_TIMEOUT", 1)
+    monkeypatch.setattr("sparsekin.cli.sweep.SCHEDULER_TIMEOUT", 1)
     status, _, err = run_cli(["sweep", TASK5, "--vary", f"{BOTH[0]}=0.03:0.07:3", "--scheduler", "tcp://127.0.0.1:9",
                               "--out", tmp_path], capsys)  # fmt: skip
     assert status == 2 and "--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there" in err

@@ -1,0 +1,142 @@
+"""``sparsekin animate``: a model's motion as an animation or one frame of it."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import AnalysisInterrupted, ConvergenceError, SingularConfigurationError
+from ..model.modelfile import load_model
+from ..results.kinematics import KinematicsResult
+from .common import EXIT_INTERRUPTED, EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
+from .files import count_samples
+from .run import solve_for_command
+from .settings import DEFAULT_OUTPUT_ROOT, DEFAULT_STEPS, RunSettings, parse_point_names, resolve_times
+
+
+def add_animate_command(subparsers) -> None:
+    """Add ``animate MODEL.toml [--out FILE] [--trace K,W] [--t-end T] [--steps N] [--fps F] [--duration D]
+    [--at T]``."""
+    parser = subparsers.add_parser(
+        "animate",
+        help="analyse a model and write an animation (GIF or MP4) or one frame of it (PNG)",
+        description="Solve the motion as run does and write it as an animation: bodies, joints and "
+        "actuators, the paths of the traced points and a time stamp, on axes that hold the whole motion. "
+        "Frames are equally spaced in time and interpolated between the samples, so the clip plays in real "
+        "time (or lasts --duration) whatever the number of samples. When the analysis stops (a lock-up), "
+        "the clip runs up to the stop and marks it, and the exit status is 3.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="run.gif, run.mp4, or frame.png for one frame (default: "
+        f"./{DEFAULT_OUTPUT_ROOT}/<model name>/animation.gif)"
+    )
+    parser.add_argument(
+        "--trace", metavar="K,W", help="points whose paths are drawn, separated by commas, or none (default: "
+        "[analysis].points, else none)"
+    )
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument(
+        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
+        f"[analysis].steps, else {DEFAULT_STEPS})"
+    )
+    parser.add_argument("--fps", type=float, metavar="F", help="frames per second (default 20 for a GIF, at most "
+                        "50; 30 for an MP4)")  # fmt: skip
+    parser.add_argument("--duration", type=float, metavar="D",
+                        help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
+    parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
+    parser.set_defaults(handler=animate_command)
+
+
+def animate_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin animate``; returns the exit status.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+        For a bad argument, a bad model file, a missing optional dependency or a file
+        that cannot be written; `main` reports them.
+    """
+    mechanism = load_model(arguments.model)
+    times = resolve_times(arguments, mechanism)
+    if arguments.trace is None:
+        trace = mechanism.analysis.points or ()
+    elif arguments.trace.strip().lower() == "none":
+        trace = ()
+    else:
+        trace = parse_point_names(arguments.trace, mechanism, option="--trace")
+    path = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name / "animation.gif"
+    _check_animation_options(arguments, path, times)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
+    settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
+    start = time.perf_counter()
+    try:
+        result = solve_for_command(mechanism, settings, arguments.model, None)
+    except AnalysisInterrupted as interrupt:
+        solved = count_samples(interrupt.result)
+        if solved:
+            mark = f"interrupted at t = {interrupt.result.times[-1]:.6g} s"
+            written = _write_animation(interrupt.result, path, arguments, trace, mark)
+            report(f"interrupted: animated {solved} of {times.size} samples: {written}")
+        return EXIT_INTERRUPTED
+    except ConvergenceError as error:
+        report(f"analysis stopped: {error}")
+        solved = count_samples(error.result)
+        if solved == 0:
+            report(f"no sample solved: nothing to animate, {path} not written")
+            return EXIT_STOPPED
+        reason = "lock-up" if isinstance(error, SingularConfigurationError) else "no convergence"
+        mark = f"analysis stopped: {reason} at t = {error.time:.6g} s"
+        written = _write_animation(error.result, path, arguments, trace, mark)
+        report(f"animated {solved} of {times.size} samples (t = 0 … {error.result.times[-1]:g} s): {written}")
+        return EXIT_STOPPED
+    written = _write_animation(result, path, arguments, trace, None)
+    print(f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s\n{written}\n"
+          f"wall time: {time.perf_counter() - start:.3g} s\nwrote:\n  {path}")  # fmt: skip
+    return EXIT_SUCCESS
+
+
+def _check_animation_options(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> None:
+    """The file type and its optional dependencies, and the numbers, before any solving."""
+    from ..plots import DEFAULT_FPS, MAX_GIF_FPS
+
+    suffix = path.suffix.lower()
+    if suffix not in (*DEFAULT_FPS, ".png"):
+        raise CommandError(f"--out must end in .gif, .mp4 or .png, got {str(path)!r}")
+    needed = {".gif": ("PIL", "Pillow"), ".mp4": ("imageio_ffmpeg", "imageio-ffmpeg"), ".png": (None, None)}
+    module, package = needed[suffix]
+    for name, shown in (("matplotlib", "matplotlib"), (module, package)):
+        if name is None:
+            continue
+        try:
+            __import__(name)
+        except ImportError:
+            raise CommandError(f'{path.name} needs {shown}: pip install "sparsekin[animate]"') from None
+    if arguments.fps is not None and not (math.isfinite(arguments.fps) and 0.0 < arguments.fps):
+        raise CommandError(f"--fps must be a number > 0, got {arguments.fps!r}")
+    if arguments.fps is not None and suffix == ".gif" and arguments.fps > MAX_GIF_FPS:
+        raise CommandError(f"--fps must be at most {MAX_GIF_FPS:g} for a GIF (browsers slow faster GIFs "
+                           f"down), got {arguments.fps!r}")  # fmt: skip
+    if arguments.duration is not None and not (math.isfinite(arguments.duration) and arguments.duration > 0.0):
+        raise CommandError(f"--duration must be a number of seconds > 0, got {arguments.duration!r}")
+    if arguments.at is not None and not (math.isfinite(arguments.at) and 0.0 <= arguments.at <= times[-1]):
+        raise CommandError(f"--at must be a time within the analysis, 0 … {times[-1]:g} s, got {arguments.at!r}")
+    if arguments.at is not None and suffix != ".png":
+        raise CommandError("--at chooses the time of one frame: give --out FILE.png with it")
+
+
+def _write_animation(result: KinematicsResult, path: Path, arguments, trace, stopped: str | None) -> str:
+    """Write the clip or the frame; a line saying what was written."""
+    from ..plots import animate, save_frame
+
+    if path.suffix.lower() == ".png":
+        at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
+        save_frame(result, path, at, trace=trace, stopped=stopped)
+        return f"frame at t = {result.times[-1] if at is None else at:g} s"
+    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped)
+    return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"

@@ -1,0 +1,188 @@
+"""What the commands write: ``points.csv``, ``joints.csv``, ``forces.csv``,
+``coordinates.npz``, the workspace's CSV files and ``run``'s figures; every CSV file through
+`write_csv`, every float by `repr`."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..model.mechanism import Mechanism
+from ..results.kinematics import KinematicsResult
+from .common import report
+from .settings import RunSettings
+
+#: ``--plot`` draws at most this many bodies (the first) in ``mechanism.png``: more make no
+#: readable picture (a 1000-body chain took 8.2 s to draw: `sparsekin.plots.MAX_PLACED_LABELS`).
+MAX_DRAWN_BODIES = 100
+#: Columns of ``points.csv`` for each output point, after the point name and a dot.
+POINT_COLUMNS = ("x", "y", "vx", "vy", "ax", "ay")
+
+
+def write_csv(path: Path, header: Sequence[str], rows: Iterable[Iterable[str]]) -> Path:
+    """Write a CSV file: the column names of `header`, then each row of `rows`, its cells
+    already written as text."""
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(",".join(header) + "\n")
+        file.writelines(",".join(row) + "\n" for row in rows)
+    return path
+
+
+def _float_rows(table: np.ndarray) -> Iterator[Iterable[str]]:
+    """The rows of a 2-d table, every float by `repr`: the shortest decimal that reads back
+    as the same double."""
+    return (map(repr, row) for row in table.tolist())
+
+
+def write_workspace(space, directory: Path) -> list[Path]:
+    """Write ``workspace.csv`` (``a``, ``b``, ``status``, ``P.x``, ``P.y`` per grid point, a
+    the first driver's value) and ``boundary.csv`` (``a``, ``b``, ``P.x``, ``P.y``)."""
+    a_label, b_label = (label.split(" ", 1)[0] for label in space.drivers)
+    point = (f"{space.point}.x", f"{space.point}.y")
+    grid = (
+        (repr(a), repr(b), str(space.status[j, i]), *map(repr, space.positions[j, i].tolist()))
+        for j, b in enumerate(space.values[1].tolist())
+        for i, a in enumerate(space.values[0].tolist())
+    )
+    boundary = _float_rows(np.column_stack([space.boundary, space.boundary_positions]).reshape(-1, 4))
+    return [
+        write_csv(directory / "workspace.csv", (a_label, b_label, "status", *point), grid),
+        write_csv(directory / "boundary.csv", (a_label, b_label, *point), boundary),
+    ]
+
+
+def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings) -> list[Path]:
+    """Write ``points.csv``, ``joints.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    result : KinematicsResult or None
+        The samples solved; None or empty after an early failure (then the files hold no
+        rows and no figure is drawn).
+    settings : RunSettings
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    directory = settings.directory
+    if settings.format == "zarr":
+        written = [directory / "results.zarr"]
+    else:
+        written = [
+            write_points_csv(result, settings.point_names, directory / "points.csv"),
+            write_joints_csv(mechanism, result, directory / "joints.csv", settings.joint_indices),
+        ]
+        if settings.forces is not None:
+            written.append(write_forces_csv(result, directory / "forces.csv"))
+        if settings.coordinates:
+            written.append(write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"))
+    if settings.plot and count_samples(result) > 0:
+        from ..plots import (
+            draw_mechanism,
+            plot_actuators,
+            plot_driver_forces,
+            plot_point_motion,
+            plot_point_paths,
+        )
+
+        written += plot_point_motion(result, settings.point_names, directory)
+        written += plot_point_paths(result, settings.point_names, directory)
+        written += plot_driver_forces(result, directory)  # from the recorded forces, without the coordinates
+        if result.coordinates is None:
+            report("note: actuators.png and mechanism.png need every body's coordinates: give --coordinates")
+            return written
+        written += plot_actuators(result, directory)
+        shown = None
+        if mechanism.n_bodies > MAX_DRAWN_BODIES:
+            shown = [mechanism.body_names[k] for k in range(MAX_DRAWN_BODIES)]
+            report(f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of {mechanism.n_bodies} bodies")
+        written.append(draw_mechanism(mechanism, result, directory, bodies=shown))
+    return written
+
+
+def write_points_csv(result: KinematicsResult | None, point_names: Sequence[str], path: Path) -> Path:
+    """Write time, position, velocity and acceleration of each point, every float by `repr`.
+
+    The header is ``t,A.x,A.y,A.vx,A.vy,A.ax,A.ay,J.x,...``; `repr` writes the shortest
+    decimal that reads back as the same double.
+    """
+    header = ["t", *(f"{name}.{column}" for name in point_names for column in POINT_COLUMNS)]
+    return write_csv(path, header, _float_rows(point_table(result, point_names)))
+
+
+def point_table(result: KinematicsResult | None, point_names: Sequence[str]) -> np.ndarray:
+    """The rows of ``points.csv``: shape (n_times, 1 + 6 * n_points), zero rows for None."""
+    if result is None:
+        return np.empty((0, 1 + len(POINT_COLUMNS) * len(point_names)))
+    columns = [result.times[:, np.newaxis]]
+    for name in point_names:
+        columns.extend(result.point(name))  # position, velocity, acceleration: (n_times, 2) each
+    return np.hstack(columns)
+
+
+def joint_columns(mechanism: Mechanism, indices=None) -> list[tuple[int, str, tuple[str, ...]]]:
+    """The joints of ``joints.csv``, in model order: (index, label, column suffixes).
+
+    The joints of `indices`, by default every joint whose kind has an own coordinate;
+    labelled by its name, else ``joints[i]``.
+    """
+    if indices is None:
+        indices = [index for index, joint in enumerate(mechanism.joints) if type(joint).output_names]
+    joints = mechanism.joints
+    return [(index, joints[index].name or f"joints[{index}]", type(joints[index]).output_names) for index in indices]
+
+
+def write_joints_csv(mechanism: Mechanism, result: KinematicsResult | None, path: Path, indices=None) -> Path:
+    """Write time and each joint's own coordinate with its two derivatives, every float by `repr`.
+
+    The header is ``t,pivot.angle,pivot.rate,pivot.accel,guide.stroke,...``; the joints
+    of `indices` (default: every joint with an own coordinate).
+    """
+    joints = joint_columns(mechanism, indices)
+    header = ["t", *(f"{label}.{suffix}" for _, label, suffixes in joints for suffix in suffixes)]
+    if result is None:
+        table = np.empty((0, 1 + 3 * len(joints)))
+    else:
+        table = np.column_stack([result.times, *(array for index, _, _ in joints for array in result.joint(index))])
+    return write_csv(path, header, _float_rows(table))
+
+
+def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
+    """Write time and the force columns the run recorded, every float by `repr`.
+
+    The header is ``t,motor.force,motor.power,pivot.fx,pivot.fy,...``
+    (`sparsekin.engine.forces.ForceOutputs`).  A model with masses or loads but no driver or
+    joint has no force column: the column ``t`` alone, as ``joints.csv`` without joints;
+    for None, the header alone.
+    """
+    labels = () if result is None else result.force_labels
+    if result is None:
+        table = np.empty((0, 1 + len(labels)))
+    elif result.force_tracks is None:
+        table = result.times[:, np.newaxis]
+    else:
+        table = np.column_stack([result.times, result.force_tracks])
+    return write_csv(path, ["t", *labels], _float_rows(table))
+
+
+def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:
+    """Write arrays ``t``, ``q``, ``qd``, ``qdd`` (n_times × 3·n_bodies) and ``body_names``."""
+    if result is None or result.coordinates is None:
+        empty = np.empty((0, 3 * len(body_names)))
+        arrays = {"t": np.empty(0), "q": empty, "qd": empty, "qdd": empty}
+    else:
+        arrays = {
+            "t": result.times, "q": result.coordinates, "qd": result.velocities, "qdd": result.accelerations
+        }
+    np.savez(path, **arrays, body_names=np.array(body_names, dtype=str))
+    return path
+
+
+def count_samples(result: KinematicsResult | None) -> int:
+    """The samples of `result`; 0 for None."""
+    return 0 if result is None else result.n_times

@@ -1,0 +1,189 @@
+"""``sparsekin run``: solve a model file and write its results."""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+from pathlib import Path
+
+from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
+from ..model.mechanism import Mechanism
+from ..model.modelfile import load_model
+from ..results.kinematics import KinematicsResult
+from ..solve.kinematics import solve_kinematics
+from .common import (
+    EXIT_INTERRUPTED,
+    EXIT_STOPPED,
+    EXIT_SUCCESS,
+    CommandError,
+    ProgressBar,
+    report,
+    require_matplotlib,
+    require_zarr,
+)
+from .files import count_samples, write_outputs
+from .settings import (
+    DEFAULT_OUTPUT_ROOT,
+    DEFAULT_STEPS,
+    MAX_DEFAULT_JOINTS,
+    MAX_DEFAULT_POINTS,
+    MAX_DEFAULT_VALUES,
+    RunSettings,
+    add_force_arguments,
+    resolve_run_settings,
+)
+
+
+def add_run_command(subparsers) -> None:
+    """Add ``run MODEL.toml [--t-end T] [--steps N] [--points A,J] [--out DIR] [--plot]``."""
+    parser = subparsers.add_parser(
+        "run",
+        help="analyse a model and write points.csv, joints.csv, forces.csv and coordinates.npz",
+        description="Solve positions, velocities and accelerations at steps times from 0 to t_end "
+        "(and, for a model with masses or loads, the forces that hold the motion) and write points.csv, "
+        "joints.csv, forces.csv, coordinates.npz and, with --plot, PNG figures.",
+    )
+    parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument(
+        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
+        f"[analysis].steps, else {DEFAULT_STEPS})"
+    )
+    parser.add_argument(
+        "--points", metavar="A,J", help="output points separated by commas, or all or none (default: "
+        f"[analysis].points, else every named point up to {MAX_DEFAULT_POINTS})"
+    )
+    parser.add_argument(
+        "--joints", metavar="J1,J2", help="joints written to joints.csv, separated by commas, or all or none "
+        f"(default: every joint with an own coordinate up to {MAX_DEFAULT_JOINTS})"
+    )
+    add_force_arguments(parser, "written to forces.csv")
+    coordinates = parser.add_mutually_exclusive_group()
+    coordinates.add_argument("--no-coordinates", dest="coordinates", action="store_false", default=None,
+                             help="leave out every body's coordinates (coordinates.npz, or q, qd, qdd in Zarr)")
+    coordinates.add_argument("--coordinates", dest="coordinates", action="store_true",
+                             help=f"write them whatever their size (default: up to {MAX_DEFAULT_VALUES:.0e} values)")
+    parser.add_argument("--format", choices=("csv", "zarr"), default="csv",
+                        help='csv: points.csv, joints.csv, coordinates.npz; zarr: results.zarr, written while the '
+                        'run goes on (needs "sparsekin[zarr]")')
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR",
+        help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/<model name>)",
+    )
+    parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
+    parser.set_defaults(handler=run_command)
+
+
+def run_command(arguments: argparse.Namespace) -> int:
+    """Carry out ``sparsekin run``; returns the exit status.
+
+    Raises
+    ------
+    CommandError, ModelError, OSError
+        For a bad argument, a bad model file or an output folder that cannot be written;
+        `main` reports them.
+    """
+    timeline = _Timeline()
+    mechanism = load_model(arguments.model)
+    timeline.read = time.perf_counter()
+    settings = resolve_run_settings(arguments, mechanism)
+    if settings.plot:
+        require_matplotlib()
+    if settings.format == "zarr":
+        require_zarr()
+    settings.directory.mkdir(parents=True, exist_ok=True)
+    for note in settings.notes:
+        report(f"note: {note}")
+    try:
+        with _Progress(settings, timeline) as progress:
+            result = solve_for_command(mechanism, settings, arguments.model, progress)
+    except ConvergenceError as error:
+        written = write_outputs(mechanism, error.result, settings)
+        report(f"analysis stopped: {error}")
+        report(f"wrote {count_samples(error.result)} of {settings.times.size} samples to "
+                f"{settings.directory}: {', '.join(path.name for path in written)}")
+        return EXIT_STOPPED
+    except AnalysisInterrupted as interrupt:
+        written = write_outputs(mechanism, interrupt.result, settings)
+        report(f"interrupted: wrote {count_samples(interrupt.result)} of {settings.times.size} samples to "
+                f"{settings.directory}: {', '.join(path.name for path in written)}")
+        return EXIT_INTERRUPTED
+    timeline.solved = time.perf_counter()
+    written = write_outputs(mechanism, result, settings)
+    print(_summary(mechanism, result, timeline, written))
+    return EXIT_SUCCESS
+
+
+class _Timeline:
+    """When ``run`` started, read its model, solved its first sample and its last."""
+
+    def __init__(self) -> None:
+        self.start = time.perf_counter()
+        self.read = self.first = self.solved = None
+        self.first_done = 0  # samples solved at `first` (a chunk of the compiled loop, or one)
+
+
+class _Progress(ProgressBar):
+    """The run's progress: the bar of `ProgressBar`, and the time of the first sample."""
+
+    def __init__(self, settings: RunSettings, timeline: _Timeline) -> None:
+        super().__init__(settings.times.size, "sample", settings.quiet)
+        self._timeline = timeline
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._timeline.first is None:
+            self._timeline.first, self._timeline.first_done = time.perf_counter(), done
+        super().__call__(done, total)
+
+
+def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress) -> KinematicsResult:
+    """`solve_kinematics` recording what `settings` asks for, with its argument and model
+    errors reported against the file.
+
+    Warnings (redundant equations left out, limits left) are printed as one line each.
+    """
+    store = settings.directory / "results.zarr" if settings.format == "zarr" else None
+    # With the coordinates in memory, points and joints are derived after the run; a store,
+    # or a run without the coordinates, records them while it goes on.
+    record = store is not None or not settings.coordinates
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return solve_kinematics(
+                    mechanism, settings.times, coordinates=settings.coordinates,
+                    points=settings.point_names if record else None, joints=settings.joint_indices if record else None,
+                    forces=settings.forces, quasi_static=settings.quasi_static, store=store, progress=progress,
+                )  # fmt: skip
+            finally:
+                for warning in caught:
+                    report(f"warning: {warning.message}")
+    except ModelError as error:
+        raise (error if error.file else error.in_file(str(model_path))) from None
+    except ValueError as error:  # e.g. the times leave the range of a spline law
+        raise CommandError(str(error)) from None
+
+
+def _summary(mechanism: Mechanism, result: KinematicsResult, timeline: _Timeline, written: list[Path]) -> str:
+    """A few lines: samples, Newton corrections per step, factorizations, times, files."""
+    corrections = result.newton_iterations
+    if timeline.first is None:  # nothing to solve (a model without bodies): no progress was reported
+        timeline.first, timeline.first_done = timeline.solved, result.n_times
+    first = timeline.first - timeline.start
+    later = result.n_times - timeline.first_done
+    per_sample = (timeline.solved - timeline.first) / later if later else (timeline.solved - timeline.read) / result.n_times
+    which = "first sample" if timeline.first_done == 1 else f"first {timeline.first_done} samples"
+    lines = [
+        f"{mechanism.name}: {mechanism.n_bodies} bodies, {result.n_times} samples, t = 0 … {result.times[-1]:g} s",
+        f"Newton corrections per step: mean {corrections.mean():.2f}, max {corrections.max()}",
+        f"linear solver: {result.linear_solver}; factorizations: {result.n_factorizations}"
+        + (f" (+ {result.n_refactorizations} refactorizations)" if result.n_refactorizations else "")
+        + f", linear solves: {result.n_solves}, wall time: {timeline.solved - timeline.read:.3g} s",
+        f"times: model read in {timeline.read - timeline.start:.3g} s, {which} solved {first:.3g} s after the "
+        f"start, {per_sample:.3g} s a sample",
+        "wrote:",
+        *(f"  {path}" for path in written),
+    ]
+    return "\n".join(lines)
