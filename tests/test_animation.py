@@ -133,7 +133,8 @@ def test_gif_durations_add_up_at_a_rate_that_is_no_whole_number_of_hundredths(tm
 
 
 def test_a_lock_up_is_animated_up_to_the_stop_and_marked(tmp_path, image, lock_up):
-    from sparsekin.plots import STOP_HOLD, animate
+    from sparsekin.plots import animate
+    from sparsekin.plots.animation import STOP_HOLD
 
     result = lock_up.result
     assert lock_up.time == pytest.approx(0.755244, abs=1e-6)

@@ -124,7 +124,7 @@ def test_every_kind_draws_itself_on_a_canvas(tmp_path, matplotlib_image):
 # ---------------------------------------------------------------------- what a designer reads
 def captured_figures(monkeypatch):
     """The figures the plotting functions save, kept for inspection (they are still written)."""
-    from sparsekin import plots as plotting
+    from sparsekin.plots import figures as plotting  # the module of the run's figures
 
     figures = []
     save = plotting._save
@@ -153,7 +153,8 @@ def test_point_motion_shows_x_and_y_against_time(tmp_path, matplotlib_image, tas
 
 
 def test_path_figure_is_the_point_s_path_with_equal_scales(tmp_path, matplotlib_image, task5, monkeypatch):
-    from sparsekin.plots import PATH_TIME_MARKS, plot_point_paths
+    from sparsekin.plots import plot_point_paths
+    from sparsekin.plots.figures import PATH_TIME_MARKS
 
     _, result = task5
     figures = captured_figures(monkeypatch)
@@ -178,7 +179,9 @@ def test_plot_option_writes_paths_and_actuators(tmp_path, capsys, matplotlib_ima
 
 def drawn_canvas(mechanism, coordinates):
     """A canvas on which every joint and driver of `mechanism` has drawn itself."""
-    from sparsekin.plots import SYMBOL_SCALE, Canvas, _new_figure
+    from sparsekin.plots import Canvas
+    from sparsekin.plots.canvas import SYMBOL_SCALE
+    from sparsekin.plots.common import _new_figure
 
     _, axes = _new_figure((4.0, 4.0))
     canvas = Canvas(axes, mechanism, coordinates, size=SYMBOL_SCALE * 2.0)
@@ -250,7 +253,8 @@ def crowded_mechanism() -> Mechanism:
 def test_labels_do_not_overlap(matplotlib_image, example):
     """Every point and body is labelled, and no two label boxes overlap, as matplotlib
     measures them in the drawn figure (the text and its background box)."""
-    from sparsekin.plots import _new_figure, draw_configuration
+    from sparsekin.plots import draw_configuration
+    from sparsekin.plots.common import _new_figure
 
     mechanism = crowded_mechanism() if example == "crowded" else load_model(TASK5.with_name(f"{example}.toml"))
     result = solve_kinematics(mechanism, np.linspace(0.0, 1.0, 3))
@@ -278,7 +282,8 @@ def test_labels_do_not_overlap(matplotlib_image, example):
 def test_a_part_of_a_long_chain_is_drawn_alone(matplotlib_image):
     """`bodies=` draws those bodies, the points they carry and the elements between them
     and the ground, on axes that fit them: the first 12 bodies of the 2001-body chain."""
-    from sparsekin.plots import _new_figure, draw_configuration
+    from sparsekin.plots import draw_configuration
+    from sparsekin.plots.common import _new_figure
 
     chain = load_model(TASK5.with_name("four_bar_chain.toml"))
     result = solve_kinematics(chain, np.linspace(0.0, 0.2, 3))

@@ -103,7 +103,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
 
 def _check_animation_options(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> None:
     """The file type and its optional dependencies, and the numbers, before any solving."""
-    from ..plots import DEFAULT_FPS, MAX_GIF_FPS
+    from ..plots.animation import DEFAULT_FPS, MAX_GIF_FPS
 
     suffix = path.suffix.lower()
     if suffix not in (*DEFAULT_FPS, ".png"):

@@ -15,7 +15,7 @@ from .common import report
 from .settings import RunSettings
 
 #: ``--plot`` draws at most this many bodies (the first) in ``mechanism.png``: more make no
-#: readable picture (a 1000-body chain took 8.2 s to draw: `sparsekin.plots.MAX_PLACED_LABELS`).
+#: readable picture (a 1000-body chain took 8.2 s to draw: `sparsekin.plots.labels.MAX_PLACED_LABELS`).
 MAX_DRAWN_BODIES = 100
 #: Columns of ``points.csv`` for each output point, after the point name and a dot.
 POINT_COLUMNS = ("x", "y", "vx", "vy", "ax", "ay")
