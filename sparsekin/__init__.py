@@ -162,7 +162,7 @@ __version__ = "0.1.0"
 #: Names imported on first use, so that ``import sparsekin`` loads neither Dask nor the
 #: sweep machinery, nor the rank analysis and its scipy modules that a run does not need
 #: (every ``sparsekin run`` pays for what ``import sparsekin`` imports): name -> module.
-_LAZY = {"sweep": "studies.sweeps", "VariantSet": "studies.sweeps", "SweepResult": "studies.sweeps",
+_LAZY = {"sweep": "studies.sweeps", "VariantSet": "studies.variants", "SweepResult": "studies.stores",
          "workspace": "studies.workspaces", "Workspace": "studies.workspaces",
          "check_model": "analysis.check", "ModelReport": "analysis.check",
          "analyse_jacobian": "analysis.rank", "JacobianAnalysis": "analysis.rank"}  # fmt: skip
