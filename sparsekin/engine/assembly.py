@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..model.laws import LawPacker, fill_laws
+from ..model.laws import fill_laws
 from ..model.mechanism import Mechanism
 from . import _kernels
-from .pattern import ConstraintPattern
+from .pattern import ConstraintPattern, pack_element_laws
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -33,26 +33,8 @@ class DriverLaws:
     """
 
     def __init__(self, mechanism: Mechanism, initial: np.ndarray) -> None:
-        packer = LawPacker()
-        own = mechanism.own("drivers")
-        target = 0
-        for driver in own:
-            for law in driver.laws():
-                packer.add(law, np.array([target]), initial[target : target + 1])
-                target += 1
-        for copies in mechanism.copies:  # each unit law over all the copies, by arrays
-            per_copy = sum(driver.n_equations for driver in copies.unit.drivers)
-            within = 0
-            for e, driver in enumerate(copies.unit.drivers):
-                variations = copies.law_variations(e)
-                for field_name, law in zip(driver.law_fields, driver.laws()):
-                    targets = target + within + per_copy * np.arange(copies.count)
-                    packer.add(law, targets, initial[targets], variations.get(field_name))
-                    within += 1
-            target += per_copy * copies.count
-        self.table, self._others = packer.table(), packer.others
+        self.table, self._others, self.n_laws = pack_element_laws(mechanism, "drivers", initial)
         self._initial = initial
-        self.n_laws = target
 
     def evaluate(self, t: float, value: np.ndarray, rate: np.ndarray, acceleration: np.ndarray) -> None:
         """Fill the value and time derivatives of every law at time `t` (s)."""

@@ -52,12 +52,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..model.geometry import to_local
 from ..model.laws import LawPacker, LawTable, fill_laws
 from ..model.loads import LoadArrays, MassArrays, pack_loads
 from ..model.mechanism import Mechanism
 from . import _force_kernels
 from .columns import Resolver
-from .pattern import ConstraintPattern, element_columns, per_element
+from .pattern import ConstraintPattern, element_columns, pack_element_laws, per_element
 
 __all__ = [
     "LoadPattern",
@@ -107,24 +108,12 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
     counts = per_element(mechanism, "loads", lambda load: load.n_laws)
     first_law = np.zeros(counts.size + 1, dtype=np.int64)
     np.cumsum(counts, out=first_law[1:])
-    n_laws = int(first_law[-1])
-    blocks, packer = [], LawPacker()
+    blocks = []
     for kind, indices, columns in element_columns(mechanism, "loads", first_law[:-1], resolver):
         blocks += kind.loads(columns)
-    own = mechanism.own("loads")
-    for load, first in zip(own, first_law[: len(own)].tolist()):
-        for c, law in enumerate(load.laws()):
-            packer.add(law, np.array([first + c]), np.zeros(1))
-    for copies in mechanism.copies:
-        per_copy = sum(load.n_laws for load in copies.unit.loads)
-        within = 0
-        for load in copies.unit.loads:
-            for law in load.laws():
-                targets = first_law[copies.first_load] + within + per_copy * np.arange(copies.count, dtype=np.int64)
-                packer.add(law, targets, np.zeros(copies.count))
-                within += 1
+    table, others, n_laws = pack_element_laws(mechanism, "loads")
     arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
-    return LoadPattern(arrays, packer.table(), packer.others, n_laws)
+    return LoadPattern(arrays, table, others, n_laws)
 
 
 def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
@@ -142,11 +131,7 @@ def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
             mass[bodies[:, e]], inertia[bodies[:, e]] = body.mass or 0.0, body.inertia or 0.0
             if body.com is not None:
                 com[bodies[:, e]] = copies.reference_positions([body.com])[:, 0]
-    frames = resolver.frames
-    dx, dy = com[:, 0] - frames[:n, 0], com[:, 1] - frames[:n, 1]
-    cosine, sine = np.cos(frames[:n, 2]), np.sin(frames[:n, 2])
-    local = np.stack([cosine * dx + sine * dy, cosine * dy - sine * dx], axis=1)
-    return MassArrays(mass, inertia, np.ascontiguousarray(local))
+    return MassArrays(mass, inertia, np.ascontiguousarray(to_local(resolver.frames[:n], com)))
 
 
 class ForceOutputArrays(NamedTuple):
@@ -280,10 +265,7 @@ def _reaction_geometry(mechanism: Mechanism, pattern: ConstraintPattern, joints:
         side_is_first[where] = first != ground
         carrier_body = (first if carrier == 0 else second)
         point_body[where] = carrier_body
-        frames = resolver.frames[carrier_body]
-        dx, dy = point[chosen, 0] - frames[:, 0], point[chosen, 1] - frames[:, 1]
-        cosine, sine = np.cos(frames[:, 2]), np.sin(frames[:, 2])
-        point_local[where] = np.stack([cosine * dx + sine * dy, cosine * dy - sine * dx], axis=1)
+        point_local[where] = to_local(resolver.frames[carrier_body], point[chosen])
     return side, side_is_first, point_body, point_local
 
 

@@ -22,12 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.geometry import to_local
+from ..model.laws import LawPacker, LawTable
 from ..model.mechanism import Mechanism
 from ..model.primitives import PackedEquations, Primitives, pack
 from .columns import ObjectColumns, Resolver, TiledColumns
 
 __all__ = ["ConstraintPattern", "OutputPattern", "PointMap", "build_pattern", "build_output_pattern", "build_point_map",
-           "element_columns", "per_element"]
+           "element_columns", "per_element", "pack_element_laws"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,6 +177,53 @@ def per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
     own = [value(element) for element in mechanism.own(kind)]
     tiled = [np.tile([value(element) for element in getattr(c.unit, kind)], c.count) for c in mechanism.copies]
     return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
+
+
+def pack_element_laws(mechanism: Mechanism, kind: str, initial: np.ndarray | None = None) -> tuple[LawTable, list, int]:
+    """The laws of every driver (one per equation) or load (one per component) of
+    `mechanism`, in model order: law k fills entry k of the values.
+
+    A repeat's unit law is packed once for all its copies, with the values the repeat's
+    ``vary`` gives its parameters in each copy.
+
+    Parameters
+    ----------
+    kind : {"drivers", "loads"}
+    initial : ndarray, shape (n_laws,), optional
+        The drawn value of each law's quantity (a law whose offset or start is not given
+        starts there); zeros by default (a load has no drawn value).
+
+    Returns
+    -------
+    table : LawTable
+        The built-in laws.
+    others : list of (int, Law)
+        The other laws, by entry (evaluated in Python).
+    n_laws : int
+    """
+    packer = LawPacker()
+    target = 0
+
+    def drawn(targets: np.ndarray) -> np.ndarray:
+        return np.zeros(targets.size) if initial is None else initial[targets]
+
+    for element in mechanism.own(kind):
+        for law in element.laws():
+            packer.add(law, np.array([target]), drawn(np.array([target])))
+            target += 1
+    for copies in mechanism.copies:  # each unit law over all the copies, by arrays
+        unit = getattr(copies.unit, kind)
+        per_copy = sum(len(element.laws()) for element in unit)
+        within = 0
+        for e, element in enumerate(unit):
+            laws = element.laws()
+            variations = copies.law_variations(e) if kind == "drivers" else {}
+            for field_name, law in zip(getattr(element, "law_fields", ()) or [None] * len(laws), laws):
+                targets = target + within + per_copy * np.arange(copies.count, dtype=np.int64)
+                packer.add(law, targets, drawn(targets), variations.get(field_name))
+                within += 1
+        target += per_copy * copies.count
+    return packer.table(), packer.others, target
 
 
 def limited_elements(mechanism: Mechanism) -> dict[str, list[int]]:

@@ -27,6 +27,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .geometry import to_local
+
 __all__ = [
     "PointForce",
     "BodyTorque",
@@ -143,10 +145,7 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray) -> LoadA
 
 def _local(frames: np.ndarray, body: np.ndarray, points: np.ndarray) -> np.ndarray:
     """The points in the drawn frames of their bodies, shape (k, 2)."""
-    origins, angles = frames[body, :2], frames[body, 2]
-    dx, dy = points[:, 0] - origins[:, 0], points[:, 1] - origins[:, 1]
-    cosine, sine = np.cos(angles), np.sin(angles)
-    return np.ascontiguousarray(np.stack([cosine * dx + sine * dy, cosine * dy - sine * dx], axis=1))
+    return np.ascontiguousarray(to_local(frames[body], points))
 
 
 _INDEX_FIELDS = ("law", "body", "body_i", "body_j")

@@ -41,8 +41,8 @@ from .elements import (
     Joint,
     Load,
     PointRef,
-    _Element,
 )
+from .elements.base import _Element
 from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message
 
 __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]

@@ -60,16 +60,15 @@ from .base import (
     GROUND,
     JOINT_KINDS,
     LOAD_KINDS,
-    Columns as Columns,
-    Driver as Driver,
-    Joint as Joint,
-    Load as Load,
-    PointRef as PointRef,
-    _Element as _Element,
+    Columns,
+    Driver,
+    Joint,
+    Load,
+    PointRef,
     driver_kind,
     joint_kind,
     load_kind,
-    shown_point as shown_point,
+    shown_point,
 )
 
 # Importing the declaring modules registers their kinds; the registries keep the order of
@@ -86,6 +85,11 @@ from .loads import Force, Spring, Torque
 
 __all__ = [
     "COORDINATE_NAMES",
+    "PointRef",
+    "Columns",
+    "Joint",
+    "Driver",
+    "shown_point",
     "DRIVER_KINDS",
     "GROUND",
     "JOINT_KINDS",
