@@ -5,7 +5,8 @@ derivatives (the default), the motion of named points, the own coordinates of jo
 The time loop hands each solved sample (or a block of samples, from the compiled loop) to
 a `Recorder`, which fills a chunk of rows and writes every full chunk to a sink:
 
-* `MemorySink` — arrays for every sample, in memory (the default);
+* `MemorySink` — arrays for every sample, in memory (the default): the recorder fills its
+  arrays in place, its "chunk" is the whole run;
 * `ZarrSink` — a Zarr store written chunk by chunk while the run goes on, which
   ``xarray.open_zarr`` opens as a Dataset (the ``zarr`` extra: ``pip install
   "sparsekin[zarr]"``).  Peak memory is then the model plus a chunk, whatever the number
@@ -207,10 +208,18 @@ class Recorder:
     def __init__(self, selection: Selection, sink) -> None:
         self.selection, self.sink = selection, sink
         mechanism = selection.mechanism
-        self.size = size = selection.chunk_samples()
+        # A memory sink's arrays are the rows themselves (filled in place, not copied again);
+        # a store is written a chunk of rows at a time.
+        held = getattr(sink, "arrays", None) or {}
+        self.chunk = selection.chunk_samples()  # samples a time loop solves between reports
+        self.size = size = held["t"].size if held else self.chunk
+
+        def rows(key: str, *shape: int) -> np.ndarray:
+            return held[key] if key in held else np.empty((size, *shape))
+
         n = mechanism.n_coordinates
-        self._t = np.empty(size)
-        self._q = [np.empty((size, n)) for _ in range(3)] if selection.coordinates else None
+        self._t = rows("t")
+        self._q = [rows(key, n) for key in ("q", "qd", "qdd")] if selection.coordinates else None
         # points: the frames of the bodies that carry them, and where they sit on them
         point_map = build_point_map(mechanism)
         located = [point_map.locate(name) for name in selection.point_names]
@@ -220,8 +229,8 @@ class Recorder:
         self._frames = [np.empty((size, self._carriers.size, 3)) for _ in range(3)]
         if selection.joint_indices:
             self._outputs = build_output_pattern(mechanism, joints=selection.joint_indices)
-            self._joints = np.empty((size, len(selection.joint_indices), 3))
-        self._forces = np.empty((size, selection.n_force_columns)) if selection.forces is not None else None
+            self._joints = rows("joints", len(selection.joint_indices), 3)
+        self._forces = rows("forces", selection.n_force_columns) if selection.forces is not None else None
         self._rows = 0
         self._first = 0  # the index of the chunk's first sample
         self.n_written = 0
@@ -404,7 +413,8 @@ def _clear_store(path: str) -> None:
 
 
 class MemorySink:
-    """Arrays for every sample of a run, in memory."""
+    """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (rows
+    it hands to `write` that are views of them are not copied again)."""
 
     def __init__(self, selection: Selection, n_times: int) -> None:
         n = selection.mechanism.n_coordinates
@@ -421,7 +431,9 @@ class MemorySink:
 
     def write(self, first: int, data: dict) -> None:
         for key, values in data.items():
-            self.arrays[key][first : first + len(values)] = values
+            array = self.arrays[key]
+            if values.base is not array:  # else the recorder has filled these rows in place
+                array[first : first + len(values)] = values
 
     def close(self, n_written: int) -> dict:
         return {key: array[:n_written] for key, array in self.arrays.items()}

@@ -50,7 +50,7 @@ from ..engine.newton import (
     polishes,
 )
 from ..engine.pattern import ConstraintPattern
-from ..model.laws import BUILT_IN_LAWS, evaluate_laws
+from ..model.laws import BUILT_IN_LAWS, LawTable, evaluate_laws
 from ..model.loads import LoadArrays
 from ..model.mechanism import Mechanism
 
@@ -328,6 +328,7 @@ def solve_compiled(
     chord: bool = True,
     start: int = 0,
     forces: CompiledForces | None = None,
+    laws: LawTable | None = None,
 ) -> CompiledOutcome:
     """Positions, velocities and accelerations at every time, in one compiled loop.
 
@@ -362,6 +363,11 @@ def solve_compiled(
         of a long run starts at 1 with the last sample of the chunk before in row 0.
     forces : CompiledForces, optional
         Also the forces at each sample solved, into ``forces.rows``.
+    laws : LawTable, optional
+        The drivers' laws packed for the pattern's driven rows (``DriverLaws(mechanism,
+        pattern.driven_initial).table``, as an `~sparsekin.engine.assembly.Assembler` of
+        the pattern holds them): a run solved chunk by chunk packs them once.  Packed here
+        by default.
 
     Returns
     -------
@@ -399,7 +405,8 @@ def solve_compiled(
     for name, array in outputs.items():
         _check_array(array, name, (n_times, n_coordinates), np.float64)
     _check_array(iterations, "iterations", (n_times,), np.int64)
-    laws = DriverLaws(mechanism, pattern.driven_initial).table
+    if laws is None:
+        laws = DriverLaws(mechanism, pattern.driven_initial).table
     if forces is None:
         loads, load_laws, outputs = no_forces()
         force_arguments = (loads, load_laws, 0, outputs, True, False, np.zeros((n_times, 0)))

@@ -289,7 +289,7 @@ class _Run:
         that the progress is reported and an interrupt is taken between chunks.
         """
         stepper, times = self.stepper, self.times
-        size = min(self.recorder.size, times.size)
+        size = min(self.recorder.chunk, times.size)
         n = stepper.pattern.n_coordinates
         rows = [np.empty((size + 1, n)) for _ in range(3)]
         iterations = np.zeros(size + 1, dtype=np.int64)
@@ -313,6 +313,7 @@ class _Run:
                 stepper.mechanism, stepper.pattern, chunk_times[:stop], stepper.tolerance, stepper.max_iterations,
                 rows[0][:stop], rows[1][:stop], rows[2][:stop], iterations[:stop], start=start,
                 forces=None if forces is None else forces._replace(rows=forces.rows[:stop]),
+                laws=stepper.assembler.laws.table,
             )  # fmt: skip
             self.compiled_counts += (outcome.n_factorizations, outcome.n_solves)
             solved = first_branch_jump(chunk_times, *rows, stepper.pattern.coordinate_weights, outcome.n_solved)
