@@ -122,6 +122,18 @@ def test_task5_amplitudes_above_0054_lock_up_when_a_single_run_does(swept, task5
     np.testing.assert_allclose(swept.t_stop[locking], [0.94, 0.75, 0.65, 0.59], rtol=0, atol=1e-12)
 
 
+def test_a_sweep_labels_its_dataset_as_a_run_does(swept, task5):
+    """In memory as in a store, the labels of a sweep's Dataset are those of one run's."""
+    _, run, _ = serial_run(task5)
+    labelled = run.to_xarray()
+    dataset = swept.to_xarray()
+    for name in labelled.coords:
+        if name != "t":
+            assert dataset[name].dims == labelled[name].dims
+            np.testing.assert_array_equal(dataset[name].values, labelled[name].values)
+    assert {"joint_quantity", "joint_unit", "coordinate", "point", "joint"} <= set(dataset.coords)
+
+
 def test_a_sweep_records_the_forces_of_each_variant_as_a_serial_run_does(client, tmp_path):
     task5_dynamics = sk.load_model(ROOT / "examples" / "task5_dynamics.toml")
     amplitudes = [0.04, 0.06]  # one complete, one that locks up

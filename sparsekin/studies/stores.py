@@ -7,12 +7,12 @@ from __future__ import annotations
 import csv
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..results.recording import JOINT_DERIVATIVES, POINT_COMPONENTS
+from ..results.recording import dataset_labels
 from .variants import VariantDesign, VariantSet
 
 #: A variant's outcome: every sample solved; stopped at a singular configuration (a lock-up,
@@ -89,6 +89,9 @@ class SweepResult:
         Seconds from the first task submitted to the last result written.
     coordinate_labels : tuple of str
         ``c1.x``, ``c1.y``, ``c1.angle``, ...: the columns of `coordinates`.
+    labels : dict
+        The labels of the dimensions of `to_xarray`'s Dataset, those of a run's
+        (`sparsekin.results.recording.dataset_labels`).
     """
 
     variants: VariantSet
@@ -113,6 +116,7 @@ class SweepResult:
     n_tasks: int = 0
     wall_time: float = 0.0
     coordinate_labels: tuple[str, ...] = ()
+    labels: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_variants(self) -> int:
@@ -139,17 +143,8 @@ class SweepResult:
         if self.store is not None:
             return xr.open_zarr(self.store)
         arrays = {key: np.asarray(value) for key, value in self._arrays().items()}
-        labels = {}
-        if self.coordinates is not None:
-            labels["coordinate"] = list(self.coordinate_labels)
-        if self.recorded_points:
-            labels |= {"point": list(self.recorded_points), "component": list(POINT_COMPONENTS)}
-        if self.recorded_joints:
-            labels |= {"joint": list(self.recorded_joints), "derivative": list(JOINT_DERIVATIVES)}
-        if self.force_labels:
-            labels |= {"force": list(self.force_labels), "force_unit": ("force", list(self.force_units))}
         shapes = {key: array.shape[2:] for key, array in arrays.items()}
-        layout = _Layout(self.n_variants, self.times, self.columns, self.parameters, shapes, labels)
+        layout = _Layout(self.n_variants, self.times, self.columns, self.parameters, shapes, self.labels)
         return layout.dataset(arrays, self.status, self.t_stop, self.t_failure)
 
     def _arrays(self) -> dict:
@@ -260,19 +255,10 @@ class _Layout:
 
 
 def _layout(design: VariantDesign, times: np.ndarray, selection) -> _Layout:
-    from ..model.elements import COORDINATE_NAMES
-    from ..results.recording import JOINT_DERIVATIVES, POINT_COMPONENTS
-
+    """The arrays and labels of the sweep's results: the labels of one run's
+    (`dataset_labels`), with the variant and parameter dimensions in front."""
     columns, parameters = design.table()
-    labels = {}
-    if selection.coordinates:
-        labels["coordinate"] = [
-            f"{name}.{c}" for name in selection.mechanism.body_names for c in COORDINATE_NAMES
-        ]
-    if selection.point_names:
-        labels |= {"point": list(selection.point_names), "component": list(POINT_COMPONENTS)}
-    if selection.joint_indices:
-        labels |= {"joint": list(selection.joint_labels), "derivative": list(JOINT_DERIVATIVES)}
-    if selection.forces is not None:
-        labels |= {"force": list(selection.forces.labels), "force_unit": ("force", list(selection.forces.units))}
+    forces = selection.forces
+    labels = dataset_labels(selection.mechanism, selection.coordinates, selection.point_names, selection.joint_indices,
+                            () if forces is None else forces.labels, () if forces is None else forces.units)  # fmt: skip
     return _Layout(design.n_variants, times, columns, parameters, _variable_shapes(selection), labels)

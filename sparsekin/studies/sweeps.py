@@ -325,7 +325,7 @@ def sweep(
         recorded_joints=selection.joint_labels, force_tracks=arrays.get("forces"),
         force_labels=() if chosen is None else chosen.labels, force_units=() if chosen is None else chosen.units,
         store=output.path, n_tasks=len(ranges), wall_time=wall_time,
-        coordinate_labels=tuple(layout.labels.get("coordinate", ())),
+        coordinate_labels=tuple(layout.labels.get("coordinate", ())), labels=layout.labels,
     )  # fmt: skip
 
 
