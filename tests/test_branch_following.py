@@ -18,8 +18,9 @@ import math
 
 import numpy as np
 import pytest
+from helpers import four_bar
 
-from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver, solve_kinematics
+from sparsekin import Linear, Mechanism, solve_kinematics
 from sparsekin.solve import stepper
 from sparsekin.testset import task5
 
@@ -67,24 +68,8 @@ def four_bar_motion(times: np.ndarray, branch: int):
 
 def build_four_bar(branch: int = 1) -> Mechanism:
     (a,), (b,) = four_bar_positions(np.array([START]), branch)
-    coupler_angle = math.atan2(b[1] - a[1], b[0] - a[0])
-    rocker_angle = math.atan2(b[1], b[0] - GROUND)
-    return Mechanism(
-        points={"O2": (0.0, 0.0), "O4": (GROUND, 0.0), "A": tuple(a), "B": tuple(b)},
-        bodies=[
-            Body("crank", origin="O2", angle=START, points=("O2", "A")),
-            Body("coupler", origin="A", angle=coupler_angle, points=("A", "B")),
-            Body("rocker", origin="O4", angle=rocker_angle, points=("O4", "B")),
-        ],
-        joints=[
-            Revolute(("crank", "ground"), at="O2"),
-            Revolute(("crank", "coupler"), at="A"),
-            Revolute(("coupler", "rocker"), at="B"),
-            Revolute(("rocker", "ground"), at="O4"),
-        ],
-        drivers=[RotationalDriver(("crank", "ground"), law=Linear(rate=RATE))],
-        name="near_change_point",
-    )
+    points = {"O2": (0.0, 0.0), "O4": (GROUND, 0.0), "A": tuple(a), "B": tuple(b)}
+    return four_bar(points, Linear(rate=RATE), name="near_change_point")
 
 
 def test_the_closed_form_closes_the_loop():

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from helpers import four_bar, slider_crank
 from scipy.interpolate import CubicSpline
 
 from sparsekin import (
@@ -40,7 +41,6 @@ from sparsekin import (
     Polynomial,
     Revolute,
     Rigid,
-    RotationalDriver,
     Spline,
     Translational,
     TranslationalDriver,
@@ -165,29 +165,13 @@ def build_slider_crank(law, offset: float) -> Mechanism:
     A centred slider (offset 0) gets its guide in the ``axis`` form through a ground point
     S on the line; an offset slider in the ``at`` / ``direction`` form.
     """
-    (a, _, _), (b, _, _), (phi, _, _) = slider_crank_reference(
-        np.array([CRANK_START]), np.zeros(1), np.zeros(1), offset
-    )
+    (a, _, _), (b, _, _), _ = slider_crank_reference(np.array([CRANK_START]), np.zeros(1), np.zeros(1), offset)
     points = {"O": (0.0, 0.0), "A": tuple(a[0]), "B": tuple(b[0]), "S": (-0.2, offset)}
     if offset == 0.0:
         guide = Translational(("ground", "slider"), axis=("S", "B"), name="guide")
     else:
         guide = Translational(("ground", "slider"), at="B", direction=(1.0, 0.0), name="guide")
-    return Mechanism(
-        points=points,
-        bodies=[
-            Body("crank", origin="O", angle=CRANK_START, points=("O", "A")),
-            Body("rod", origin="A", angle=float(phi[0]), points=("A", "B")),
-            Body("slider", origin="B", points=("B",)),
-        ],
-        joints=[
-            Revolute(("crank", "ground"), at="O"),
-            Revolute(("crank", "rod"), at="A"),
-            Revolute(("rod", "slider"), at="B"),
-            guide,
-        ],
-        drivers=[RotationalDriver(("crank", "ground"), law=law)],
-    )
+    return slider_crank(points, guide, law)
 
 
 def slider_crank_expected(theta, theta_d, theta_dd, offset: float) -> Expected:
@@ -310,25 +294,11 @@ def four_bar_points(angles, rates, accelerations):
 
 def build_four_bar(branch: int, theta2_start: float, rate: float) -> Mechanism:
     start, still = np.array([theta2_start]), np.zeros(1)
-    (theta2, theta3, theta4), _, _ = four_bar_reference(start, still, still, branch)
-    (a, _, _), (b, _, _), (p, _, _) = four_bar_points((theta2, theta3, theta4), (still,) * 3, (still,) * 3)
-    points = {"O2": (0.0, 0.0), "O4": (FOUR_BAR["ground"], 0.0)}
-    points.update(A=tuple(a[0]), B=tuple(b[0]), P=tuple(p[0]))
-    return Mechanism(
-        points=points,
-        bodies=[
-            Body("crank", origin="O2", angle=theta2_start, points=("O2", "A")),
-            Body("coupler", origin="A", angle=float(theta3[0]), points=("A", "B", "P")),
-            Body("rocker", origin="O4", angle=float(theta4[0]), points=("O4", "B")),
-        ],
-        joints=[
-            Revolute(("crank", "ground"), at="O2"),
-            Revolute(("crank", "coupler"), at="A"),
-            Revolute(("coupler", "rocker"), at="B"),
-            Revolute(("rocker", "ground"), at="O4"),
-        ],
-        drivers=[RotationalDriver(("crank", "ground"), law=Linear(rate=rate))],
-    )
+    angles, _, _ = four_bar_reference(start, still, still, branch)
+    (a, _, _), (b, _, _), (p, _, _) = four_bar_points(angles, (still,) * 3, (still,) * 3)
+    points = {"O2": (0.0, 0.0), "O4": (FOUR_BAR["ground"], 0.0), "A": tuple(a[0]), "B": tuple(b[0]), "P": tuple(p[0])}
+    angles = dict(zip(("crank", "coupler", "rocker"), (float(angle[0]) for angle in angles)))  # unwrapped
+    return four_bar(points, Linear(rate=rate), coupler_points=("A", "B", "P"), angles=angles)
 
 
 def test_four_bar_reference_closes_the_loop():

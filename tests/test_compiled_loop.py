@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import assert_same_motion
 from scipy.interpolate import CubicSpline
 
 from sparsekin import (
@@ -32,13 +33,13 @@ from sparsekin import (
     TranslationalDriver,
     solve_kinematics,
 )
+from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.pattern import build_pattern
 from sparsekin.solve._compiled import (
     LoopStatus,
     solve_compiled,
     supports_compiled,
 )
-from sparsekin.engine.assembly import Assembler
-from sparsekin.engine.pattern import build_pattern
 from sparsekin.testset import four_bar_chain, lattice, task5, task5_chain
 
 #: Agreement of chord Newton with the Python path (see the module docstring).
@@ -59,15 +60,6 @@ def run_compiled(mechanism, times, *, chord=True, tolerance=1e-12, max_iteration
     return outcome, (coordinates, velocities, accelerations), iterations
 
 
-def assert_same_motion(solved, reference, n_samples, rtol=RTOL):
-    """The first `n_samples` rows of each of q, qd, qdd agree, atol relative to its scale."""
-    for label, actual, expected in zip(("coordinates", "velocities", "accelerations"), solved, reference):
-        scale = np.max(np.abs(expected[:n_samples]))
-        np.testing.assert_allclose(
-            actual[:n_samples], expected[:n_samples], rtol=rtol, atol=rtol * scale, err_msg=label
-        )
-
-
 def python_path(result):
     return result.coordinates, result.velocities, result.accelerations
 
@@ -84,7 +76,7 @@ def test_task5_chord_agrees_with_python_path(task5_runs):
     mechanism, times, reference = task5_runs
     outcome, solved, iterations = run_compiled(mechanism, times)
     assert (outcome.n_solved, outcome.status, outcome.n_restarts) == (times.size, LoopStatus.SOLVED, 0)
-    assert_same_motion(solved, python_path(reference), times.size)
+    assert_same_motion(solved, python_path(reference), RTOL, rows=times.size)
     # One factorization per sample (at the converged position) instead of one per Newton
     # iterate; the chord converges linearly, so it needs at least Newton's corrections.
     assert outcome.n_factorizations == times.size + iterations[0]
@@ -99,7 +91,7 @@ def test_task5_plain_newton_repeats_python_iterates(task5_runs):
     assert outcome.complete
     np.testing.assert_array_equal(iterations, reference.newton_iterations)
     assert (outcome.n_factorizations, outcome.n_solves) == (reference.n_factorizations, reference.n_solves)
-    assert_same_motion(solved, python_path(reference), times.size, rtol=1e-12)
+    assert_same_motion(solved, python_path(reference), 1e-12, rows=times.size)
 
 
 FAMILIES = {
@@ -118,7 +110,7 @@ def test_test_set_families_agree_with_python_path(name):
     for chord in (True, False):
         outcome, solved, iterations = run_compiled(mechanism, times, chord=chord)
         assert outcome.complete, outcome
-        assert_same_motion(solved, python_path(reference), times.size, rtol=RTOL if chord else 1e-12)
+        assert_same_motion(solved, python_path(reference), RTOL if chord else 1e-12, rows=times.size)
         assert outcome.n_factorizations <= reference.n_factorizations
         if not chord:
             np.testing.assert_array_equal(iterations, reference.newton_iterations)
@@ -178,7 +170,7 @@ def test_every_law_kind_matches_its_evaluate():
                 err_msg=f"drivers[{k}] ({type(law).__name__}), derivative {order}",
             )  # fmt: skip
     reference = solve_kinematics(mechanism, times, linear_solver="superlu")
-    assert_same_motion(solved, python_path(reference), times.size, rtol=1e-13)
+    assert_same_motion(solved, python_path(reference), 1e-13, rows=times.size)
 
 
 def test_spline_driven_crank_matches_closed_form():
@@ -201,7 +193,7 @@ def test_spline_driven_crank_matches_closed_form():
         np.testing.assert_allclose(solved[:, 2], theta[order], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(solved[:, :2], 0.0, atol=1e-12)
     reference = solve_kinematics(crank, times, linear_solver="superlu")
-    assert_same_motion((coordinates, velocities, accelerations), python_path(reference), times.size)
+    assert_same_motion((coordinates, velocities, accelerations), python_path(reference), RTOL, rows=times.size)
 
 
 def test_custom_laws_are_not_supported():
@@ -301,7 +293,7 @@ def test_stops_at_the_sample_where_the_python_path_fails(failing_run, chord):
         assert outcome.n_restarts > 0  # the chord gave up near the dead point; plain Newton took over
         assert np.all(iterations[:n_solved] >= reference.newton_iterations)
     else:
-        assert_same_motion(solved, python_path(reference), n_solved, rtol=1e-11)
+        assert_same_motion(solved, python_path(reference), 1e-11, rows=n_solved)
         np.testing.assert_array_equal(iterations[:n_solved], reference.newton_iterations)
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 import warnings
 from pathlib import Path
 
@@ -36,13 +35,13 @@ from sparsekin import (
     load_model,
     solve_kinematics,
 )
-from sparsekin.engine.assembly import Assembler
-from sparsekin.cli import main
 from sparsekin.analysis.check import check_model
 from sparsekin.analysis.describe import equation_label
 from sparsekin.analysis.rank import analyse_jacobian
-from sparsekin.errors import RedundantConstraintWarning, SingularConfigurationError
+from sparsekin.cli import main
+from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
+from sparsekin.errors import RedundantConstraintWarning, SingularConfigurationError
 from sparsekin.testset import task5, task5_chain
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -202,32 +201,27 @@ def chain():
     return mechanism, jacobian_at(mechanism)
 
 
-def test_a_chain_of_1e5_bodies_has_full_rank_found_in_seconds(chain):
+def test_a_chain_of_1e5_bodies_has_full_rank(chain):
+    """(How long it takes: benchmarks/test_rank_speed.py.)"""
     _, jacobian = chain
-    start = time.perf_counter()
     analysis = analyse_jacobian(jacobian)
-    elapsed = time.perf_counter() - start
     assert analysis.shape == (300_000, 300_000) and analysis.rank == 300_000
     # A long serial chain is ill-conditioned in absolute coordinates (about n²), but its
     # smallest singular value, 2e-10 of the largest, stays above the rank tolerance (7e-11).
     assert analysis.tolerance < 0.5 * analysis.smallest_singular_value < 1e-9
     residual = np.linalg.norm(analysis.row_scale * (jacobian @ (analysis.column_scale * analysis.smallest_motion)))
     np.testing.assert_allclose(residual, analysis.smallest_singular_value * analysis.sigma_max, rtol=1e-6)
-    assert elapsed < 30.0  # about 1 s on the project's machine; generous for a loaded one
 
 
 def test_a_chain_of_1e5_bodies_without_one_joint_names_its_free_motions(chain):
     mechanism, _ = chain
     broken = without_joint_at(mechanism, "u5000.E")
     jacobian = jacobian_at(broken)
-    start = time.perf_counter()
     analysis = analyse_jacobian(jacobian)
-    elapsed = time.perf_counter() - start
     assert analysis.rank == 299_998 and analysis.n_free == 2 and analysis.n_redundant == 0
     assert np.max(np.abs(jacobian @ analysis.free_motions)) < 1e-12
     moving = {broken.bodies[c // 3].name for c in analysis.free_coordinates}
     assert moving <= {f"u5000.c{k}" for k in range(1, 11)}
-    assert elapsed < 60.0  # about 3 s on the project's machine
 
 
 # ---------------------------------------------------------------------- check_model and `sparsekin check`

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+import helpers
 import numpy as np
 import pytest
 
@@ -64,44 +65,21 @@ def five_point_derivative(values, h):
 
 def slider_crank(r=0.1, l=0.4, masses=(2.0, 3.0, 1.5), omega=12.0, gravity=(0.0, -G)):
     m2, m3, m4 = masses
-    return sk.Mechanism(
-        points={"O": (0.0, 0.0), "A": (r, 0.0), "B": (r + l, 0.0), "C2": (r / 2, 0.0), "C3": (r + l / 2, 0.0)},
-        bodies=[
-            sk.Body("crank", origin="O", points=("O", "A"), mass=m2, inertia=m2 * r * r / 12, com="C2"),
-            sk.Body("rod", origin="A", points=("A", "B"), mass=m3, inertia=m3 * l * l / 12, com="C3"),
-            sk.Body("slider", origin="B", points=("B",), mass=m4),
-        ],
-        joints=[
-            sk.Revolute(("crank", "ground"), at="O", name="O"),
-            sk.Revolute(("crank", "rod"), at="A", name="A"),
-            sk.Revolute(("rod", "slider"), at="B", name="B"),
-            sk.Translational(("ground", "slider"), axis=("O", "B"), name="guide"),
-        ],
-        drivers=[sk.RotationalDriver(("crank", "ground"), law=sk.Linear(rate=omega), name="motor")],
-        gravity=gravity,
-    )
+    points = {"O": (0.0, 0.0), "A": (r, 0.0), "B": (r + l, 0.0), "C2": (r / 2, 0.0), "C3": (r + l / 2, 0.0)}
+    bodies = {"crank": {"mass": m2, "inertia": m2 * r * r / 12, "com": "C2"},
+              "rod": {"mass": m3, "inertia": m3 * l * l / 12, "com": "C3"}, "slider": {"mass": m4}}  # fmt: skip
+    guide = sk.Translational(("ground", "slider"), axis=("O", "B"), name="guide")
+    return helpers.slider_crank(points, guide, sk.Linear(rate=omega), masses=bodies, gravity=gravity)
 
 
 def four_bar(with_motor=True, rate=1.0):
     """Crank O2–A, coupler A–B, rocker O4–B; centres of mass off the links' axes."""
     points = {"O2": (0.0, 0.0), "O4": (1.0, 0.0), "A": (0.0, 0.4), "B": (0.9, 0.75),
               "C2": (0.05, 0.2), "C3": (0.45, 0.65), "C4": (0.9, 0.35)}  # fmt: skip
-    return sk.Mechanism(
-        points=points,
-        bodies=[
-            sk.Body("crank", origin="O2", points=("O2", "A"), mass=1.2, inertia=0.02, com="C2"),
-            sk.Body("coupler", origin="A", points=("A", "B"), mass=3.0, inertia=0.3, com="C3"),
-            sk.Body("rocker", origin="O4", points=("O4", "B"), mass=2.0, inertia=0.1, com="C4"),
-        ],
-        joints=[
-            sk.Revolute(("crank", "ground"), at="O2", name="O2"),
-            sk.Revolute(("crank", "coupler"), at="A", name="A"),
-            sk.Revolute(("coupler", "rocker"), at="B", name="B"),
-            sk.Revolute(("rocker", "ground"), at="O4", name="O4"),
-        ],
-        drivers=[sk.RotationalDriver(("crank", "ground"), law=sk.Linear(rate=rate), name="motor")] if with_motor else [],
-        gravity=(0.0, -G),
-    )
+    bodies = {"crank": {"mass": 1.2, "inertia": 0.02, "com": "C2"}, "coupler": {"mass": 3.0, "inertia": 0.3, "com": "C3"},
+              "rocker": {"mass": 2.0, "inertia": 0.1, "com": "C4"}}  # fmt: skip
+    law = sk.Linear(rate=rate) if with_motor else None
+    return helpers.four_bar(points, law, masses=bodies, gravity=(0.0, -G))
 
 
 def task5_loaded():

@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from helpers import MOTION, assert_same_motion
 
 from sparsekin import SingularConfigurationError, solve_kinematics, testset
 from sparsekin.solve.stepper import COMPILED_MAX_COORDINATES
@@ -24,7 +25,7 @@ FAMILIES = {
 }
 
 
-def assert_same_motion(result, reference, scale):
+def assert_same_run(result, reference, scale):
     """Positions to 1e-11 of the model size (angles in rad), derivatives to 1e-9 relative."""
     assert result.complete and reference.complete
     weights = np.full(reference.coordinates.shape[1], 1.0 / scale)
@@ -32,9 +33,8 @@ def assert_same_motion(result, reference, scale):
     np.testing.assert_allclose(
         result.coordinates * weights, reference.coordinates * weights, rtol=0, atol=1e-11
     )
-    for name in ("velocities", "accelerations"):
-        mine, theirs = getattr(result, name), getattr(reference, name)
-        np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-9 * np.abs(theirs).max())
+    derivatives = [(run.velocities, run.accelerations) for run in (result, reference)]
+    assert_same_motion(*derivatives, 1e-9, labels=MOTION[1:])
 
 
 @pytest.fixture(scope="module", params=list(FAMILIES))
@@ -50,7 +50,7 @@ def family_run(request):
 def test_paths_agree_with_superlu(family_run, linear_solver):
     mechanism, times, reference, scale = family_run
     result = solve_kinematics(mechanism, times, linear_solver=linear_solver)
-    assert_same_motion(result, reference, scale)
+    assert_same_run(result, reference, scale)
     np.testing.assert_array_equal(result.times, reference.times)
     if linear_solver == "dense":
         assert result.linear_solver == "compiled"
@@ -94,7 +94,7 @@ def test_hand_over_from_the_compiled_loop_keeps_solving():
     reference = solve_kinematics(testset.task5(), times, linear_solver="superlu")
     assert result.linear_solver == "compiled+dense"
     assert result.n_subdivisions > 0 and reference.n_subdivisions > 0
-    assert_same_motion(result, reference, 1.2)
+    assert_same_run(result, reference, 1.2)
 
 
 def test_unknown_linear_solver_is_refused():
@@ -116,14 +116,14 @@ def test_models_the_compiled_loop_cannot_run_use_the_python_loop():
     times = np.linspace(0.0, 1.0, 11)
     result = solve_kinematics(mechanism, times, linear_solver="dense")
     assert result.linear_solver == "dense"
-    assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 1.2)
+    assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 1.2)
 
 
 def test_auto_refactors_a_model_above_the_compiled_size():
     mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)  # 306 coordinates
     result = solve_kinematics(mechanism, times)
     assert result.linear_solver == "refactor"
-    assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
+    assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
 def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
@@ -137,7 +137,7 @@ def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
     assert result.linear_solver == "superlu-chord"
     # one SuperLU factorization per sample (chord), besides the refactorization's first
     assert result.n_factorizations <= 1 + result.n_times + result.newton_iterations[:2].sum()
-    assert_same_motion(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
+    assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
 def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(monkeypatch):

@@ -1,0 +1,118 @@
+"""What several test files build or check the same way: the slider-crank and the four-bar
+written out element by element, and the comparison of two motions.
+
+Each mechanism is drawn from its points: every body's frame sits on its first pin and
+points along its link, so a test gives the points (from its own closed form) and the law,
+and the helper writes the elements.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sparsekin import Body, Mechanism, Revolute, RotationalDriver
+
+#: Agreement with a closed form or another path, relative to each quantity's scale.
+RTOL = 1e-10
+#: The three arrays of a motion: q, qd, qdd; or a point's position, velocity, acceleration.
+MOTION = ("coordinates", "velocities", "accelerations")
+
+
+def assert_close(actual, expected, rtol: float = RTOL, err_msg: str = "", scale: float | None = None) -> None:
+    """Agreement to `rtol` of `scale`, by default the largest magnitude of `expected`
+    (quantities cross zero, where a relative tolerance means nothing)."""
+    expected = np.asarray(expected, dtype=float)
+    scale = float(np.max(np.abs(expected))) if scale is None else scale
+    np.testing.assert_allclose(actual, expected, rtol=0.0, atol=rtol * scale, err_msg=err_msg)
+
+
+def assert_same_motion(actual, expected, rtol: float = RTOL, labels=MOTION, rows: int | None = None) -> None:
+    """Each array of `actual` (q, qd, qdd, or a point's position, velocity and
+    acceleration) agrees with the one of `expected` to `rtol` of its own scale (over the
+    first `rows` samples, if given)."""
+    for label, mine, theirs in zip(labels, actual, expected, strict=True):
+        assert_close(mine[:rows], theirs[:rows], rtol, err_msg=label)
+
+
+def link_angle(points: dict, start: str, end: str) -> float:
+    """The direction of the link from point `start` to point `end`, rad."""
+    (x0, y0), (x1, y1) = points[start], points[end]
+    return math.atan2(y1 - y0, x1 - x0)
+
+
+def _links(points: dict, links: dict, masses: dict | None, angles: dict | None) -> list[Body]:
+    """A body by name for each of `links` (name -> the points it carries), on its first two
+    points: its drawn angle from `angles`, else along the link; its mass, inertia and
+    centre of mass from `masses`, if given."""
+    masses, angles = masses or {}, angles or {}
+    return [
+        Body(name, origin=carried[0], angle=angles.get(name, link_angle(points, *carried[:2])),
+             points=carried, **masses.get(name, {}))
+        for name, carried in links.items()
+    ]  # fmt: skip
+
+
+def slider_crank(points: dict, guide, law, *, masses: dict | None = None, angles: dict | None = None,
+                 gravity=(0.0, 0.0), name=None) -> Mechanism:  # fmt: skip
+    """Crank O–A turning about the ground pivot O (driver ``motor``), rod A–B, slider at B
+    on `guide` (a translational joint between the ground and the slider).
+
+    Parameters
+    ----------
+    points : dict
+        O, A and B (and any others the masses name), m.
+    masses : dict, optional
+        Keywords of `Body` by body name (``mass``, ``inertia``, ``com``).
+    angles : dict, optional
+        Drawn angles by body name, rad (default: along each link; a body's angle
+        coordinate starts there).
+    """
+    return Mechanism(
+        points=points,
+        bodies=[*_links(points, {"crank": ("O", "A"), "rod": ("A", "B")}, masses, angles),
+                Body("slider", origin="B", points=("B",), **(masses or {}).get("slider", {}))],  # fmt: skip
+        joints=[
+            Revolute(("crank", "ground"), at="O", name="O"),
+            Revolute(("crank", "rod"), at="A", name="A"),
+            Revolute(("rod", "slider"), at="B", name="B"),
+            guide,
+        ],
+        drivers=[RotationalDriver(("crank", "ground"), law=law, name="motor")],
+        gravity=gravity,
+        **({} if name is None else {"name": name}),
+    )
+
+
+def four_bar(points: dict, law, *, coupler_points=("A", "B"), masses: dict | None = None,
+             angles: dict | None = None, gravity=(0.0, 0.0), name=None) -> Mechanism:  # fmt: skip
+    """Crank O2–A, coupler A–B, rocker O4–B, pinned to the ground at O2 and O4; the crank
+    follows `law` (driver ``motor``), or nothing moves it if `law` is None.
+
+    Parameters
+    ----------
+    points : dict
+        O2, O4, A, B and the other points of `coupler_points` and of the masses, m.
+    coupler_points : tuple of str
+        The points the coupler carries, A and B first.
+    masses : dict, optional
+        Keywords of `Body` by body name (``mass``, ``inertia``, ``com``).
+    angles : dict, optional
+        Drawn angles by body name, rad (default: along each link; a body's angle
+        coordinate starts there).
+    """
+    return Mechanism(
+        points=points,
+        bodies=_links(points, {"crank": ("O2", "A"), "coupler": tuple(coupler_points), "rocker": ("O4", "B")},
+                      masses, angles),  # fmt: skip
+        joints=[
+            Revolute(("crank", "ground"), at="O2", name="O2"),
+            Revolute(("crank", "coupler"), at="A", name="A"),
+            Revolute(("coupler", "rocker"), at="B", name="B"),
+            Revolute(("rocker", "ground"), at="O4", name="O4"),
+        ],
+        drivers=[] if law is None else [RotationalDriver(("crank", "ground"), law=law, name="motor")],
+        gravity=gravity,
+        **({} if name is None else {"name": name}),
+    )
