@@ -5,42 +5,21 @@ Phi(q, t) = 0.  At each time, Newton–Raphson solves the positions, then one sp
 factorization of the Jacobian Phi_q gives the velocities (Phi_q qd = -Phi_t) and the
 accelerations (Phi_q qdd = gamma).
 
-The modules follow the data flow:
+The subpackages follow the data flow, and imports point down this list (`errors` and
+`_jit` are below all; docs/architecture.md has a sentence for every module):
 
 =================  ===========================================================
-`laws`             motion laws of drivers: `Harmonic`, `Linear`, ... (and their kernels)
-`primitives`       the four primitive equations every element is made of
-`loads`            the three primitive loads, and the bodies' masses, packed
-`elements`         every kind of joint, driver and load, declared once (the registry)
-`units`            units repeated into chains: `Unit`, `Repeat`, resolved by arithmetic
-`model`            frozen description: `Mechanism`, `Body`
-`modelfile`        the TOML model file: `load_model`, `save_model`
-`columns`          elements as arrays for the equation builders (tiled over copies)
-`pattern`          Mechanism -> packed equations, CSR pattern and slots (once)
-`_kernels`         numba kernels that refill residual, Jacobian and gamma
-`assembly`         `Assembler`: owns the arrays and calls the kernels
-`_force_kernels`   numba kernels of the applied and inertial forces and the element forces
-`dynamics`         forces that hold the motion: multipliers, driver forces, reactions
-`_lu_kernels`      numba LU: refactorization on fixed L/U patterns, solves, dense LU
-`linalg`           linear solvers behind one interface: SuperLU, refactorization, dense
-`rank`             numerical rank, null spaces and conditioning of a sparse Jacobian
-`newton`           Newton–Raphson: the rules (shared with the compiled loop), the loop
-`reduced`          square systems without redundant equations, or with coordinates held
-`describe`         words for messages: equations, coordinates, motions
-`failures`         what went wrong: model errors, lock-up and convergence errors
-`ordering`         a long chain's first pivot order, tiled from a short chain
-`stepper`          `KinematicStepper`: the time loop, one sample at a time
-`_compiled`        the whole time loop of a small model in one numba call
-`results`          `KinematicsResult`: points, joint and driver coordinates, forces
-`recording`        what a run keeps, in chunks, in memory or in a Zarr store
-`solvers`          `solve_kinematics`: validate, run the loop, return the result
-`check`            `check_model`: degrees of freedom, rank, redundancy, free motions
-`sweeps`           `sweep`: many variants on Dask (`VariantSet`, `SweepResult`)
-`workspaces`       `workspace`: a point's reachable region over two drivers' values
-`cli`              the ``sparsekin`` command; `plotting` its figures
+`model`            the description: laws, primitives, loads, the element declarations
+                   (`model.elements`), bodies, units and repeats, `Mechanism`, the file
+`engine`           the equations made numbers: pattern (once), numba kernels that refill
+                   residual, Jacobian and gamma, linear solvers, orderings, Newton, forces
+`analysis`         numerical rank and null spaces, words for messages, failures, `check_model`
+`results`          what a run keeps (memory or Zarr) and returns: `KinematicsResult`
+`solve`            the time loop: `KinematicStepper`, the compiled loop, `solve_kinematics`
+`studies`          `sweep` (`VariantSet`, `SweepResult`) on Dask, `workspace`
+`plots`            figures and animations (matplotlib, imported inside the functions)
+`cli`              the ``sparsekin`` command, a module per command
 =================  ===========================================================
-
-Imports point down this list (`geometry`, `errors` and `_validate` are below all).
 
 A slider-crank, from description to the motion of its slider:
 
