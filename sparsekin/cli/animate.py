@@ -15,7 +15,13 @@ from ..results.kinematics import KinematicsResult
 from .common import EXIT_INTERRUPTED, EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
 from .run import solve_for_command
-from .settings import DEFAULT_OUTPUT_ROOT, DEFAULT_STEPS, RunSettings, parse_point_names, resolve_times
+from .settings import (
+    DEFAULT_OUTPUT_ROOT,
+    RunSettings,
+    add_time_arguments,
+    parse_point_names,
+    resolve_times,
+)
 
 
 def add_animate_command(subparsers) -> None:
@@ -39,11 +45,7 @@ def add_animate_command(subparsers) -> None:
         "--trace", metavar="K,W", help="points whose paths are drawn, separated by commas, or none (default: "
         "[analysis].points, else none)"
     )
-    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
-    parser.add_argument(
-        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
-        f"[analysis].steps, else {DEFAULT_STEPS})"
-    )
+    add_time_arguments(parser)
     parser.add_argument("--fps", type=float, metavar="F", help="frames per second (default 20 for a GIF, at most "
                         "50; 30 for an MP4)")  # fmt: skip
     parser.add_argument("--duration", type=float, metavar="D",

@@ -24,13 +24,13 @@ from .common import (
 )
 from .files import count_samples, write_outputs
 from .settings import (
-    DEFAULT_OUTPUT_ROOT,
-    DEFAULT_STEPS,
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
     MAX_DEFAULT_VALUES,
     RunSettings,
+    add_folder_argument,
     add_force_arguments,
+    add_time_arguments,
     resolve_run_settings,
 )
 
@@ -45,11 +45,7 @@ def add_run_command(subparsers) -> None:
         "joints.csv, forces.csv, coordinates.npz and, with --plot, PNG figures.",
     )
     parser.add_argument("model", type=Path, metavar="MODEL.toml", help="the model file")
-    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
-    parser.add_argument(
-        "--steps", type=int, metavar="N", help=f"number of samples, t = 0 included (default: "
-        f"[analysis].steps, else {DEFAULT_STEPS})"
-    )
+    add_time_arguments(parser)
     parser.add_argument(
         "--points", metavar="A,J", help="output points separated by commas, or all or none (default: "
         f"[analysis].points, else every named point up to {MAX_DEFAULT_POINTS})"
@@ -68,10 +64,7 @@ def add_run_command(subparsers) -> None:
                         help='csv: points.csv, joints.csv, coordinates.npz; zarr: results.zarr, written while the '
                         'run goes on (needs "sparsekin[zarr]")')
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--out", type=Path, metavar="DIR",
-        help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/<model name>)",
-    )
+    add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
     parser.set_defaults(handler=run_command)
 

@@ -80,6 +80,24 @@ class RunSettings:
     quasi_static: bool = False
 
 
+def add_time_arguments(parser, samples: str = "number of samples") -> None:
+    """``--t-end`` and ``--steps`` (of ``run``, ``sweep`` and ``animate``; `resolve_times`)."""
+    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
+    parser.add_argument("--steps", type=int, metavar="N", help=f"{samples}, t = 0 included (default: "
+                        f"[analysis].steps, else {DEFAULT_STEPS})")  # fmt: skip
+
+
+def add_folder_argument(parser) -> None:
+    """``--out DIR`` (of ``run``, ``sweep`` and ``workspace``; `output_folder`)."""
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/<model name>)")  # fmt: skip
+
+
+def output_folder(arguments: argparse.Namespace, mechanism: Mechanism) -> Path:
+    """``--out``, else ``./sparsekin-out/<model name>``."""
+    return arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
+
+
 def add_force_arguments(parser, where: str) -> None:
     """``--forces`` and ``--quasi-static`` (of ``run`` and ``sweep``)."""
     parser.add_argument(
@@ -147,7 +165,7 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
         else:
             why = f"{n_elements} drivers and joints: no forces are computed by default (give --forces D1,J2 or all)"
         raise CommandError(f"--quasi-static changes the forces, but {why}")
-    directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
+    directory = output_folder(arguments, mechanism)
     return RunSettings(
         times, tuple(point_names), directory, getattr(arguments, "plot", False), joint_indices, coordinates,
         getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces, quasi_static,

@@ -18,12 +18,12 @@ from .common import (
     require_matplotlib,
 )
 from .settings import (
-    DEFAULT_OUTPUT_ROOT,
-    DEFAULT_STEPS,
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
     MAX_DEFAULT_VALUES,
+    add_folder_argument,
     add_force_arguments,
+    add_time_arguments,
     resolve_run_settings,
 )
 
@@ -50,9 +50,7 @@ def add_sweep_command(subparsers) -> None:
                         help="move every point's drawn position by a normal deviation of SIGMA m")  # fmt: skip
     parser.add_argument("--seed", type=int, metavar="S", help="seed of the random deviations (default: fresh, "
                         "written to the store)")  # fmt: skip
-    parser.add_argument("--t-end", type=float, metavar="T", help="end time, s (default: [analysis].t_end)")
-    parser.add_argument("--steps", type=int, metavar="N", help=f"samples per variant, t = 0 included (default: "
-                        f"[analysis].steps, else {DEFAULT_STEPS})")  # fmt: skip
+    add_time_arguments(parser, "samples per variant")
     parser.add_argument("--points", metavar="A,J", help="points recorded, or all or none (default: "
                         f"[analysis].points, else every named point up to {MAX_DEFAULT_POINTS})")  # fmt: skip
     parser.add_argument("--joints", metavar="J1,J2", help="joints recorded, or all or none (default: every joint "
@@ -72,8 +70,7 @@ def add_sweep_command(subparsers) -> None:
     parser.add_argument("--variants-per-task", type=int, metavar="N", help="variants per Dask task (default: "
                         "four tasks per worker)")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--out", type=Path, metavar="DIR", help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/"
-                        "<model name>)")  # fmt: skip
+    add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
                         'the stop times against the varied parameter (needs "sparsekin[plot]")')  # fmt: skip
     parser.add_argument("--plot-point", metavar="P", help="with --plot, the point whose paths are drawn (default: "

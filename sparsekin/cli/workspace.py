@@ -10,7 +10,11 @@ from ..model import _validate
 from ..model.modelfile import load_model
 from .common import EXIT_SUCCESS, CommandError, require_matplotlib
 from .files import write_workspace
-from .settings import DEFAULT_OUTPUT_ROOT, LISTED_POINTS
+from .settings import (
+    LISTED_POINTS,
+    add_folder_argument,
+    output_folder,
+)
 
 
 def add_workspace_command(subparsers) -> None:
@@ -31,8 +35,7 @@ def add_workspace_command(subparsers) -> None:
     parser.add_argument("--range", action="append", default=[], metavar="D=START:STOP", dest="ranges",
                         help="a driver's range of values, m or rad (default: the span of its law over "
                         "[analysis].t_end, widened twofold)")  # fmt: skip
-    parser.add_argument("--out", type=Path, metavar="DIR", help=f"output folder (default: ./{DEFAULT_OUTPUT_ROOT}/"
-                        "<model name>)")  # fmt: skip
+    add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw workspace_<point>.png (needs "sparsekin[plot]")')
     parser.set_defaults(handler=workspace_command)
 
@@ -84,7 +87,7 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         raise (error if error.file else error.in_file(str(arguments.model))) from None
     except ConvergenceError as error:
         raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
-    directory = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name
+    directory = output_folder(arguments, mechanism)
     directory.mkdir(parents=True, exist_ok=True)
     written = write_workspace(space, directory)
     if arguments.plot:
