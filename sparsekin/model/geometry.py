@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rotate", "to_local", "to_global", "carried_motion"]
+__all__ = ["rotate", "to_local", "to_global", "carried_motion", "LocalCoordinates"]
 
 
 def rotate(vectors: np.ndarray, angles) -> np.ndarray:
@@ -31,6 +31,34 @@ def rotate(vectors: np.ndarray, angles) -> np.ndarray:
 def to_local(frames: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Coordinates in the frames ``(x, y, angle)`` (shape (n, 3)) of global points (n, 2)."""
     return rotate(points - frames[:, :2], -frames[:, 2])
+
+
+class LocalCoordinates:
+    """`to_local` for many points on few frames: each frame's cos and sin computed once,
+    not once per point (the equations of a million-body model carry several points per body).
+
+    Parameters
+    ----------
+    frames : ndarray, shape (n, 3)
+        ``(x, y, angle)`` of each frame.
+    """
+
+    def __init__(self, frames: np.ndarray) -> None:
+        self.frames, self.cosine, self.sine = frames, np.cos(frames[:, 2]), np.sin(frames[:, 2])
+
+    def __call__(self, frame: np.ndarray, points: np.ndarray, turn_only: bool = False) -> np.ndarray:
+        """``R(angle)ᵀ (p - origin)`` of each point in its frame, indices `frame` (k,), points
+        (k, 2); ``R(angle)ᵀ p`` (a vector turned) if `turn_only`.  Shape (k, 2)."""
+        if turn_only:
+            dx, dy = points[:, 0], points[:, 1]
+        else:
+            origins = self.frames[frame, :2]
+            dx, dy = points[:, 0] - origins[:, 0], points[:, 1] - origins[:, 1]
+        cosine, sine = self.cosine[frame], self.sine[frame]
+        out = np.empty((frame.size, 2))
+        out[:, 0] = cosine * dx + sine * dy
+        out[:, 1] = cosine * dy - sine * dx
+        return out
 
 
 def to_global(frames: np.ndarray, local: np.ndarray) -> np.ndarray:

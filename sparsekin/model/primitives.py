@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from .._jit import JIT
+from .geometry import LocalCoordinates
 
 __all__ = [
     "Coincidence",
@@ -240,7 +241,7 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
         indices, indptr = indices.astype(np.int32), indptr.astype(np.int32)
     ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
 
-    local = _Local(frames)
+    local = LocalCoordinates(frames)
     primitives = Primitives(
         CoincidenceArrays(
             _ints(c.body_i), _ints(c.body_j), local(c.body_i, c.point_i), local(c.body_j, c.point_j), _ints(c.row),
@@ -261,27 +262,6 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
     row_is_angle[m.row] = np.all((m.coordinate == 2) | (m.body >= n), axis=1)
     initial = initial_values(c, p, m, d, frames, n_rows)
     return PackedEquations(primitives, indptr, indices, initial, row_is_angle)
-
-
-class _Local:
-    """Local coordinates of global points (or vectors) in the drawn frames of bodies: the
-    cos and sin of each body's angle computed once, not once per entry."""
-
-    def __init__(self, frames: np.ndarray) -> None:
-        self.frames, self.cosine, self.sine = frames, np.cos(frames[:, 2]), np.sin(frames[:, 2])
-
-    def __call__(self, body: np.ndarray, points: np.ndarray, turn_only: bool = False) -> np.ndarray:
-        """``R(angle_b)ᵀ (p - origin_b)`` for each entry (``R(angle_b)ᵀ p`` if `turn_only`), shape (k, 2)."""
-        if turn_only:
-            dx, dy = points[:, 0], points[:, 1]
-        else:
-            origins = self.frames[body, :2]
-            dx, dy = points[:, 0] - origins[:, 0], points[:, 1] - origins[:, 1]
-        cosine, sine = self.cosine[body], self.sine[body]
-        out = np.empty((body.size, 2))
-        out[:, 0] = cosine * dx + sine * dy
-        out[:, 1] = cosine * dy - sine * dx
-        return out
 
 
 def initial_values(c: Coincidence, p: Projection, m: Combination, d: Distance, frames, n_rows) -> np.ndarray:
