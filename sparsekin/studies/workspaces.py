@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConvergenceError, ModelError, SingularJacobianError
+from ..model.geometry import to_global
 from ..model.laws import Linear
 from ..model.mechanism import Mechanism
 
@@ -195,9 +196,7 @@ def workspace(mechanism: Mechanism, point: str, drivers: Sequence = (0, 1), grid
         body, local = locate
         if body < 0:
             return np.asarray(local, dtype=float)
-        x, y, angle = q[3 * body : 3 * body + 3]
-        c, s = math.cos(angle), math.sin(angle)
-        return np.array([x + c * local[0] - s * local[1], y + s * local[0] + c * local[1]])
+        return to_global(q[None, 3 * body : 3 * body + 3], np.asarray(local, dtype=float)[None])[0]
 
     def within_limits(q: np.ndarray) -> bool:
         if outputs is None:
