@@ -64,6 +64,25 @@ def test_a_run_without_coordinates_keeps_its_points_and_joints():
         lean.joint(0)
 
 
+def test_a_run_in_memory_fills_its_arrays_in_place(monkeypatch):
+    """Over several chunks, what the recorder writes to a memory sink is already there (views
+    of its arrays), except the points, computed from the bodies' frames at each chunk."""
+    copied = []
+    write = recording.MemorySink.write
+
+    def watched(sink, first, data):
+        copied.append({key for key, rows in data.items() if rows.base is not sink.arrays[key]})
+        return write(sink, first, data)
+
+    monkeypatch.setattr(recording.MemorySink, "write", watched)
+    times = np.linspace(0.0, 10.0, 2 * recording.MAX_CHUNK_SAMPLES + 1)
+    result = solve_kinematics(testset.task5(), times, points=["K"], joints="all")
+    assert copied == [{"points"}] * 3 and result.n_times == times.size
+    derived = solve_kinematics(testset.task5(), times)  # K and the joints derived from the coordinates
+    np.testing.assert_array_equal(np.hstack(result.point("K")), np.hstack(derived.point("K")))
+    np.testing.assert_array_equal(np.column_stack(result.joint(0)), np.column_stack(derived.joint(0)))
+
+
 def test_progress_is_reported_up_to_every_sample():
     calls = []
     times = np.linspace(0.0, 10.0, 10_001)

@@ -5,8 +5,8 @@ derivatives (the default), the motion of named points, the own coordinates of jo
 The time loop hands each solved sample (or a block of samples, from the compiled loop) to
 a `Recorder`, which fills a chunk of rows and writes every full chunk to a sink:
 
-* `MemorySink` — arrays for every sample, in memory (the default): the recorder fills its
-  arrays in place, its "chunk" is the whole run;
+* `MemorySink` — arrays for every sample, in memory (the default): the recorder fills
+  each chunk's rows in place there;
 * `ZarrSink` — a Zarr store written chunk by chunk while the run goes on, which
   ``xarray.open_zarr`` opens as a Dataset (the ``zarr`` extra: ``pip install
   "sparsekin[zarr]"``).  Peak memory is then the model plus a chunk, whatever the number
@@ -208,18 +208,19 @@ class Recorder:
     def __init__(self, selection: Selection, sink) -> None:
         self.selection, self.sink = selection, sink
         mechanism = selection.mechanism
-        # A memory sink's arrays are the rows themselves (filled in place, not copied again);
-        # a store is written a chunk of rows at a time.
-        held = getattr(sink, "arrays", None) or {}
-        self.chunk = selection.chunk_samples()  # samples a time loop solves between reports
-        self.size = size = held["t"].size if held else self.chunk
-
-        def rows(key: str, *shape: int) -> np.ndarray:
-            return held[key] if key in held else np.empty((size, *shape))
-
-        n = mechanism.n_coordinates
-        self._t = rows("t")
-        self._q = [rows(key, n) for key in ("q", "qd", "qdd")] if selection.coordinates else None
+        self.size = size = selection.chunk_samples()
+        self._first = 0  # the index of the chunk's first sample
+        # A memory sink's arrays hold the chunk's rows themselves (filled in place, not copied
+        # again: `_chunk_rows`); for a store, the rows of one chunk.
+        self._held = getattr(sink, "arrays", None) or {}
+        self._shapes = {"t": ()}
+        if selection.coordinates:
+            self._shapes |= dict.fromkeys(("q", "qd", "qdd"), (mechanism.n_coordinates,))
+        if selection.joint_indices:
+            self._shapes["joints"] = (len(selection.joint_indices), 3)
+        if selection.forces is not None:
+            self._shapes["forces"] = (selection.n_force_columns,)
+        self._chunk_rows()
         # points: the frames of the bodies that carry them, and where they sit on them
         point_map = build_point_map(mechanism)
         located = [point_map.locate(name) for name in selection.point_names]
@@ -229,13 +230,21 @@ class Recorder:
         self._frames = [np.empty((size, self._carriers.size, 3)) for _ in range(3)]
         if selection.joint_indices:
             self._outputs = build_output_pattern(mechanism, joints=selection.joint_indices)
-            self._joints = rows("joints", len(selection.joint_indices), 3)
-        self._forces = rows("forces", selection.n_force_columns) if selection.forces is not None else None
         self._rows = 0
-        self._first = 0  # the index of the chunk's first sample
         self.n_written = 0
         self._failed = False  # a write to the sink failed
         self._limits = _LimitWatch(mechanism)
+
+    def _chunk_rows(self) -> None:
+        """The arrays the next chunk's rows go into: views of a memory sink's arrays from
+        the chunk's first sample on, or arrays of one chunk."""
+        rows = {}
+        for key, shape in self._shapes.items():
+            held = self._held.get(key)
+            rows[key] = np.empty((self.size, *shape)) if held is None else held[self._first : self._first + self.size]
+        self._t = rows["t"]
+        self._q = [rows[key] for key in ("q", "qd", "qdd")] if "q" in rows else None
+        self._joints, self._forces = rows.get("joints"), rows.get("forces")
 
     @property
     def limit_crossings(self):
@@ -305,6 +314,8 @@ class Recorder:
             self._first += m
             self.n_written = self._first
             self._rows = 0
+            if self._held:
+                self._chunk_rows()
 
     def _point_tracks(self, m: int) -> np.ndarray:
         out = np.empty((m, len(self.selection.point_names), 6))
@@ -413,8 +424,8 @@ def _clear_store(path: str) -> None:
 
 
 class MemorySink:
-    """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (rows
-    it hands to `write` that are views of them are not copied again)."""
+    """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (the
+    rows it hands to `write` that are views of them are not copied again)."""
 
     def __init__(self, selection: Selection, n_times: int) -> None:
         n = selection.mechanism.n_coordinates

@@ -289,7 +289,7 @@ class _Run:
         that the progress is reported and an interrupt is taken between chunks.
         """
         stepper, times = self.stepper, self.times
-        size = min(self.recorder.chunk, times.size)
+        size = min(self.recorder.size, times.size)
         n = stepper.pattern.n_coordinates
         rows = [np.empty((size + 1, n)) for _ in range(3)]
         iterations = np.zeros(size + 1, dtype=np.int64)
