@@ -3,7 +3,10 @@ written out element by element, and the comparison of two motions.
 
 Each mechanism is drawn from its points: every body's frame sits on its first pin and
 points along its link, so a test gives the points (from its own closed form) and the law,
-and the helper writes the elements.
+and the helper writes the elements.  Their keywords: ``masses``, the keywords of `Body`
+(``mass``, ``inertia``, ``com``) by body name; ``angles``, drawn angles by body name, rad
+(a body's angle coordinate starts there; default along its link); ``gravity`` and ``name``
+of the `Mechanism`.
 """
 
 from __future__ import annotations
@@ -54,35 +57,30 @@ def _links(points: dict, links: dict, masses: dict | None, angles: dict | None) 
     ]  # fmt: skip
 
 
+def _crank_driven(points: dict, bodies: list, pins, others, law, gravity, name) -> Mechanism:
+    """A revolute joint named after its point for each ``(body, body, point)`` of `pins`,
+    then the `others`; the crank turned by `law` about the ground (driver ``motor``)."""
+    return Mechanism(
+        points=points,
+        bodies=bodies,
+        joints=[*(Revolute((first, second), at=point, name=point) for first, second, point in pins), *others],
+        drivers=[] if law is None else [RotationalDriver(("crank", "ground"), law=law, name="motor")],
+        gravity=gravity,
+        **({} if name is None else {"name": name}),
+    )
+
+
 def slider_crank(points: dict, guide, law, *, masses: dict | None = None, angles: dict | None = None,
                  gravity=(0.0, 0.0), name=None) -> Mechanism:  # fmt: skip
     """Crank O–A turning about the ground pivot O (driver ``motor``), rod A–B, slider at B
     on `guide` (a translational joint between the ground and the slider).
 
-    Parameters
-    ----------
-    points : dict
-        O, A and B (and any others the masses name), m.
-    masses : dict, optional
-        Keywords of `Body` by body name (``mass``, ``inertia``, ``com``).
-    angles : dict, optional
-        Drawn angles by body name, rad (default: along each link; a body's angle
-        coordinate starts there).
+    `points` holds O, A and B (and any others the masses name), m.
     """
-    return Mechanism(
-        points=points,
-        bodies=[*_links(points, {"crank": ("O", "A"), "rod": ("A", "B")}, masses, angles),
-                Body("slider", origin="B", points=("B",), **(masses or {}).get("slider", {}))],  # fmt: skip
-        joints=[
-            Revolute(("crank", "ground"), at="O", name="O"),
-            Revolute(("crank", "rod"), at="A", name="A"),
-            Revolute(("rod", "slider"), at="B", name="B"),
-            guide,
-        ],
-        drivers=[RotationalDriver(("crank", "ground"), law=law, name="motor")],
-        gravity=gravity,
-        **({} if name is None else {"name": name}),
-    )
+    bodies = [*_links(points, {"crank": ("O", "A"), "rod": ("A", "B")}, masses, angles),
+              Body("slider", origin="B", points=("B",), **(masses or {}).get("slider", {}))]  # fmt: skip
+    pins = [("crank", "ground", "O"), ("crank", "rod", "A"), ("rod", "slider", "B")]
+    return _crank_driven(points, bodies, pins, [guide], law, gravity, name)
 
 
 def four_bar(points: dict, law, *, coupler_points=("A", "B"), masses: dict | None = None,
@@ -90,29 +88,10 @@ def four_bar(points: dict, law, *, coupler_points=("A", "B"), masses: dict | Non
     """Crank O2–A, coupler A–B, rocker O4–B, pinned to the ground at O2 and O4; the crank
     follows `law` (driver ``motor``), or nothing moves it if `law` is None.
 
-    Parameters
-    ----------
-    points : dict
-        O2, O4, A, B and the other points of `coupler_points` and of the masses, m.
-    coupler_points : tuple of str
-        The points the coupler carries, A and B first.
-    masses : dict, optional
-        Keywords of `Body` by body name (``mass``, ``inertia``, ``com``).
-    angles : dict, optional
-        Drawn angles by body name, rad (default: along each link; a body's angle
-        coordinate starts there).
+    `points` holds O2, O4, A, B and the other points of `coupler_points` (those the
+    coupler carries, A and B first) and of the masses, m.
     """
-    return Mechanism(
-        points=points,
-        bodies=_links(points, {"crank": ("O2", "A"), "coupler": tuple(coupler_points), "rocker": ("O4", "B")},
-                      masses, angles),  # fmt: skip
-        joints=[
-            Revolute(("crank", "ground"), at="O2", name="O2"),
-            Revolute(("crank", "coupler"), at="A", name="A"),
-            Revolute(("coupler", "rocker"), at="B", name="B"),
-            Revolute(("rocker", "ground"), at="O4", name="O4"),
-        ],
-        drivers=[] if law is None else [RotationalDriver(("crank", "ground"), law=law, name="motor")],
-        gravity=gravity,
-        **({} if name is None else {"name": name}),
-    )
+    links = {"crank": ("O2", "A"), "coupler": tuple(coupler_points), "rocker": ("O4", "B")}
+    pins = [("crank", "ground", "O2"), ("crank", "coupler", "A"), ("coupler", "rocker", "B"),
+            ("rocker", "ground", "O4")]
+    return _crank_driven(points, _links(points, links, masses, angles), pins, [], law, gravity, name)
