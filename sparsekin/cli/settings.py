@@ -26,14 +26,10 @@ MAX_DEFAULT_POINTS = 100
 MAX_DEFAULT_JOINTS = 100
 MAX_DEFAULT_VALUES = 20_000_000
 MAX_DEFAULT_FORCE_ELEMENTS = 100
-
-
 #: Samples of ``sparsekin run`` when neither ``--steps`` nor ``[analysis].steps`` is given.
 DEFAULT_STEPS = 101
 #: Parent of the default output folder, ``./sparsekin-out/<model name>``.
 DEFAULT_OUTPUT_ROOT = Path("sparsekin-out")
-
-
 #: Most point names listed in the message about an unknown point.
 LISTED_POINTS = 20
 
@@ -111,6 +107,9 @@ def add_force_arguments(parser, where: str) -> None:
 
 def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) -> RunSettings:
     """Combine the options with the model's ``[analysis]`` defaults and check them.
+
+    `arguments` are those of ``run`` or of a command that shares its options (``sweep``):
+    an option the command does not have takes its default.
 
     Raises
     ------

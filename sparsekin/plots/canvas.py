@@ -11,8 +11,6 @@ from ..model.mechanism import GROUND, Mechanism
 
 #: Size of symbols (joints, ground marks, one-point bodies) relative to the model's extent.
 SYMBOL_SCALE = 0.025
-
-
 #: Length of the cylinder and of the rod of an actuator drawn from one-point bodies, as a
 #: fraction of the actuator's drawn length: they overlap by 0.4 of it at the start and part
 #: only when it extends by 40 %.

@@ -19,12 +19,10 @@ from .variants import VariantDesign, VariantSet
 #: a dead centre); stopped because Newton failed otherwise; no mechanism could be analysed
 #: with its values (a `ModelError` when it was built or at its first sample).
 STATUSES = ("complete", "singular", "no_convergence", "invalid")
-
-
 #: Most bytes of one chunk of the Zarr store.
 CHUNK_BYTES = 64 * 2**20
-
-
+#: The recorded arrays, their dimensions after (variant, time), and the dtype of the
+#: statuses (as long as the longest).
 _ARRAY_KEYS = ("q", "qd", "qdd", "points", "joints", "forces")
 STATUS_DTYPE = f"<U{max(map(len, STATUSES))}"
 _DIMENSIONS = {"q": ("coordinate",), "qd": ("coordinate",), "qdd": ("coordinate",),

@@ -90,8 +90,6 @@ DISTRIBUTED_EXTRA = 'sweeps need dask and distributed: pip install "sparsekin[di
 TASKS_PER_THREAD = 4
 #: Most bytes of results one task returns (its variants' arrays together).
 TASK_BYTES = 256 * 2**20
-
-
 #: Tasks submitted but not yet written, per worker thread: one running, one waiting.
 PENDING_PER_THREAD = 2
 
