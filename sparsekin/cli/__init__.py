@@ -48,6 +48,7 @@ from ..model.mechanism import Mechanism
 from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
 from ..solve.kinematics import solve_kinematics
+from .compiling import announce_compilation
 
 __all__ = ["main", "build_parser"]
 
@@ -251,6 +252,7 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         _report(f"note: {note}")
+    announce_compilation(settings.quiet)
     try:
         with _Progress(settings, timeline) as progress:
             result = _solve(mechanism, settings, arguments.model, progress)
