@@ -94,6 +94,7 @@ from .model.elements import (
     Translational,
     TranslationalDriver,
 )
+from .model.composites import Cylinder
 from .model.laws import Harmonic, Law, Linear, Polynomial, Spline
 from .model.mechanism import GROUND, Analysis, Body, Mechanism
 from .model.modelfile import load_model, save_model
@@ -111,6 +112,7 @@ __all__ = [
     "ConvergenceError",
     "CoordinateMotion",
     "Cycle",
+    "Cylinder",
     "DistanceDriver",
     "DriverForce",
     "Force",
