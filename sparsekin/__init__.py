@@ -77,6 +77,7 @@ from .errors import (
     SingularConfigurationError,
     SingularJacobianError,
     SparsekinError,
+    UnjoinedPointWarning,
 )
 from .model.elements import (
     AbsoluteDriver,
@@ -148,6 +149,7 @@ __all__ = [
     "Translational",
     "TranslationalDriver",
     "Unit",
+    "UnjoinedPointWarning",
     "analyse_jacobian",
     "check_model",
     "load_model",

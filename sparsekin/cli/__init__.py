@@ -49,6 +49,7 @@ from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
 from ..solve.kinematics import solve_kinematics
 from .compiling import announce_compilation
+from .warning_lines import one_line_warnings
 
 __all__ = ["main", "build_parser"]
 
@@ -152,7 +153,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exit_request:  # usage errors and --help: argparse has printed
         return int(exit_request.code or 0)
     try:
-        return arguments.handler(arguments)
+        with one_line_warnings(PROGRAM):
+            return arguments.handler(arguments)
     except (CommandError, ModelError) as error:
         _report(f"error: {error}")
     except OSError as error:  # an output folder or file that cannot be written

@@ -32,6 +32,7 @@ from .composites import COMPOSITE_KINDS, Parts
 from .elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from .laws import BUILT_IN_LAWS, Spline
 from .mechanism import Analysis, Body, Mechanism
+from .shared_points import warn_unjoined_points
 from .units import Cycle, Repeat, Step, Unit
 
 __all__ = ["load_model", "save_model"]
@@ -126,14 +127,22 @@ def load_model(path: str | os.PathLike) -> Mechanism:
         For every mistake: an unreadable file, bad TOML, an unknown or missing key, a
         wrong value, an unknown body or point.  The message is one line,
         ``<path as given>: <element>: <what was expected>``.
+
+    Warns
+    -----
+    UnjoinedPointWarning
+        When a point is carried by bodies that no joint connects there
+        (`sparsekin.model.shared_points`).
     """
     shown = os.fsdecode(path)
     try:
         document = _parse(Path(shown))
         reader = _Reader(folder=Path(shown).parent)
-        return reader.mechanism(document, default_name=Path(shown).stem)
+        mechanism = reader.mechanism(document, default_name=Path(shown).stem)
     except ModelError as error:
         raise _one_line(error if error.file else error.in_file(shown)) from None
+    warn_unjoined_points(mechanism, source=shown)
+    return mechanism
 
 
 class _Reader:
