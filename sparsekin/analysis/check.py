@@ -132,7 +132,7 @@ class ModelReport:
         Whether a run computes forces by default: a body has a mass or an inertia, or a
         load acts (`Mechanism.has_forces`).
     law_offsets, actuator_directions, unjoined_points : tuple of str
-        The notices of `sparsekin.analysis.notices`: drivers whose law at `time` is away
+        The notices of `sparsekin.analysis.notices`: drivers whose law at t = 0 is away
         from the drawing, which sign extends each actuator, points carried by bodies that
         no joint connects there (a warning; not a problem of the verdict).
     """
@@ -311,7 +311,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         limits = tuple(limit_states(mechanism, outputs, values, [float(time)]))
     massless, n_massless = _massless_bodies(mechanism)
     return ModelReport(
-        law_offsets=law_offsets(mechanism, pattern, float(time)),
+        law_offsets=law_offsets(mechanism, pattern),
         actuator_directions=actuator_directions(mechanism),
         unjoined_points=unjoined_point_lines(mechanism),
         limits=limits,

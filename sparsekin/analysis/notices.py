@@ -2,9 +2,10 @@
 
 Three notices, each a tuple of lines in `sparsekin.analysis.check.ModelReport`:
 
-* `law_offsets`: the drivers whose law, at the time of the check, is not at the drawn
-  value of what they drive (a harmonic law with a `phase`, a spline of absolute values,
-  an explicit `offset`): the pose at that time is not the drawing, and by how much;
+* `law_offsets`: the drivers whose law at t = 0 is not at the drawn value of what they
+  drive (a harmonic law with a `phase`, a spline of absolute values, an explicit
+  `offset`): the pose at t = 0 is not the drawing, and by how much (whatever the time of
+  the check);
 * `actuator_directions`: for each stroke or distance driver, which sign extends the
   actuator, so that a swapped axis, which flips the sign of a stroke, shows;
 * `sparsekin.model.shared_points.unjoined_points`: points carried by bodies that no joint
@@ -35,8 +36,8 @@ LISTED_NOTICES = 8
 OFFSET_TOLERANCE = 1e-9
 
 
-def law_offsets(mechanism: Mechanism, pattern: ConstraintPattern, time: float) -> tuple[str, ...]:
-    """One line per driven quantity whose law at `time` is not its drawn value:
+def law_offsets(mechanism: Mechanism, pattern: ConstraintPattern, time: float = 0.0) -> tuple[str, ...]:
+    """One line per driven quantity whose law at `time` (default 0) is not its drawn value:
     ``drivers[2] (stroke of joint "bucket_actuator"): law 0.1 m from the drawing at t = 0 s``.
 
     The value is the law's minus the drawn one, in the driven quantity's unit.
@@ -141,10 +142,10 @@ def notice_lines(report) -> list[str]:
     """The lines of the three notices in ``sparsekin check``'s report."""
     lines = []
     if report.law_offsets:
-        lines.append(f"laws away from the drawing at t = {report.time:g} s (the pose then is not the drawing):")
+        lines.append("laws away from the drawing at t = 0 s (the pose then is not the drawing):")
         lines += [f"  {line}" for line in report.law_offsets]
     else:
-        lines.append(f"laws away from the drawing at t = {report.time:g} s: none")
+        lines.append("laws away from the drawing at t = 0 s: none")
     if report.actuator_directions:
         lines.append("actuators (a growing driven value):")
         lines += [f"  {line}" for line in report.actuator_directions]

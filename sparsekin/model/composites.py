@@ -31,7 +31,7 @@ from ..errors import ModelError
 from . import _validate
 from ._validate import FileKeys
 from .bodies import Body
-from .elements import PointRef, Revolute, Translational, TranslationalDriver, shown_point
+from .elements import PointRef, Revolute, Translational, TranslationalDriver, _two_points, shown_point
 from .laws import Law
 
 __all__ = ["COMPOSITE_KINDS", "composite_kind", "Parts", "Cylinder"]
@@ -108,11 +108,7 @@ class Cylinder:
     def __post_init__(self) -> None:
         _set(self, "name", _validate.name(self.name, "name"))
         _set(self, "bodies", _validate.two_names(self.bodies, "bodies"))
-        points = self.points
-        if isinstance(points, str) or not _validate.is_sequence(points) or len(points) != 2:
-            raise ModelError(f"expected the two pins [P, Q], got {points!r}", element="points")
-        _set(self, "points", (_validate.point_reference(points[0], "points[0]"),
-                              _validate.point_reference(points[1], "points[1]")))  # fmt: skip
+        _set(self, "points", _two_points(self.points))
         if self.points[0] == self.points[1]:
             raise ModelError(f"the two pins are the same point {shown_point(self.points[0])}; expected "
                              "the barrel's pin and the rod's", element="points")  # fmt: skip
