@@ -205,3 +205,18 @@ def test_a_wrong_cylinder_is_named_in_one_line(tmp_path, change, message):
     with pytest.raises(ModelError, match=message) as caught:
         load_model(path)
     assert "\n" not in str(caught.value)
+
+
+def test_the_excavator_with_cylinder_composites_moves_as_the_one_written_by_hand():
+    """examples/excavator_cylinders.toml is examples/excavator.toml with its three cylinders
+    as composites (other names for the parts): the bucket tip and the strokes match."""
+    from examples_loader import EXAMPLES
+
+    hand, composite = (load_model(EXAMPLES / f"{name}.toml") for name in ("excavator", "excavator_cylinders"))
+    assert composite.n_bodies == hand.n_bodies and len(composite.joints) == len(hand.joints)
+    times = np.linspace(0.0, 8.0, 81)
+    actuators = ["boom_actuator", "stick_actuator", "bucket_actuator"]
+    results = [solve_kinematics(m, times, joints=actuators) for m in (hand, composite)]
+    np.testing.assert_allclose(results[1].point("T").position, results[0].point("T").position, rtol=0, atol=1e-9)
+    for name in actuators:
+        np.testing.assert_allclose(results[1].joint(name).value, results[0].joint(name).value, rtol=0, atol=1e-9)

@@ -50,6 +50,7 @@ GALLERY_TITLES = {
     "watt_six_bar": "Watt six-bar",
     "quick_return": "Quick-return (crank and slotted lever)",
     "excavator": "Excavator front",
+    "excavator_cylinders": "Excavator front with cylinder composites",
     "planetary_gear": "Planetary gear train",
     "task5_distance": "Task 5 with distance drivers",
     "four_bar_chain": "Four-bar chain (1000 loops)",
