@@ -51,11 +51,12 @@ def law_offsets(mechanism: Mechanism, pattern: ConstraintPattern, time: float = 
     rows = np.flatnonzero(weighted > OFFSET_TOLERANCE)
     if rows.size == 0:
         return ()
-    labels = driven_labels(mechanism, pattern)
+    listed = rows[:LISTED_NOTICES]
+    labels = driven_labels(mechanism, pattern, listed)  # the listed rows only: a model may have 10^5 drivers
     lines = []
-    for k in rows[:LISTED_NOTICES].tolist():
+    for label, k in zip(labels, listed.tolist()):
         unit = "rad" if pattern.row_is_angle[pattern.driven_row[k]] else "m"
-        lines.append(f"{labels[k]}: law {away[k]:+.6g} {unit} from the drawing at t = {time:g} s")
+        lines.append(f"{label}: law {away[k]:+.6g} {unit} from the drawing at t = {time:g} s")
     if rows.size > LISTED_NOTICES:
         lines.append(f"… and {rows.size - LISTED_NOTICES} more")
     return tuple(lines)
