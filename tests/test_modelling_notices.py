@@ -170,3 +170,10 @@ offset = [1.0, 0.0]
     assert [str(point) for point in unjoined_points(mechanism)] == [
         'point "Q" in units.bay is carried by post and arm, which no joint connects there'
     ]
+
+
+def test_a_point_listed_twice_by_one_body_is_not_shared(tmp_path):
+    text = '[points]\nP = [0.0, 0.0]\n[bodies.a]\norigin = "P"\npoints = ["P", "P"]\n'
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnjoinedPointWarning)
+        assert unjoined_points(load_model(write(tmp_path, text))) == []

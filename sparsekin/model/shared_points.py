@@ -75,7 +75,7 @@ def warn_unjoined_points(mechanism, source: str = "", stacklevel: int = 2) -> No
 def _unjoined(bodies, joints, where: str) -> list[UnjoinedPoint]:
     carriers: dict[str, list[str]] = {}
     for body in bodies:
-        for point in body.points:
+        for point in dict.fromkeys(body.points):  # a body that lists a point twice carries it once
             carriers.setdefault(point, []).append(body.name)
     shared = {point: names for point, names in carriers.items() if len(names) > 1}
     if not shared:
