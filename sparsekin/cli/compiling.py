@@ -2,7 +2,7 @@
 
 numba compiles the kernels on their first call and keeps them in its cache (``cache=True``,
 `sparsekin._jit`); every later run loads them.  That first compilation takes about 15 s
-(``benchmarks/measure_startup.py``, cold; docs/design-notes.md, "Start-up"), a silent wait
+(``benchmarks/measure_startup.py``, cold; docs/design-notes.md, "Start-up"): a silent wait
 that looks like a hang.  ``sparsekin run`` calls `announce_compilation` before it solves.
 """
 
@@ -13,8 +13,9 @@ from typing import TextIO
 
 __all__ = ["COMPILING_NOTE", "kernels_cached", "announce_compilation"]
 
-#: The line of the first run (the figure: a cold ``sparsekin run examples/task5.toml``,
-#: 11–14 s on this project's machines, rounded up for slower ones).
+#: The line of the first run.  The figure: a cold ``sparsekin run examples/task5.toml``
+#: took 8.4–12 s of wall time on this project's machines when they were quiet, 17.8 s with
+#: ``--plot`` in a fresh venv (issue 21); docs/design-notes.md, "Issue 21".
 COMPILING_NOTE = "note: compiling numerical kernels, once, about 15 s (later runs load them from numba's cache)"
 
 
