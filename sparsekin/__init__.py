@@ -79,6 +79,7 @@ from .errors import (
     SparsekinError,
     UnjoinedPointWarning,
 )
+from .model.composites import Cylinder
 from .model.elements import (
     AbsoluteDriver,
     DistanceDriver,
@@ -95,7 +96,6 @@ from .model.elements import (
     Translational,
     TranslationalDriver,
 )
-from .model.composites import Cylinder
 from .model.laws import Harmonic, Law, Linear, Polynomial, Spline
 from .model.mechanism import GROUND, Analysis, Body, Mechanism
 from .model.modelfile import load_model, save_model

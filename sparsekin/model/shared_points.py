@@ -22,7 +22,7 @@ from ..errors import UnjoinedPointWarning
 
 __all__ = ["UnjoinedPoint", "unjoined_points", "warn_unjoined_points"]
 
-#: Most unjoined points named in one warning.
+#: Most unjoined points named in one warning: the warning stays one readable line.
 LISTED_POINTS = 4
 
 

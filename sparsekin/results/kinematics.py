@@ -173,10 +173,10 @@ class KinematicsResult:
         state = "complete" if self.complete else "stopped early"
         lines = [
             f"<KinematicsResult {self.mechanism.name!r}: {self.n_times} samples, {span}, {state}>",
-            f"  model:        {_count(self.mechanism.n_bodies, 'body', 'bodies')}, "
-            f"{_count(len(self.mechanism.joints), 'joint')}, {_count(len(self.mechanism.drivers), 'driver')}",
-            f"  path:         {self.linear_solver}: {self.n_factorizations} factorizations, {self.n_solves} solves, "
-            f"{int(np.sum(self.newton_iterations))} Newton corrections, {self.n_subdivisions} halved steps",
+            (f"  model:        {_count(self.mechanism.n_bodies, 'body', 'bodies')}, "
+             f"{_count(len(self.mechanism.joints), 'joint')}, {_count(len(self.mechanism.drivers), 'driver')}"),
+            (f"  path:         {self.linear_solver}: {self.n_factorizations} factorizations, {self.n_solves} solves, "
+             f"{int(np.sum(self.newton_iterations))} Newton corrections, {self.n_subdivisions} halved steps"),
             "  recorded:",
         ]
         if self.coordinates is not None:
@@ -429,7 +429,7 @@ class KinematicsResult:
         return xr.Dataset(variables, coords=coords)
 
 
-#: Most names listed in `KinematicsResult`'s summary per kind of record.
+#: Most names listed in `KinematicsResult`'s summary per kind of record: a line each, whatever the model's size.
 LISTED_NAMES = 4
 
 
