@@ -4,7 +4,8 @@
     python3 docs/make_element_reference.py --check  # exit 1 if docs/elements.md is stale
 
 The page is generated, never edited by hand: each kind's class docstring, file keys,
-equations and own coordinate come from `sparsekin.model.elements` and `sparsekin.model.laws`.
+equations and own coordinate come from `sparsekin.model.elements`, `sparsekin.model.composites` and
+`sparsekin.model.laws`.
 tests/test_docs.py runs the check.
 """
 
@@ -14,6 +15,7 @@ import inspect
 import sys
 from pathlib import Path
 
+from sparsekin.model.composites import COMPOSITE_KINDS
 from sparsekin.model.elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from sparsekin.model.laws import BUILT_IN_LAWS
 
@@ -34,6 +36,20 @@ def _keys(kind) -> str:
 
 def _description(kind) -> str:
     return " ".join(line.strip() for line in inspect.getdoc(kind).splitlines())
+
+
+def _paragraphs(kind) -> list[str]:
+    """The class docstring as Markdown paragraphs, its ``*`` lists kept as lists."""
+    lines: list[str] = []
+    for paragraph in inspect.getdoc(kind).split("\n\n"):
+        items: list[str] = []
+        for line in paragraph.splitlines():
+            if line.startswith("* ") or not items:
+                items.append(line.strip())
+            else:
+                items[-1] += " " + line.strip()
+        lines += [*items, ""]
+    return lines
 
 
 def _element(kind, section: str) -> list[str]:
@@ -84,6 +100,11 @@ def reference() -> str:
         if kind.n_laws:
             lines.append(f"- `value`: {kind.n_laws} component{'s' * (kind.n_laws > 1)}, each a number or a law table")
         lines.append("")
+    lines += ["## Composites (`[[composites]]`)", "",
+              "A composite stands for several blocks written by hand; the reader expands it into them.", ""]  # fmt: skip
+    for kind in COMPOSITE_KINDS.values():
+        lines += [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", *_paragraphs(kind),
+                  f"- keys: {_keys(kind)}", ""]  # fmt: skip
     lines += ["## Laws (`law = { type = ... }`)", ""]
     for kind in BUILT_IN_LAWS:
         lines += [f'### `type = "{kind.type_name}"` (`sparsekin.{kind.__name__}`)', "", _description(kind), "",

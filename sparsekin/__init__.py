@@ -56,7 +56,9 @@ from .errors import (
     SingularConfigurationError,
     SingularJacobianError,
     SparsekinError,
+    UnjoinedPointWarning,
 )
+from .model.composites import Cylinder
 from .model.elements import (
     AbsoluteDriver,
     DistanceDriver,
@@ -90,6 +92,7 @@ __all__ = [
     "ConvergenceError",
     "CoordinateMotion",
     "Cycle",
+    "Cylinder",
     "DistanceDriver",
     "DriverForce",
     "Force",
@@ -125,6 +128,7 @@ __all__ = [
     "Translational",
     "TranslationalDriver",
     "Unit",
+    "UnjoinedPointWarning",
     "analyse_jacobian",
     "check_model",
     "load_model",

@@ -161,6 +161,14 @@ class LimitWarning(UserWarning):
     """
 
 
+class UnjoinedPointWarning(UserWarning):
+    """A point is carried by bodies that no joint connects at that point.
+
+    Issued by `load_model` (and listed by `check_model`), naming the point and the bodies:
+    nearly always a forgotten joint (`sparsekin.model.shared_points`).
+    """
+
+
 class AnalysisInterrupted(KeyboardInterrupt):
     """The user interrupted an analysis (Ctrl-C): the samples solved so far are in `result`.
 

@@ -44,6 +44,8 @@ from sparsekin import (
     Spline,
     Translational,
     TranslationalDriver,
+    load_model,
+    save_model,
     solve_kinematics,
 )
 
@@ -519,6 +521,29 @@ def test_spline_driven_slider_crank_matches_scipy_spline():
     for order, solved in enumerate((result.coordinates, result.velocities, result.accelerations)):
         np.testing.assert_allclose(solved[:, 3 * k + 2], theta[order], rtol=RTOL, atol=RTOL * 10.0)
     assert_matches(result, mechanism, slider_crank_expected(*theta, offset))
+
+
+def test_a_spline_from_the_drawing_adds_the_drawn_value_to_its_samples(tmp_path):
+    # offset = "initial": the samples are displacements from the drawn crank angle
+    # (CRANK_START), so the crank follows CRANK_START + the spline through them, and the
+    # model file keeps that choice.
+    sample_times = np.linspace(0.0, 2.0, 21)
+    displacements = 0.8 * np.sin(2.0 * sample_times) + 0.3 * sample_times**2
+    law = Spline(tuple(sample_times), tuple(displacements), offset=None)
+    mechanism = build_slider_crank(law, 0.05)
+    times = np.linspace(0.0, 2.0, 41)
+    curve = CubicSpline(sample_times, displacements, bc_type="not-a-knot")
+    theta = (CRANK_START + curve(times), curve(times, 1), curve(times, 2))
+    k = mechanism.body_index("crank")
+    saved = tmp_path / "spline.toml"
+    save_model(mechanism, saved)
+    assert 'offset = "initial"' in saved.read_text()
+    for model in (mechanism, load_model(saved)):
+        result = solve_kinematics(model, times)
+        for order, solved in enumerate((result.coordinates, result.velocities, result.accelerations)):
+            np.testing.assert_allclose(solved[:, 3 * k + 2], theta[order], rtol=RTOL, atol=RTOL * 10.0)
+    assert law.evaluate(0.0, initial=0.7)[0] == pytest.approx(0.7, abs=1e-15)
+    assert Spline((0.0, 1.0), (2.0, 3.0), offset=0.5).evaluate(1.0, initial=9.0)[0] == pytest.approx(3.5, abs=1e-15)
 
 
 # ---------------------------------------------------------------------- time derivatives

@@ -42,7 +42,7 @@ GENERATED = (DOCS / "gallery", DOCS / "generated", DOCS / "reference" / "cli.md"
 GALLERY_ORDER = (
     "task5", "slider_crank", "four_bar", "watt_six_bar", "quick_return", "excavator", "four_bar_chain", "planetary_gear",
 )  # fmt: skip
-#: Titles of the gallery pages (default: the file name in words).
+#: Titles of the gallery pages: every example has one (the build stops on an example without).
 GALLERY_TITLES = {
     "task5": "Task 5 linkage",
     "slider_crank": "Slider-crank",
@@ -50,10 +50,12 @@ GALLERY_TITLES = {
     "watt_six_bar": "Watt six-bar",
     "quick_return": "Quick-return (crank and slotted lever)",
     "excavator": "Excavator front",
+    "excavator_cylinders": "Excavator front with cylinder composites",
     "planetary_gear": "Planetary gear train",
     "task5_distance": "Task 5 with distance drivers",
     "four_bar_chain": "Four-bar chain (1000 loops)",
     "task5_chain": "Task 5 chain (1000 units)",
+    "task5_dynamics": "Task 5 with masses and a payload",
 }
 #: Model files put into the scratch folder of the command examples: a file of the
 #: repository, or a Python expression of sparsekin saved as a model file (the pages say
@@ -166,7 +168,9 @@ def make_gallery(folder: Path) -> None:
         drawing.rename(folder / "images" / f"{name}.png")
         frame_time = round(FRAME_AT * analysis.t_end, 3)
         save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown)
-        title = GALLERY_TITLES.get(name, name.replace("_", " "))
+        if name not in GALLERY_TITLES:
+            raise ValueError(f"examples/{name}.toml has no gallery title: add it to GALLERY_TITLES in {__file__}")
+        title = GALLERY_TITLES[name]
         traced = f", the paths of {', '.join(trace)} traced" if trace else ""
         page = [
             f"# {title}",

@@ -30,6 +30,7 @@ from .describe import (
     row_preference,
     shares,
 )
+from .notices import actuator_directions, law_offsets, notice_lines, unjoined_point_lines
 from .rank import JacobianAnalysis, analyse_jacobian
 
 __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "format_report"]
@@ -130,6 +131,10 @@ class ModelReport:
     has_forces : bool
         Whether a run computes forces by default: a body has a mass or an inertia, or a
         load acts (`Mechanism.has_forces`).
+    law_offsets, actuator_directions, unjoined_points : tuple of str
+        The notices of `sparsekin.analysis.notices`: drivers whose law at t = 0 is away
+        from the drawing, which sign extends each actuator, points carried by bodies that
+        no joint connects there (a warning; not a problem of the verdict).
     """
 
     name: str
@@ -153,6 +158,9 @@ class ModelReport:
     n_loads: int = 0
     gravity: tuple[float, float] = (0.0, 0.0)
     has_forces: bool = False
+    law_offsets: tuple[str, ...] = ()
+    actuator_directions: tuple[str, ...] = ()
+    unjoined_points: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -303,6 +311,9 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         limits = tuple(limit_states(mechanism, outputs, values, [float(time)]))
     massless, n_massless = _massless_bodies(mechanism)
     return ModelReport(
+        law_offsets=law_offsets(mechanism, pattern),
+        actuator_directions=actuator_directions(mechanism),
+        unjoined_points=unjoined_point_lines(mechanism),
         limits=limits,
         total_mass=mechanism.total_mass,
         massless_bodies=massless,
@@ -417,6 +428,7 @@ def format_report(report: ModelReport) -> str:
         lines.append(f"limits: {len(report.limits)} element{'s' * (len(report.limits) != 1)}")
         lines += [f"  {state}" for state in report.limits]
     lines.append(_masses_line(report))
+    lines += notice_lines(report)
     lines.append("verdict: " + ("sound" if report.sound else "; ".join(report.problems)))
     return "\n".join(lines)
 

@@ -46,11 +46,12 @@ def equation_label(mechanism: Mechanism, pattern: ConstraintPattern, row: int) -
     return f"{label}, equation {equation}"
 
 
-def driven_labels(mechanism: Mechanism, pattern: ConstraintPattern) -> list[str]:
-    """A label per driven row: the driver's, with the equation's name for a driver of
-    several rows (``drivers[0] (path of K on c1) x``)."""
+def driven_labels(mechanism: Mechanism, pattern: ConstraintPattern, which=None) -> list[str]:
+    """A label per driven row (or per driven row of the indices `which`): the driver's,
+    with the equation's name for a driver of several rows (``drivers[0] (path of K on c1) x``)."""
     labels = []
-    for row, k in zip(pattern.driven_row.tolist(), pattern.driven_driver.tolist()):
+    which = slice(None) if which is None else which
+    for row, k in zip(pattern.driven_row[which].tolist(), pattern.driven_driver[which].tolist()):
         label = mechanism.element_label("drivers", k)
         driver = mechanism.drivers[k]
         if driver.n_equations > 1:

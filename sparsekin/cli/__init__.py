@@ -44,6 +44,7 @@ from .check import add_check_command
 from .common import EXIT_INTERRUPTED, EXIT_USAGE, PROGRAM, CommandError, report
 from .run import add_run_command
 from .sweep import add_sweep_command
+from .warning_lines import one_line_warnings
 from .workspace import add_workspace_command
 
 __all__ = ["main", "build_parser"]
@@ -73,7 +74,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exit_request:  # usage errors and --help: argparse has printed
         return int(exit_request.code or 0)
     try:
-        return arguments.handler(arguments)
+        with one_line_warnings(PROGRAM):
+            return arguments.handler(arguments)
     except (CommandError, ModelError) as error:
         report(f"error: {error}")
     except OSError as error:  # an output folder or file that cannot be written

@@ -22,6 +22,7 @@ from .common import (
     require_matplotlib,
     require_zarr,
 )
+from .compiling import announce_compilation
 from .files import count_samples, write_outputs
 from .settings import (
     MAX_DEFAULT_JOINTS,
@@ -89,6 +90,7 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         report(f"note: {note}")
+    announce_compilation(settings.quiet)
     try:
         with _Progress(settings, timeline) as progress:
             result = solve_for_command(mechanism, settings, arguments.model, progress)

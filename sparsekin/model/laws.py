@@ -139,18 +139,22 @@ class Polynomial(_BuiltIn):
 
 @dataclass(frozen=True)
 class Spline(_BuiltIn):
-    """A C² cubic spline (not-a-knot ends) through the samples ``(times, values)``.
+    """``offset`` plus a C² cubic spline (not-a-knot ends) through the samples ``(times, values)``.
 
-    The law is defined on ``[times[0], times[-1]]``; an analysis outside that range is
-    refused before it starts.
+    `offset` defaults to 0: the values are those of the driven quantity.  An `offset` of
+    None (``offset = "initial"`` in a file) is the initial value: the values are then
+    displacements from the drawing, as the default offsets of the other laws.  The law is
+    defined on ``[times[0], times[-1]]``; an analysis outside that range is refused before
+    it starts.
     """
 
     times: tuple[float, ...]
     values: tuple[float, ...]
+    offset: float | None = 0.0
     _curve: object = field(init=False, repr=False, compare=False)  # scipy's CubicSpline
 
     type_name = "spline"
-    file_keys = FileKeys(forms=(("times", "values"), ("file",)))
+    file_keys = FileKeys(optional=("offset",), forms=(("times", "values"), ("file",)))
 
     def __post_init__(self) -> None:
         times = _validate.number_list(self.times, "times")
@@ -166,6 +170,8 @@ class Spline(_BuiltIn):
             raise ModelError("expected strictly increasing times", element="times")
         _set(self, "times", times)
         _set(self, "values", values)
+        if self.offset is not None:
+            _set(self, "offset", _validate.finite_float(self.offset, "offset"))
         from scipy.interpolate import CubicSpline  # here: importing it costs every run a quarter second
 
         _set(self, "_curve", CubicSpline(times, values))
@@ -177,8 +183,10 @@ class Spline(_BuiltIn):
 
     def parameters(self, initial: float) -> np.ndarray:
         """The m + 1 breakpoints, then the (4, m) polynomial coefficients row by row
-        (scipy's ``PPoly`` layout: row 0 multiplies s³)."""
-        return np.concatenate([self._curve.x, self._curve.c.ravel()])
+        (scipy's ``PPoly`` layout: row 0 multiplies s³; the offset added to row 3)."""
+        coefficients = self._curve.c.copy()
+        coefficients[3] += initial if self.offset is None else self.offset
+        return np.concatenate([self._curve.x, coefficients.ravel()])
 
 
 #: The laws evaluated by the numba kernels, in the order of `LawTable.kind_first`.
@@ -262,6 +270,8 @@ class LawPacker:
             parameters = np.repeat(law.parameters(0.0)[None], targets.size, axis=0)
             if type(law) is Polynomial and law.coefficients[0] is None:
                 parameters[:, 0] = initial  # c0 is the drawn value
+            elif type(law) is Spline and law.offset is None:
+                parameters[:, 4 * (len(law.times) - 1) + 1 :] += initial[:, None]  # row 3: the constant terms
         self._groups[BUILT_IN_LAWS.index(type(law))].append((np.asarray(targets, dtype=np.int64), parameters))
 
     def table(self) -> LawTable:

@@ -28,9 +28,11 @@ from typing import Any
 
 from ..errors import ModelError
 from . import _validate
+from .composites import COMPOSITE_KINDS, Parts
 from .elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from .laws import BUILT_IN_LAWS, Spline
 from .mechanism import Analysis, Body, Mechanism
+from .shared_points import warn_unjoined_points
 from .units import Cycle, Repeat, Step, Unit
 
 __all__ = ["load_model", "save_model"]
@@ -77,20 +79,24 @@ class _Spec:
         return self.kind.file_keys.keys
 
 
-def _spline(file: Spline | None = None, **samples: Any) -> Spline:
-    """A `Spline` from ``times`` and ``values``, or the one already read from `file`."""
-    return file if file is not None else Spline(**samples)
+def _spline(file: Spline | None = None, offset: float | None = 0.0, **samples: Any) -> Spline:
+    """A `Spline` from ``times`` and ``values``, or the one already read from `file`, with `offset`."""
+    if file is None:
+        return Spline(**samples, offset=offset)
+    return file if offset == 0.0 else dataclasses.replace(file, offset=offset)
 
 
-_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "loads", "gravity", "analysis", "units", "repeat")
+_TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "loads", "composites", "gravity", "analysis",
+                   "units", "repeat")  # fmt: skip
 #: The sections of a unit: those of a model but `gravity`, `[analysis]` and nested units.
-_UNIT_KEYS = ("points", "bodies", "joints", "drivers", "loads")
+_UNIT_KEYS = ("points", "bodies", "joints", "drivers", "loads", "composites")
 #: The keys of a `[[repeat]]` entry.
 _REPEAT_KEYS = ("unit", "count", "prefix", "offset", "first", "vary")
 _BODY = _Spec(Body)
 _JOINTS = {type_name: _Spec(kind) for type_name, kind in JOINT_KINDS.items()}
 _DRIVERS = {type_name: _Spec(kind) for type_name, kind in DRIVER_KINDS.items()}
 _LOADS = {type_name: _Spec(kind) for type_name, kind in LOAD_KINDS.items()}
+_COMPOSITES = {type_name: _Spec(kind) for type_name, kind in COMPOSITE_KINDS.items()}
 _LAWS = {kind.type_name: _Spec(kind, _spline if kind is Spline else None) for kind in BUILT_IN_LAWS}
 _ANALYSIS = _Spec(Analysis)
 
@@ -121,14 +127,22 @@ def load_model(path: str | os.PathLike) -> Mechanism:
         For every mistake: an unreadable file, bad TOML, an unknown or missing key, a
         wrong value, an unknown body or point.  The message is one line,
         ``<path as given>: <element>: <what was expected>``.
+
+    Warns
+    -----
+    UnjoinedPointWarning
+        When a point is carried by bodies that no joint connects there
+        (`sparsekin.model.shared_points`).
     """
     shown = os.fsdecode(path)
     try:
         document = _parse(Path(shown))
         reader = _Reader(folder=Path(shown).parent)
-        return reader.mechanism(document, default_name=Path(shown).stem)
+        mechanism = reader.mechanism(document, default_name=Path(shown).stem)
     except ModelError as error:
         raise _one_line(error if error.file else error.in_file(shown)) from None
+    warn_unjoined_points(mechanism, source=shown)
+    return mechanism
 
 
 class _Reader:
@@ -156,7 +170,7 @@ class _Reader:
     def mechanism(self, document: dict[str, Any], default_name: str) -> Mechanism:
         """The `Mechanism` of a whole document."""
         _check_keys(document, "", _TOP_LEVEL_KEYS)
-        points, bodies, joints, drivers, loads, body_names = self.parts(document, "")
+        points, bodies, joints, drivers, loads, body_names, generated = self.parts(document, "")
         analysis = self.element(document.get("analysis", {}), "analysis", _ANALYSIS, "a table [analysis]")
         units = {
             name: self.unit(table, name)
@@ -179,7 +193,7 @@ class _Reader:
                 gravity=document.get("gravity", (0.0, 0.0)),
             )
         except ModelError as error:
-            raise _body_by_name(error, body_names) from None
+            raise _body_by_name(_in_composite(error, generated), body_names) from None
 
     def parts(self, document: dict[str, Any], prefix: str):
         """Points, bodies, joints, drivers and loads of a model (`prefix` "") or a unit ("units.NAME.")."""
@@ -201,18 +215,23 @@ class _Reader:
             for index, table in enumerate(_array(document.get("loads", []), f"{prefix}loads"))
         ]
         points = _table(document.get("points", {}), f"{prefix}points", f"a table [{prefix}points] of name = [x, y]")
-        return points, bodies, joints, drivers, loads, list(body_tables)
+        composites = [
+            self.typed(table, f"{prefix}composites[{index}]", _COMPOSITES, f"a table [[{prefix}composites]]")
+            for index, table in enumerate(_array(document.get("composites", []), f"{prefix}composites"))
+        ]
+        generated = _expand_composites(composites, points, prefix, bodies, joints, drivers)
+        return points, bodies, joints, drivers, loads, list(body_tables), generated
 
     def unit(self, value: object, name: str) -> Unit:
         """The `Unit` of a table ``[units.NAME]``."""
         where = f"units.{name}"
         table = _table(value, where, f"a table [{where}]")
         _check_keys(table, where, _UNIT_KEYS)
-        points, bodies, joints, drivers, loads, body_names = self.parts(table, f"{where}.")
+        points, bodies, joints, drivers, loads, body_names, generated = self.parts(table, f"{where}.")
         try:
             return Unit(name, points=points, bodies=bodies, joints=joints, drivers=drivers, loads=loads)
         except ModelError as error:
-            raise _body_by_name(error, body_names).within(where) from None
+            raise _body_by_name(_in_composite(error, generated), body_names).within(where) from None
 
     def repeat(self, value: object, where: str, units: dict[str, Unit]) -> Repeat:
         """The `Repeat` of a table ``[[repeat]]``."""
@@ -507,6 +526,42 @@ def _csv_number(cell: str, element: str, shown: str) -> float:
         raise error.in_file(shown) from None
 
 
+def _expand_composites(composites, points, prefix: str, bodies: list, joints: list, drivers: list) -> dict[str, tuple]:
+    """Append the parts of every composite to `bodies`, `joints` and `drivers`; returns,
+    for each part, its label in the model (``joints[7]``) → ``(composite's label, part)``."""
+    generated: dict[str, tuple[str, str]] = {}
+    for index, composite in enumerate(composites):
+        where = f"{prefix}composites[{index}]"
+
+        def position(reference, composite=composite):
+            if not isinstance(reference, str):
+                return reference
+            try:
+                return _validate.pair(points[reference], f"{prefix}points.{reference}")
+            except KeyError:
+                raise ModelError(f'unknown point "{reference}": the centre of mass of a {composite.type_name} '
+                                 f"needs its pins in [{prefix}points] or as [x, y]") from None  # fmt: skip
+
+        try:
+            parts: Parts = composite.expand(position)
+        except ModelError as error:
+            raise error.within(where) from None
+        for kind, own, added in zip(("bodies", "joints", "drivers"), (bodies, joints, drivers), parts):
+            for element in added:
+                generated[f"{kind}[{len(own)}]"] = (where, f'{kind[:-1] if kind != "bodies" else "body"} "{element.name}"')
+                own.append(element)
+    return generated
+
+
+def _in_composite(error: ModelError, generated: dict[str, tuple]) -> ModelError:
+    """`error` located at the composite whose part it is about, if it is about a part."""
+    match = re.match(r"(bodies|joints|drivers)\[\d+\]", error.element)
+    if match is None or match[0] not in generated:
+        return error
+    where, part = generated[match[0]]
+    return ModelError(f"{error.reason} (in its {part}{error.element[match.end():]})", element=where, file=error.file)
+
+
 def _body_by_name(error: ModelError, body_names: list[str]) -> ModelError:
     """`error` with ``bodies[k]`` (the model's spelling) replaced by ``bodies.NAME`` (the file's)."""
     match = re.match(r"bodies\[(\d+)\](\.name$)?", error.element)
@@ -630,8 +685,8 @@ def _pairs(item: object, spec: _Spec, element: str, type_name: str | None = None
     pairs = []
     for key in sorted(values, key=lambda key: (key != "name", key != "type")):
         value = values[key]
-        if value is None or (key in spec.optional and value == defaults.get(key)):
-            continue
+        if (value is None and defaults.get(key) is None) or (key in spec.optional and value == defaults.get(key)):
+            continue  # (None where the default is a number is written "initial": a spline's offset)
         pairs.append((key, _value(value, f"{element}.{key}")))
     return pairs
 

@@ -165,6 +165,40 @@ class KinematicsResult:
     def n_times(self) -> int:
         return len(self.times)
 
+    def __repr__(self) -> str:
+        """A summary, like xarray's: the model, the samples, the path and what was
+        recorded with its shape (not the arrays themselves)."""
+        times = np.asarray(self.times[:1]), np.asarray(self.times[-1:])
+        span = f"t = {times[0][0]:g} … {times[1][0]:g} s" if self.n_times else "no sample"
+        state = "complete" if self.complete else "stopped early"
+        lines = [
+            f"<KinematicsResult {self.mechanism.name!r}: {self.n_times} samples, {span}, {state}>",
+            (f"  model:        {_count(self.mechanism.n_bodies, 'body', 'bodies')}, "
+             f"{_count(len(self.mechanism.joints), 'joint')}, {_count(len(self.mechanism.drivers), 'driver')}"),
+            (f"  path:         {self.linear_solver}: {self.n_factorizations} factorizations, {self.n_solves} solves, "
+             f"{int(np.sum(self.newton_iterations))} Newton corrections, {self.n_subdivisions} halved steps"),
+            "  recorded:",
+        ]
+        if self.coordinates is not None:
+            shape = tuple(self.coordinates.shape)
+            lines.append(f"    coordinates  {shape}  coordinates, velocities, accelerations (x, y, angle per body)")
+        if self.recorded_points:
+            lines.append(f"    points       {tuple(self.point_tracks.shape)}  {_listed(self.recorded_points)} "
+                         f"× (x, y, vx, vy, ax, ay)")  # fmt: skip
+        if self.recorded_joints:
+            joints = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
+            lines.append(f"    joints       {tuple(self.joint_tracks.shape)}  {_listed(joints)} × (value, rate, accel)")
+        if self.force_labels:
+            forces = "quasi-static " * self.quasi_static
+            lines.append(f"    forces       {tuple(self.force_tracks.shape)}  {forces}{_listed(self.force_labels)}")
+        if lines[-1] == "  recorded:":
+            lines[-1] += " nothing but the times"
+        if self.redundant_equations:
+            lines.append(f"  left out:     {_listed(self.redundant_equations)} (redundant)")
+        if self.store is not None:
+            lines.append(f"  store:        {self.store}")
+        return "\n".join(lines)
+
     @property
     def body_names(self):
         """The name of every body, in coordinate order."""
@@ -393,6 +427,21 @@ class KinematicsResult:
             self.force_labels, self.force_units,
         )  # fmt: skip
         return xr.Dataset(variables, coords=coords)
+
+
+#: Most names listed in `KinematicsResult`'s summary per kind of record: a line each, whatever the model's size.
+LISTED_NAMES = 4
+
+
+def _count(number: int, word: str, plural: str | None = None) -> str:
+    return f"{number} {word if number == 1 else plural or word + 's'}"
+
+
+def _listed(names) -> str:
+    """``A, B, C, D … (12)``: the first `LISTED_NAMES` names, and how many there are."""
+    names = list(names)
+    shown = ", ".join(names[:LISTED_NAMES])
+    return shown if len(names) <= LISTED_NAMES else f"{shown} … ({len(names)})"
 
 
 def _sorted_columns(pd, labels):

@@ -212,11 +212,14 @@ def _solve_positions(
 def _run_time_loop(
     primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times, start,
     tolerance, max_iterations, chord, coordinates, velocities, accelerations, iterations,
-    loads, load_laws, n_load_laws, force_outputs, inertial, with_forces, forces,
+    loads, load_laws, n_load_laws, force_outputs, inertial, forces,
 ):  # fmt: skip
     """Samples `start` … in turn (rows before `start` are solved already); returns
-    (n_solved, status, n_factorizations, n_solves, n_restarts).  With `with_forces`, row k
-    of `forces` receives the force columns of sample k (`sparsekin.engine.forces`)."""
+    (n_solved, status, n_factorizations, n_solves, n_restarts).  Unless `forces` is None,
+    its row k receives the force columns of sample k (`sparsekin.engine.forces`).
+
+    A `forces` of None is a signature of its own, in which numba prunes the force branch
+    before typing it: a run without forces never compiles the force kernels."""
     n = initial_coordinates.size
     n_driven = driven_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
@@ -298,7 +301,7 @@ def _run_time_loop(
             accelerations[k, c] = rhs[c]
         iterations[k] = corrections
 
-        if with_forces:  # Phi_q^T lam = Q - M qdd - h, with the same factorization
+        if forces is not None:  # Phi_q^T lam = Q - M qdd - h, with the same factorization
             for c in range(n):
                 qdd[c] = accelerations[k, c]
             evaluate_laws(load_laws, t, load_value, load_rate, load_acceleration)
@@ -409,10 +412,10 @@ def solve_compiled(
         laws = DriverLaws(mechanism, pattern.driven_initial).table
     if forces is None:
         loads, load_laws, outputs = no_forces()
-        force_arguments = (loads, load_laws, 0, outputs, True, False, np.zeros((n_times, 0)))
+        force_arguments = (loads, load_laws, 0, outputs, True, None)
     else:
         _check_array(forces.rows, "forces.rows", (n_times, forces.rows.shape[1]), np.float64)
-        force_arguments = (forces.loads, forces.laws, int(forces.n_laws), forces.outputs, bool(forces.inertial), True,
+        force_arguments = (forces.loads, forces.laws, int(forces.n_laws), forces.outputs, bool(forces.inertial),
                            forces.rows)  # fmt: skip
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
         pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
