@@ -466,6 +466,7 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
     return Mechanism(points, bodies, joints, drivers, name=draw(_NAMES), analysis=analysis)
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # drawn points need not be joined
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mechanism=mechanisms())
 def test_any_mechanism_round_trips(mechanism: Mechanism, tmp_path_factory: pytest.TempPathFactory):
