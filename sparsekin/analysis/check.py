@@ -332,9 +332,10 @@ def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
     names = [body.name for body in mechanism.own("bodies") if not body.mass]
     count = len(names)
     for copies in mechanism.copies:
-        local = [body.name for body in copies.unit.bodies if not body.mass]
-        count += copies.count * len(local)
-        names += [copies.name(k, name) for k in range(min(copies.count, LISTED_MASSLESS)) for name in local]
+        massless = [e for e, body in enumerate(copies.unit.bodies) if not body.mass]
+        count += int(sum(copies.having("bodies")[e] for e in massless))
+        names += [copies.name(k, copies.unit.bodies[e].name) for k in range(min(copies.count, LISTED_MASSLESS))
+                  for e in massless if copies.present("bodies", k, e)]  # fmt: skip
     return tuple(names[:LISTED_MASSLESS]), count
 
 

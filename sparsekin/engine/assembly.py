@@ -40,16 +40,17 @@ class DriverLaws:
             for law in driver.laws():
                 packer.add(law, np.array([target]), initial[target : target + 1])
                 target += 1
-        for copies in mechanism.copies:  # each unit law over all the copies, by arrays
-            per_copy = sum(driver.n_equations for driver in copies.unit.drivers)
-            within = 0
-            for e, driver in enumerate(copies.unit.drivers):
+        for copies in mechanism.copies:  # each unit law over the copies that have it, by arrays
+            drivers = copies.unit.drivers
+            placed = copies.placed("drivers", [driver.n_equations for driver in drivers])
+            for e, (driver, (ks, starts)) in enumerate(zip(drivers, placed)):
                 variations = copies.law_variations(e)
-                for field_name, law in zip(driver.law_fields, driver.laws()):
-                    targets = target + within + per_copy * np.arange(copies.count)
-                    packer.add(law, targets, initial[targets], variations.get(field_name))
-                    within += 1
-            target += per_copy * copies.count
+                for c, (field_name, law) in enumerate(zip(driver.law_fields, driver.laws())):
+                    targets = target + starts + c
+                    varied = variations.get(field_name)
+                    varied = None if varied is None else {key: values[ks] for key, values in varied.items()}
+                    packer.add(law, targets, initial[targets], varied)
+            target += sum(n * driver.n_equations for n, driver in zip(copies.having("drivers"), drivers))
         self.table, self._others = packer.table(), packer.others
         self._initial = initial
         self.n_laws = target

@@ -116,13 +116,11 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
         for c, law in enumerate(load.laws()):
             packer.add(law, np.array([first + c]), np.zeros(1))
     for copies in mechanism.copies:
-        per_copy = sum(load.n_laws for load in copies.unit.loads)
-        within = 0
-        for load in copies.unit.loads:
-            for law in load.laws():
-                targets = first_law[copies.first_load] + within + per_copy * np.arange(copies.count, dtype=np.int64)
-                packer.add(law, targets, np.zeros(copies.count))
-                within += 1
+        loads = copies.unit.loads
+        for load, (_, starts) in zip(loads, copies.placed("loads", [load.n_laws for load in loads])):
+            for c, law in enumerate(load.laws()):
+                targets = first_law[copies.first_load] + starts + c
+                packer.add(law, targets, np.zeros(targets.size))
     arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
     return LoadPattern(arrays, packer.table(), packer.others, n_laws)
 
@@ -137,11 +135,11 @@ def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
         if body.com is not None:
             com[b] = mechanism.position(body.com)
     for copies in mechanism.copies:
-        bodies = copies.first_body + np.arange(copies.count * copies.n_bodies).reshape(copies.count, -1)
-        for e, body in enumerate(copies.unit.bodies):
-            mass[bodies[:, e]], inertia[bodies[:, e]] = body.mass or 0.0, body.inertia or 0.0
+        for body, (ks, starts) in zip(copies.unit.bodies, copies.placed("bodies")):
+            bodies = copies.first_body + starts
+            mass[bodies], inertia[bodies] = body.mass or 0.0, body.inertia or 0.0
             if body.com is not None:
-                com[bodies[:, e]] = copies.reference_positions([body.com])[:, 0]
+                com[bodies] = copies.reference_positions([body.com], ks)[:, 0]
     frames = resolver.frames
     dx, dy = com[:, 0] - frames[:n, 0], com[:, 1] - frames[:n, 1]
     cosine, sine = np.cos(frames[:n, 2]), np.sin(frames[:n, 2])
@@ -245,10 +243,8 @@ def _label_and_kind(mechanism: Mechanism, kind: str, index: int) -> tuple[str, t
         element = own[index]
     else:
         for copies in mechanism.copies:
-            first, size = ((copies.first_joint, copies.n_joints) if kind == "joints"
-                           else (copies.first_driver, copies.n_drivers))  # fmt: skip
-            if 0 <= index - first < copies.count * size:
-                k, e = divmod(index - first, size)
+            if 0 <= index - copies.first[kind] < copies.total(kind):
+                k, e = copies.locate(kind, index - copies.first[kind])
                 unit_element = getattr(copies.unit, kind)[e]
                 name = copies.name(k, unit_element.name) if unit_element.name else None
                 return name or f"{kind}[{index}]", type(unit_element)

@@ -147,12 +147,17 @@ def element_columns(mechanism: Mechanism, kind: str, first_rows: np.ndarray, res
         yield element_kind, indices, ObjectColumns([own[k] for k in indices], first_rows[indices], resolver)
     for copies in mechanism.copies:
         unit_elements = getattr(copies.unit, kind)
-        first = {"joints": copies.first_joint, "drivers": copies.first_driver, "loads": copies.first_load}[kind]
-        grid = first + np.arange(copies.count * len(unit_elements), dtype=np.int64).reshape(copies.count, -1)
+        placed = copies.placed(kind)
         for element_kind, indices in _by_kind(unit_elements).items():
-            positions = grid[:, indices].ravel()
-            columns = TiledColumns(copies, [unit_elements[k] for k in indices], first_rows[positions], resolver)
-            yield element_kind, positions, columns
+            # elements in the same copies are tiled together; a grid's boundary parts apart
+            groups: dict[bytes, list[int]] = {}
+            for e in indices:
+                groups.setdefault(placed[e][0].tobytes() if len(placed[e][0]) < copies.count else b"", []).append(e)
+            for group in groups.values():
+                ks = placed[group[0]][0]
+                positions = copies.first[kind] + np.stack([placed[e][1] for e in group], axis=1).ravel()
+                columns = TiledColumns(copies, [unit_elements[e] for e in group], first_rows[positions], resolver, ks)
+                yield element_kind, positions, columns
 
 
 def _blocks(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver, method: str) -> list:
@@ -174,8 +179,14 @@ def per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
     """``value(element)`` for every joint, driver or load, in model order: the own elements',
     then each repeat's unit values tiled over its copies."""
     own = [value(element) for element in mechanism.own(kind)]
-    tiled = [np.tile([value(element) for element in getattr(c.unit, kind)], c.count) for c in mechanism.copies]
-    return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
+    tiled = []
+    for copies in mechanism.copies:
+        values = np.array([value(element) for element in getattr(copies.unit, kind)], dtype=np.int64)
+        out = np.empty(copies.total(kind), dtype=np.int64)
+        for e, (_, starts) in enumerate(copies.placed(kind)):
+            out[starts] = values[e]
+        tiled.append(out)
+    return np.concatenate([np.array(own, dtype=np.int64), *tiled])
 
 
 def limited_elements(mechanism: Mechanism) -> dict[str, list[int]]:
@@ -329,8 +340,8 @@ class PointMap:
             if located is not None:
                 copies, k, p = located
                 unit_body = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], -1)
-                if unit_body >= 0:
-                    candidates.append(copies.first_body + k * copies.n_bodies + unit_body)
+                if unit_body >= 0 and copies.present("bodies", k, unit_body):
+                    candidates.append(copies.first_body + int(copies.slot("bodies", k, unit_body)))
             body = min((c for c in candidates if c >= 0), default=-1)  # the first body that lists it
         if body < 0:
             return -1, position

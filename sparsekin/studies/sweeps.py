@@ -60,7 +60,7 @@ import numpy as np
 from ..errors import ConvergenceError, ModelError, SingularJacobianError
 from ..model import _validate
 from ..model.mechanism import Mechanism
-from ..model.units import Cycle
+from ..model.units import DRIVER_PATH as _DRIVER_PATH, Cycle
 from ..results.recording import JOINT_DERIVATIVES, POINT_COMPONENTS
 
 __all__ = [
@@ -93,7 +93,6 @@ PENDING_PER_THREAD = 2
 #: The path forms, in words (for messages).
 PATH_FORMS = "drivers[i].law.KEY, drivers.NAME.law.KEY, points.NAME[.x|.y], or units.UNIT. before one of them"
 
-_DRIVER_PATH = re.compile(r"drivers(?:\[(\d+)\]|\.([^.\[\]]+))\.(law(?:_x|_y)?)\.(\w+)")
 _UNIT_PATH = re.compile(r"units\.([^.]+)\.(.+)")
 _PERTURB_KINDS = ("points",)
 
