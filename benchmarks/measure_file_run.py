@@ -29,14 +29,20 @@ _EXAMPLES = _HERE.parent / "examples"
 sys.path.insert(0, str(_HERE.parent))  # sparsekin when not installed
 
 #: The model file of each family, and the line that says how many copies.
-FILES = {"task5_chain": "task5_chain.toml", "four_bar_chain": "four_bar_chain.toml"}
+FILES = {"task5_chain": "task5_chain.toml", "four_bar_chain": "four_bar_chain.toml",
+         "rotating_squares": "rotating_squares.toml", "lattice": "lattice.toml"}  # fmt: skip
+#: The grids among them: COPIES is then the number of columns and of rows, ``count = [COPIES, COPIES]``.
+GRIDS = ("rotating_squares", "lattice")
 #: The time step of the runs, s.
 STEP = 0.01
 
 
 def write_model(family: str, copies: int, folder: Path) -> Path:
     text = (_EXAMPLES / FILES[family]).read_text(encoding="utf-8")
-    text, n = re.subn(r"(?m)^count = \d+$", f"count = {copies}", text)
+    if family in GRIDS:
+        text, n = re.subn(r"(?m)^count = \[\d+, \d+\]", f"count = [{copies}, {copies}]", text)
+    else:
+        text, n = re.subn(r"(?m)^count = \d+$", f"count = {copies}", text)
     if n != 1:
         raise RuntimeError(f"no single count line in {FILES[family]}")
     # the points the example keeps name copies that a shorter chain may not have: the run names its own

@@ -31,7 +31,7 @@ from .model.mechanism import Body, Mechanism
 from .model.units import Cycle, OnCopies, Repeat, Unit
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "lattice_unit",
-           "rotating_squares", "rotating_squares_unit", "task5_unit_phases"]
+           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -262,32 +262,64 @@ def _turned(angle: float, x: float, y: float) -> tuple[float, float]:
     return (cosine * x - sine * y, sine * x + cosine * y)
 
 
-def rotating_squares_unit(angle: float = 0.3) -> tuple[Unit, dict]:
-    """One unit square of the rotating-squares lattice and its checkerboard `vary`.
+def _rotating_unit(name: str, body: str, angle: float, width: float, height: float) -> tuple[Unit, dict]:
+    """One width × height rectangle of a rotating-rectangles lattice and its checkerboard `vary`.
 
-    The square ``sq`` turns by +angle where i + j is even and −angle where it is odd
+    The rectangle `body` turns by +angle where i + j is even and −angle where it is odd
     (the cycles of its drawn angle and of its points).  Its points: its centre C, its
     corners (``ll``, ``lr``, ``ur``, ``ul`` in its own frame) and the two corners it
-    shares with its neighbours: L with the square on its left, D with the one below.
+    shares with its neighbours: L with the one on its left, D with the one below.
     """
     signs = (1.0, -1.0)  # i + j even, odd
-    corners = {"ll": (-0.5, -0.5), "lr": (0.5, -0.5), "ur": (0.5, 0.5), "ul": (-0.5, 0.5)}
-    # the corner shared with the left square: ul of a +angle square, ll of a −angle one;
-    # with the square below: ll of a +angle square, lr of a −angle one
+    half = (width / 2, height / 2)
+    corners = {"ll": (-half[0], -half[1]), "lr": (half[0], -half[1]), "ur": half, "ul": (-half[0], half[1])}
+    # the corner shared with the left neighbour: ul of a +angle rectangle, ll of a −angle one;
+    # with the one below: ll of a +angle rectangle, lr of a −angle one
     shared = {"L": ("ul", "ll"), "D": ("ll", "lr")}
-    points = {"C": (0.0, 0.0), **{name: _turned(angle, *xy) for name, xy in corners.items()}}
-    points |= {name: points[pair[0]] for name, pair in shared.items()}
-    vary = {f"points.{name}": Cycle([_turned(s * angle, *xy) for s in signs]) for name, xy in corners.items()}
-    vary |= {f"points.{name}": Cycle([_turned(s * angle, *corners[corner]) for s, corner in zip(signs, pair)])
-             for name, pair in shared.items()}  # fmt: skip
-    vary["bodies.sq.angle"] = Cycle([s * angle for s in signs])
-    square = Unit(
-        "square",
+    points = {"C": (0.0, 0.0), **{name_: _turned(angle, *xy) for name_, xy in corners.items()}}
+    points |= {name_: points[pair[0]] for name_, pair in shared.items()}
+    vary = {f"points.{name_}": Cycle([_turned(s * angle, *xy) for s in signs]) for name_, xy in corners.items()}
+    vary |= {f"points.{name_}": Cycle([_turned(s * angle, *corners[corner]) for s, corner in zip(signs, pair)])
+             for name_, pair in shared.items()}  # fmt: skip
+    vary[f"bodies.{body}.angle"] = Cycle([s * angle for s in signs])
+    unit = Unit(
+        name,
         points=points,
-        bodies=[Body("sq", origin="C", angle=angle, points=("C", *corners))],
-        joints=[Revolute(("sq", "left.sq"), at="L"), Revolute(("sq", "below.sq"), at="D")],
+        bodies=[Body(body, origin="C", angle=angle, points=tuple(corners))],
+        joints=[Revolute((body, f"left.{body}"), at="L"), Revolute((body, f"below.{body}"), at="D")],
     )
-    return square, vary
+    return unit, vary
+
+
+def rotating_squares_unit(angle: float = 0.3) -> tuple[Unit, dict]:
+    """One unit square ``sq`` of the rotating-squares lattice and its checkerboard `vary`:
+    turned by +angle where i + j is even, −angle where it is odd; points C (centre),
+    ``ll``, ``lr``, ``ur``, ``ul`` (corners), L and D (the corners shared with the square
+    on the left and the one below)."""
+    return _rotating_unit("square", "sq", angle, 1.0, 1.0)
+
+
+def _rotating_lattice(unit: Unit, vary: dict, body: str, prefix: str, n: tuple[int, int], pitch: tuple[float, float],
+                      amplitude: float, omega: float, name: str) -> Mechanism:  # fmt: skip
+    """The grid of `unit` with its ground joints and driver: copy (0, 0) pinned at its
+    centre and driven relative to the ground, the centre of copy (1, 0) in a slot along x."""
+    repeat = Repeat(unit, count=n, prefix=prefix, offset=((pitch[0], 0.0), (0.0, pitch[1])), vary=vary)
+    first, second = f"{prefix}0_0", f"{prefix}1_0"
+    return Mechanism(
+        points={},
+        bodies=[],
+        joints=[Revolute((f"{first}.{body}", "ground"), at=f"{first}.C"),
+                PinInSlot(("ground", f"{second}.{body}"), at=f"{second}.C", direction=(1.0, 0.0))],
+        drivers=[RotationalDriver((f"{first}.{body}", "ground"), law=Harmonic(amplitude=amplitude, omega=omega))],
+        repeats=[repeat],
+        name=name,
+    )  # fmt: skip
+
+
+def _check_side(n, label: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise ValueError(f"`{label}` must be a whole number >= 2, got {n!r}.")
+    return int(n)
 
 
 @_collection_paused()
@@ -307,19 +339,29 @@ def rotating_squares(n: int, angle: float = 0.3, amplitude: float = SQUARES_AMPL
     (i, j) is centred at (i·p(θ), j·p(θ)) with p(θ) = cos θ + sin θ and turned by
     (−1)^(i+j)·θ — the lattice's width and height scale alike, Poisson's ratio −1.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise ValueError(f"`n` must be a whole number >= 2, got {n!r}.")
-    square, vary = rotating_squares_unit(angle)
+    n = _check_side(n, "n")
+    unit, vary = rotating_squares_unit(angle)
     pitch = math.cos(angle) + math.sin(angle)
-    repeat = Repeat(square, count=(int(n), int(n)), prefix=SQUARES_PREFIX, offset=((pitch, 0.0), (0.0, pitch)),
-                    vary=vary)  # fmt: skip
-    first, second = f"{SQUARES_PREFIX}0_0", f"{SQUARES_PREFIX}1_0"
-    return Mechanism(
-        points={},
-        bodies=[],
-        joints=[Revolute((f"{first}.sq", "ground"), at=f"{first}.C"),
-                PinInSlot(("ground", f"{second}.sq"), at=f"{second}.C", direction=(1.0, 0.0))],
-        drivers=[RotationalDriver((f"{first}.sq", "ground"), law=Harmonic(amplitude=amplitude, omega=omega))],
-        repeats=[repeat],
-        name=f"rotating_squares_{n}x{n}",
-    )  # fmt: skip
+    return _rotating_lattice(unit, vary, "sq", SQUARES_PREFIX, (n, n), (pitch, pitch), amplitude, omega,
+                             f"rotating_squares_{n}x{n}")  # fmt: skip
+
+
+def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.5, angle: float = 0.3,
+                        amplitude: float = SQUARES_AMPLITUDE, omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
+    """Rotating rectangles (Grima, Gatt, Alderson and Evans 2005): ni × nj rectangles of
+    `width` × `height` hinged at their corners, built and held as `rotating_squares`.
+
+    Rectangle (i, j) (body ``r{i}_{j}.rect``) is turned by (−1)^(i+j)·θ and centred at
+    (i·a(θ), j·b(θ)) with a(θ) = width·cos θ + height·sin θ and b(θ) = width·sin θ +
+    height·cos θ: the lattice opens unequally in x and y, with Poisson's ratio
+    ν = −(d ln b / d ln a) = −(a/b)·(width·cos θ − height·sin θ)/(height·cos θ − width·sin θ),
+    −1 only for squares.
+    """
+    ni, nj = _check_side(ni, "ni"), _check_side(nj, "nj")
+    for value, label in ((width, "width"), (height, "height")):
+        if not (isinstance(value, (int, float)) and value > 0):
+            raise ValueError(f"`{label}` must be a positive length, got {value!r}.")
+    unit, vary = _rotating_unit("rectangle", "rect", angle, float(width), float(height))
+    pitch = (width * math.cos(angle) + height * math.sin(angle), width * math.sin(angle) + height * math.cos(angle))
+    return _rotating_lattice(unit, vary, "rect", "r", (ni, nj), pitch, amplitude, omega,
+                             f"rotating_rectangles_{ni}x{nj}")  # fmt: skip

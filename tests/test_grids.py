@@ -244,3 +244,18 @@ def test_grid_angles_are_exact_for_a_pitch_from_the_file():
     """The contract's rotating-squares offset, 2·(cos 0.3 + sin 0.3), to the file's digits."""
     pitch = load_model(EXAMPLES / "rotating_squares.toml").repeats[0].offset[0][0]
     assert pitch == pytest.approx(2 * (math.cos(0.3) + math.sin(0.3)), abs=1e-12)
+
+
+def test_the_lattice_size_figure_shows_poissons_ratio_minus_one(tmp_path):
+    from sparsekin.plots.metamaterials import lattice_size, plot_lattice_size
+
+    with pytest.warns(Warning):  # the one state of self-stress of 3 × 3 squares
+        result = solve_kinematics(testset.rotating_squares(3), np.linspace(0.0, 3.0, 31))
+    bodies = (("s0_0.sq", "s2_0.sq"), ("s0_0.sq", "s0_2.sq"), "s1_1.sq")
+    size = lattice_size(result, *bodies)
+    theta = 0.3 + 0.2 * np.sin(result.times)
+    np.testing.assert_allclose(size.opening, theta, atol=1e-12)
+    np.testing.assert_allclose(size.width, 2 * (np.cos(theta) + np.sin(theta)), atol=1e-11)
+    np.testing.assert_allclose(size.poisson_ratio[np.isfinite(size.poisson_ratio)], -1.0, atol=1e-9)
+    path = plot_lattice_size(result, *bodies, tmp_path / "size.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -130,6 +130,10 @@ class ModelReport:
     has_forces : bool
         Whether a run computes forces by default: a body has a mass or an inertia, or a
         load acts (`Mechanism.has_forces`).
+    left_out : tuple of str
+        For each repeat that leaves parts out of some copies (a grid's open boundaries,
+        ``copies = {…}``): one line saying how many, ``repeat[0]: 20 elements on the
+        open boundary or restricted to some copies``.
     """
 
     name: str
@@ -153,6 +157,7 @@ class ModelReport:
     n_loads: int = 0
     gravity: tuple[float, float] = (0.0, 0.0)
     has_forces: bool = False
+    left_out: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -310,6 +315,8 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         n_loads=mechanism.n_loads,
         gravity=mechanism.gravity,
         has_forces=mechanism.has_forces,
+        left_out=tuple(f"{c.label}: {c.n_left_out()} element{'s' * (c.n_left_out() != 1)} on the open boundary or "
+                       "restricted to some copies" for c in mechanism.copies if c.n_left_out()),
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -399,6 +406,7 @@ def format_report(report: ModelReport) -> str:
         f"degrees of freedom by rank: {rank_without} without the drivers, {rank_with} with them",
         f"condition number of the scaled Jacobian (on its rank): {_number(analysis.condition)}",
     ]
+    lines[1:1] = report.left_out
     if report.redundant:
         lines.append(f"redundant equations ({len(report.redundant)}):")
         for equation in report.redundant:
