@@ -259,3 +259,29 @@ def test_the_lattice_size_figure_shows_poissons_ratio_minus_one(tmp_path):
     np.testing.assert_allclose(size.poisson_ratio[np.isfinite(size.poisson_ratio)], -1.0, atol=1e-9)
     path = plot_lattice_size(result, *bodies, tmp_path / "size.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+LATTICE_FILE_MISTAKES = {
+    "a zero count": (("count = [9, 6]", "count = [0, 6]"), r"repeat\[0\]\.count\[0\]: expected a whole number >= 1, got 0"),
+    "three counts": (("count = [9, 6]", "count = [9, 6, 2]"), r"repeat\[0\]\.count: expected a number of copies or \[ni, nj\]"),
+    "one offset": (("offset = [[1.0, 0.0], [0.0, 1.0]]", "offset = [1.0, 0.0]"),
+                   r"repeat\[0\]\.offset: expected two lattice vectors \[\[dxi, dyi\], \[dxj, dyj\]\]"),
+    "a boundary above": (('boundary = { "below.V" = "ground", "below.H" = "ground" }', 'boundary = { "above.V" = "ground" }'),
+                         r'repeat\[0\]\.boundary: expected keys "left\.NAME" or "below\.NAME" with NAME a body of unit "cell"'),
+    "copies k": (("copies = { i = [0, -2] }", "copies = { k = 1 }"), r'units\.cell\.bodies\.H\.copies: unknown key "k"'),
+    "an empty range": (("copies = { i = [0, -2] }", "copies = { i = [3, 1] }"), r"bodies\.H\.copies\.i: the range \[3, 1\] keeps no column"),
+    "first in a grid": (("count = [9, 6]", 'count = [9, 6]\nfirst = { "prev.V" = "ground" }'),
+                        r"repeat\[0\]\.first: a grid's missing neighbours are attached with boundary"),
+    "a scalar step": (('"drivers[0].law.phase".cycle', '"drivers[0].law.phase".step = 0.1\n"drivers[0].law.amplitude".cycle'),
+                      r"""repeat\[0\]\.vary\."drivers\[0\]\.law\.phase"\.step: a grid's step is \[si, sj\]"""),
+}
+
+
+@pytest.mark.parametrize(("edit", "message"), LATTICE_FILE_MISTAKES.values(), ids=LATTICE_FILE_MISTAKES.keys())
+def test_a_mistake_in_a_grid_file_is_one_line_naming_it(edit, message, tmp_path):
+    text = (EXAMPLES / "lattice.toml").read_text()
+    assert edit[0] in text
+    (tmp_path / "bad.toml").write_text(text.replace(*edit, 1))
+    with pytest.raises(ModelError, match=message) as caught:
+        load_model(tmp_path / "bad.toml")
+    assert "\n" not in str(caught.value)

@@ -1,19 +1,25 @@
-"""Units repeated into chains: one description, many copies, no object per copy.
+"""Units repeated into chains and grids: one description, many copies, no object per copy.
 
 A `Unit` is a small sub-mechanism (points, bodies, joints, drivers, loads) whose names are
-local to it; a body named ``prev.NAME`` is body NAME of the copy before.  A `Repeat` makes
-``count`` copies of a unit: copy k's names are ``PREFIX{k}.NAME``, its drawing is
-translated by ``k · offset``, and `vary` gives copies their own law parameters or point
-positions (`Step`: the unit's value + k · step; `Cycle`: values[k mod len]).  A
-`Mechanism` takes repeats beside its own elements; the result is exactly the mechanism
-one would write by hand with the copies' names.
+local to it.  A `Repeat` makes copies of it: a chain of ``count`` copies, where
+``prev.NAME`` is body NAME of the copy before, or a grid of ``count = (ni, nj)`` copies,
+where ``left.NAME`` and ``below.NAME`` are body NAME of copies (i − 1, j) and (i, j − 1).
+Copy k's names are ``PREFIX{k}.NAME``, copy (i, j)'s ``PREFIX{i}_{j}.NAME``; its drawing is
+translated by ``k · offset`` or ``i · offset[0] + j · offset[1]``, and `vary` gives copies
+their own law parameters, points or body angles (`Step`, `Cycle`:
+`sparsekin.model.variations`).  A part wrapped in `OnCopies` exists only on some columns
+or rows, and a part that names a neighbour outside the grid is left out there (an open
+boundary) unless `Repeat.boundary` attaches it.  A `Mechanism` takes repeats beside its
+own elements; the result is exactly the mechanism one would write by hand with the
+copies' names.
 
 The copies are never built one by one.  `Copies` resolves a repeat inside its mechanism
-(where its bodies and elements start, what its references mean) and answers by index
-arithmetic: the expanded name of a body, the drawn position of every copy's points (one
-array), and — on demand, for messages and small models — any copy's element as an
-object (`ElementList`, `PointTable`).  `sparsekin.engine.pattern` tiles the unit's equations
-over the copies from the same arithmetic.
+(where its bodies and elements start, which copies have which parts, what its references
+mean) and answers by index arithmetic (`sparsekin.model.tiling`): the expanded name of a
+body, the drawn position of every copy's points (one array), and — on demand, for
+messages and small models — any copy's element as an object (`ElementList`,
+`PointTable`).  `sparsekin.engine.pattern` tiles the unit's equations over the copies
+from the same arithmetic.
 
 >>> from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver
 >>> loop = Unit(
@@ -206,7 +212,8 @@ class Repeat:
         tiling = Tiling(prefix, self.shape)
         if grid:
             offset = ((0.0, 0.0), (0.0, 0.0)) if self.offset == (0.0, 0.0) else self.offset
-            if isinstance(offset, (str, bytes)) or not _validate.is_sequence(offset) or len(offset) != 2:
+            if (isinstance(offset, (str, bytes)) or not _validate.is_sequence(offset) or len(offset) != 2
+                    or not all(_validate.is_sequence(vector) for vector in offset)):  # fmt: skip
                 raise ModelError(f"expected two lattice vectors [[dxi, dyi], [dxj, dyj]], got {offset!r}", element="offset")
             offset = (_validate.pair(offset[0], "offset[0]"), _validate.pair(offset[1], "offset[1]"))
         else:
