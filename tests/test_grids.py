@@ -285,3 +285,18 @@ def test_a_mistake_in_a_grid_file_is_one_line_naming_it(edit, message, tmp_path)
     with pytest.raises(ModelError, match=message) as caught:
         load_model(tmp_path / "bad.toml")
     assert "\n" not in str(caught.value)
+
+
+def test_a_point_rides_on_the_first_body_of_its_copy_that_lists_it():
+    """As in the mechanism written by hand: where the first body that lists a point is left
+    out of a copy, the point rides on the next one (and on the ground if none)."""
+    from sparsekin.engine.pattern import build_point_map
+
+    unit = Unit("cell", points={"A": (0.0, 0.0), "B": (1.0, 0.0), "C": (1.0, 1.0)},
+                bodies=[OnCopies(Body("first", origin="A", points=("A", "B")), i=0),
+                        Body("second", origin="B", points=("B",)), OnCopies(Body("third", origin="C", points=("C",)), i=1)])
+    mechanism = Mechanism(points={}, bodies=[], repeats=[Repeat(unit, count=(2, 1), prefix="g")])
+    grid, by_hand = build_point_map(mechanism), build_point_map(mechanism.expanded())
+    for name in ("g0_0.A", "g0_0.B", "g1_0.A", "g1_0.B", "g0_0.C", "g1_0.C"):
+        assert grid.locate(name)[0] == by_hand.locate(name)[0], name
+    assert grid.locate("g1_0.B")[0] == mechanism.body_index("g1_0.second") and grid.locate("g1_0.A")[0] == -1

@@ -319,13 +319,13 @@ class PointMap:
         self._unit_carriers = []
         self._model_carriers: dict[str, int] = {}  # model points that units' bodies list: copy 0's body
         for copies in mechanism.copies:
-            carriers: dict[str, int] = {}
+            carriers: dict[str, list[int]] = {}  # the unit's bodies that list each unit point, in order
             for index, body in enumerate(copies.unit.bodies):
                 for point in body.points:
                     if point in copies.point_index:
-                        carriers.setdefault(point, index)
-                    else:
-                        self._model_carriers.setdefault(point, copies.first_body + index)
+                        carriers.setdefault(point, []).append(index)
+                    elif copies.present("bodies", 0, index):  # copy 0 has that body
+                        self._model_carriers.setdefault(point, copies.first_body + int(copies.slot("bodies", 0, index)))
             self._unit_carriers.append(carriers)
         self._frames: np.ndarray | None = None
 
@@ -339,8 +339,9 @@ class PointMap:
             located = mechanism.points.locate(name)
             if located is not None:
                 copies, k, p = located
-                unit_body = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], -1)
-                if unit_body >= 0 and copies.present("bodies", k, unit_body):
+                listing = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], ())
+                unit_body = next((b for b in listing if copies.present("bodies", k, b)), -1)  # copy k has it
+                if unit_body >= 0:
                     candidates.append(copies.first_body + int(copies.slot("bodies", k, unit_body)))
             body = min((c for c in candidates if c >= 0), default=-1)  # the first body that lists it
         if body < 0:
