@@ -46,7 +46,7 @@ def write_model(family: str, copies: int, folder: Path) -> Path:
     if n != 1:
         raise RuntimeError(f"no single count line in {FILES[family]}")
     # the points the example keeps name copies that a shorter chain may not have: the run names its own
-    text = re.sub(r'(?m)^points = \[[^\n]*"u\d+\.[^\n]*\]\n', "", text, count=1)
+    text = re.sub(r'(?m)^points = \[[^\n]*"[A-Za-z]+\d+(?:_\d+)?\.[^\n]*\][^\n]*\n', "", text, count=1)
     path = folder / f"{family}.toml"
     path.write_text(text, encoding="utf-8")
     return path
