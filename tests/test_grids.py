@@ -300,3 +300,26 @@ def test_a_point_rides_on_the_first_body_of_its_copy_that_lists_it():
     for name in ("g0_0.A", "g0_0.B", "g1_0.A", "g1_0.B", "g0_0.C", "g1_0.C"):
         assert grid.locate(name)[0] == by_hand.locate(name)[0], name
     assert grid.locate("g1_0.B")[0] == mechanism.body_index("g1_0.second") and grid.locate("g1_0.A")[0] == -1
+
+
+def test_masses_and_loads_on_some_copies_give_the_forces_of_the_grid_written_out():
+    """The forces that hold a grid's motion (masses of present bodies, loads on some rows,
+    a harmonic load law) are those of the same mechanism written copy by copy."""
+    from sparsekin import Force, Harmonic as Law
+
+    cell, vary = testset.lattice_unit(3)
+    bodies = (replace(cell.bodies[0], mass=1.5, inertia=0.1), replace(cell.bodies[1], mass=0.5, inertia=0.02))
+    loaded = Unit(cell.name, points=cell.points, bodies=bodies, joints=cell.joints, drivers=cell.drivers,
+                  loads=[OnCopies(Force("V", at="T", value=(Law(amplitude=2.0, omega=3.0), -4.0)), j=-1),
+                         OnCopies(Force("H", at="R", value=(0.0, -1.0)), i=(1, 2))],
+                  only=cell.only)  # fmt: skip
+    repeat = Repeat(loaded, count=(4, 3), prefix="c", offset=((1.0, 0.0), (0.0, 1.0)), vary=vary,
+                    boundary={"below.V": "ground", "below.H": "ground"})  # fmt: skip
+    grid = Mechanism(points={}, bodies=[], repeats=[repeat], gravity=(0.0, -9.81))
+    by_hand = grid.expanded()
+    assert grid.n_loads == by_hand.n_loads == 4 + 2 * 3
+    times = np.linspace(0.0, 1.0, 11)
+    result, reference = solve_kinematics(grid, times, forces="all"), solve_kinematics(by_hand, times, forces="all")
+    assert result.force_labels == reference.force_labels
+    scale = np.abs(reference.force_tracks).max()
+    np.testing.assert_allclose(result.force_tracks, reference.force_tracks, rtol=0, atol=1e-10 * scale)
