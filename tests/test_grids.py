@@ -323,3 +323,73 @@ def test_masses_and_loads_on_some_copies_give_the_forces_of_the_grid_written_out
     assert result.force_labels == reference.force_labels
     scale = np.abs(reference.force_tracks).max()
     np.testing.assert_allclose(result.force_tracks, reference.force_tracks, rtol=0, atol=1e-10 * scale)
+
+
+def expected_names(unit_parts, count, boundary):
+    """Brute force, copy by copy, straight from the contract's words: the body names and
+    the joints' body pairs of a grid of `unit_parts` = (bodies, joints), each part
+    ``(name or pair, i bound, j bound)`` with bounds None, an integer or (first, last)."""
+    ni, nj = count
+
+    def keeps(bound, index, size):
+        if bound is None:
+            return True
+        first, last = (bound, bound) if isinstance(bound, int) else bound
+        first, last = (b + size if b < 0 else b for b in (first, last))
+        return first <= index <= last
+
+    def has(i, j, body):
+        return 0 <= i < ni and 0 <= j < nj and any(
+            name == body and keeps(bi, i, ni) and keeps(bj, j, nj) for name, bi, bj in unit_parts[0])
+
+    bodies, joints = [], []
+    for j in range(nj):
+        for i in range(ni):
+            bodies += [f"g{i}_{j}.{name}" for name, bi, bj in unit_parts[0] if has(i, j, name)]
+    for j in range(nj):
+        for i in range(ni):
+            for pair, bi, bj in unit_parts[1]:
+                if not (keeps(bi, i, ni) and keeps(bj, j, nj)):
+                    continue
+                names = []
+                for reference in pair:
+                    other = {"left.": (i - 1, j), "below.": (i, j - 1)}.get(reference.split(".")[0] + ".", (i, j))
+                    local = reference.split(".")[-1]
+                    if other == (i, j) or has(*other, local):
+                        names.append(f"g{other[0]}_{other[1]}.{local}" if has(*other, local) else None)
+                    elif not (0 <= other[0] < ni and 0 <= other[1] < nj) and reference in boundary:
+                        names.append(boundary[reference])
+                    else:
+                        names.append(None)
+                if None not in names:
+                    joints.append(tuple(names))
+    return bodies, joints
+
+
+GRID_SHAPES = {
+    "bars on some columns": (
+        [("a", None, None), ("b", (0, -2), None), ("c", None, (1, 2))],
+        [(("a", "left.a"), None, None), (("b", "a"), None, None), (("c", "below.a"), None, None),
+         (("c", "left.b"), None, -1), (("a", "below.c"), 1, None)],
+        (4, 3), {"below.a": "ground"}),
+    "a single column and row": (
+        [("a", None, None), ("b", -1, -1)],
+        [(("a", "below.a"), None, None), (("b", "left.a"), None, None), (("a", "left.a"), None, (1, 1))],
+        (1, 2), {"left.a": "ground"}),
+}
+
+
+@pytest.mark.parametrize(("bodies", "joints", "count", "boundary"), GRID_SHAPES.values(), ids=GRID_SHAPES.keys())
+def test_which_parts_each_copy_has_follows_the_contract_word_for_word(bodies, joints, count, boundary):
+    def wrapped(part, bound_i, bound_j):
+        return part if bound_i is None and bound_j is None else OnCopies(part, i=bound_i, j=bound_j)
+
+    unit = Unit("cell", points={"A": (0.0, 0.0)},
+                bodies=[wrapped(Body(name, origin="A"), bi, bj) for name, bi, bj in bodies],
+                joints=[wrapped(Revolute(pair, at="A"), bi, bj) for pair, bi, bj in joints])  # fmt: skip
+    mechanism = Mechanism(points={}, bodies=[], repeats=[Repeat(unit, count=count, prefix="g", boundary=boundary)])
+    expected_bodies, expected_joints = expected_names((bodies, joints), count, boundary)
+    assert list(mechanism.body_names) == expected_bodies
+    assert [joint.bodies for joint in mechanism.joints] == expected_joints
+    assert mechanism.frames().shape == (len(expected_bodies), 3)
+    assert build_pattern(mechanism).n_equations == 2 * len(expected_joints)

@@ -159,7 +159,7 @@ class Tiling:
             first, last = (b + size if b < 0 else b for b in bound)
             if not (0 <= first < size and 0 <= last < size):
                 raise ModelError(f"{list(bound) if bound[0] != bound[1] else bound[0]} is beyond the repeat's {size} "
-                                 f"{what} (0 … {size - 1}, or -{size} … -1 from the end)",
+                                 f"{what if size > 1 else what[:-1]} (0 … {size - 1}, or -{size} … -1 from the end)",
                                  element=f"{element}.copies.{axis}")  # fmt: skip
             if first > last:
                 raise ModelError(f"the range {list(bound)} keeps no {what[:-1]}", element=f"{element}.copies.{axis}")
