@@ -568,13 +568,13 @@ class Copies:
         return frames.reshape(-1, 3) if mask is None else frames[mask]
 
     # ------------------------------------------------------------------ variations of laws
-    def law_variations(self, driver: int) -> dict[str, dict[str, np.ndarray]]:
-        """For unit driver `driver`: law field -> {key: value of every copy}."""
+    def law_variations(self, driver: int, ks=None) -> dict[str, dict[str, np.ndarray]]:
+        """For unit driver `driver`: law field -> {key: value of every copy (of copies `ks`)}."""
         varied: dict[str, dict[str, np.ndarray]] = {}
         for target, variation in self._variations.values():
             if target[0] == "law" and target[1] == driver:
                 varied.setdefault(target[2], {})[target[3]] = varied_values(variation, base_value(self.unit, target),
-                                                                            self.tiling)  # fmt: skip
+                                                                            self.tiling, ks)  # fmt: skip
         return varied
 
     # ------------------------------------------------------------------ elements on demand
@@ -585,7 +585,7 @@ class Copies:
             angle = unit_element.angle
             for target, variation in self._variations.values():
                 if target[0] == "angle" and target[1] == e:
-                    angle = float(varied_values(variation, angle, self.tiling)[k])
+                    angle = float(varied_values(variation, angle, self.tiling, [k])[0])
             return dataclasses.replace(
                 unit_element,
                 name=self.name(k, unit_element.name),
@@ -614,9 +614,9 @@ class Copies:
             changes["name"] = self.name(k, unit_element.name)
         try:
             if kind == "drivers":
-                for law_field, keys in self.law_variations(e).items():
+                for law_field, keys in self.law_variations(e, [k]).items():
                     law = getattr(unit_element, law_field)
-                    copy_values = {key: float(values[k]) for key, values in keys.items()}
+                    copy_values = {key: float(values[0]) for key, values in keys.items()}
                     changes[law_field] = dataclasses.replace(law, **copy_values)
             return dataclasses.replace(unit_element, **changes)
         except ModelError as error:

@@ -131,10 +131,10 @@ def checked_variation(unit, target: tuple, variation: Step | Cycle, tiling: Tili
     return Step(step)
 
 
-def varied_values(variation: Step | Cycle, base, tiling: Tiling) -> np.ndarray:
-    """Every copy's value (shape (count,), or (count, 2) for a point), before the copy's
-    translation; `variation` checked by `checked_variation`."""
-    i, j = tiling.columns_rows(np.arange(tiling.count))
+def varied_values(variation: Step | Cycle, base, tiling: Tiling, ks=None) -> np.ndarray:
+    """The value of copies `ks` (default every copy; shape (len(ks),), or (len(ks), 2) for a
+    point), before the copy's translation; `variation` checked by `checked_variation`."""
+    i, j = tiling.columns_rows(np.arange(tiling.count) if ks is None else np.asarray(ks))
     if isinstance(variation, Cycle):
         values = np.array(variation.values, dtype=float)
         return values[(i + j) % len(values)]
