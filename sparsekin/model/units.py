@@ -340,7 +340,7 @@ class Copies:
         self._variations = {path: (resolve_path(unit, path), variation) for path, variation in repeat.vary.items()}
         self._positions: np.ndarray | None = None
         self._present = self._presence()
-        self._slots: dict[str, np.ndarray] = {}
+        self._slots: dict = {}  # kind (or ("through", kind)) -> running counts, made when asked
         self._totals = {kind: (self.count * len(getattr(unit, kind)) if self._present[kind] is None
                                else int(self._present[kind].sum())) for kind in KINDS}  # fmt: skip
 
@@ -449,7 +449,9 @@ class Copies:
         mask = self._present[kind]
         if mask is None:
             return divmod(within, n)
-        per_copy = np.cumsum(mask.sum(axis=1))
+        if ("through", kind) not in self._slots:  # the parts of the copies up to each copy, once
+            self._slots[("through", kind)] = np.cumsum(mask.sum(axis=1))
+        per_copy = self._slots[("through", kind)]
         k = int(np.searchsorted(per_copy, within, side="right"))
         before = int(per_copy[k - 1]) if k else 0
         return k, int(np.flatnonzero(mask[k])[within - before])
