@@ -14,14 +14,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from examples_loader import EXAMPLES
 from hand_built import lattice_as_before, lattice_by_hand, rotating_squares_by_hand
+from test_repeat import assert_same_equations
+
 from sparsekin import Body, Mechanism, ModelError, Revolute, load_model, save_model, solve_kinematics, testset
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
 from sparsekin.model.units import Cycle, OnCopies, Repeat, Step, Unit
-from test_repeat import assert_same_equations
 
 # Newton converges to 1e-12 relative; a chain of n bars accumulates n roundings.
 POSITION_ATOL = 1e-11
@@ -305,7 +305,8 @@ def test_a_point_rides_on_the_first_body_of_its_copy_that_lists_it():
 def test_masses_and_loads_on_some_copies_give_the_forces_of_the_grid_written_out():
     """The forces that hold a grid's motion (masses of present bodies, loads on some rows,
     a harmonic load law) are those of the same mechanism written copy by copy."""
-    from sparsekin import Force, Harmonic as Law
+    from sparsekin import Force
+    from sparsekin import Harmonic as Law
 
     cell, vary = testset.lattice_unit(3)
     bodies = (replace(cell.bodies[0], mass=1.5, inertia=0.1), replace(cell.bodies[1], mass=0.5, inertia=0.02))

@@ -53,7 +53,7 @@ from . import _validate
 from .bodies import Body, _point_pair, _tuple_of
 from .elements import DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS
 from .paths import DRIVER_PATH
-from .tiling import BELOW, LEFT, NEIGHBOURS, PREV, OnCopies, Tiling, neighbour_prefix
+from .tiling import BELOW, LEFT, PREV, OnCopies, Tiling, neighbour_prefix
 from .variations import Cycle, Step, base_value, checked_variation, resolve_path, varied_values
 
 __all__ = ["Unit", "Repeat", "Step", "Cycle", "OnCopies", "Copies", "ElementList", "PointTable", "PREV", "LEFT", "BELOW",
