@@ -56,7 +56,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             steps[(info["family"], info["bodies"])][info["solver"]] = dict(info, seconds_per_step=per_step)
         elif record["name"].startswith("test_setup_and_memory"):
             setups[(info["family"], info["bodies"])] = info
-        elif record["name"].startswith("test_large_file"):
+        elif record["name"].startswith(("test_large_file", "test_grid_file")):
             large.append(info)
         elif record["name"].startswith("test_task5_amplitude_sweep"):
             sweeps.append(info)
@@ -218,7 +218,7 @@ def render(steps: dict, setups: dict, document: dict) -> str:
 def _large_files(records: list[dict]) -> list[str]:
     """The table of `test_large_files.py`: ``sparsekin run`` on chains written as small files."""
     lines = [
-        "## Large models from small files (`test_large_files.py`)",
+        "## Large models from small files (`test_large_files.py`, `test_grid_files.py`)",
         "",
         "Each row is one fresh process (`benchmarks/measure_file_run.py`): the example file with another",
         "`count`, read and its pattern built (`setup`), or run through `sparsekin run --quiet` (the time to",

@@ -29,18 +29,24 @@ _EXAMPLES = _HERE.parent / "examples"
 sys.path.insert(0, str(_HERE.parent))  # sparsekin when not installed
 
 #: The model file of each family, and the line that says how many copies.
-FILES = {"task5_chain": "task5_chain.toml", "four_bar_chain": "four_bar_chain.toml"}
+FILES = {"task5_chain": "task5_chain.toml", "four_bar_chain": "four_bar_chain.toml",
+         "rotating_squares": "rotating_squares.toml", "lattice": "lattice.toml"}  # fmt: skip
+#: The grids among them: COPIES is then the number of columns and of rows, ``count = [COPIES, COPIES]``.
+GRIDS = ("rotating_squares", "lattice")
 #: The time step of the runs, s.
 STEP = 0.01
 
 
 def write_model(family: str, copies: int, folder: Path) -> Path:
     text = (_EXAMPLES / FILES[family]).read_text(encoding="utf-8")
-    text, n = re.subn(r"(?m)^count = \d+$", f"count = {copies}", text)
+    if family in GRIDS:
+        text, n = re.subn(r"(?m)^count = \[\d+, \d+\]", f"count = [{copies}, {copies}]", text)
+    else:
+        text, n = re.subn(r"(?m)^count = \d+$", f"count = {copies}", text)
     if n != 1:
         raise RuntimeError(f"no single count line in {FILES[family]}")
     # the points the example keeps name copies that a shorter chain may not have: the run names its own
-    text = re.sub(r'(?m)^points = \[[^\n]*"u\d+\.[^\n]*\]\n', "", text, count=1)
+    text = re.sub(r'(?m)^points = \[[^\n]*"[A-Za-z]+\d+(?:_\d+)?\.[^\n]*\][^\n]*\n', "", text, count=1)
     path = folder / f"{family}.toml"
     path.write_text(text, encoding="utf-8")
     return path

@@ -78,7 +78,7 @@ from .model.elements import (
 from .model.laws import Harmonic, Law, Linear, Polynomial, Spline
 from .model.mechanism import GROUND, Analysis, Body, Mechanism
 from .model.modelfile import load_model, save_model
-from .model.units import Cycle, Repeat, Step, Unit
+from .model.units import Cycle, OnCopies, Repeat, Step, Unit
 from .results.kinematics import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
 from .solve.kinematics import solve_kinematics
 from .solve.stepper import KinematicStepper
@@ -107,6 +107,7 @@ __all__ = [
     "Mechanism",
     "ModelError",
     "ModelReport",
+    "OnCopies",
     "PathDriver",
     "PinInSlot",
     "PointMotion",

@@ -25,12 +25,13 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .model.elements import Revolute, RotationalDriver, Translational, TranslationalDriver
+from .model.elements import PinInSlot, Revolute, RotationalDriver, Translational, TranslationalDriver
 from .model.laws import Harmonic, Linear
 from .model.mechanism import Body, Mechanism
-from .model.units import Cycle, Repeat, Unit
+from .model.units import Cycle, OnCopies, Repeat, Unit
 
-__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "task5_unit_phases"]
+__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "lattice_unit",
+           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -192,44 +193,175 @@ LATTICE_AMPLITUDE = 0.3
 LATTICE_OMEGA = 2.0
 
 
-@_collection_paused()
+#: Prefix of the lattice's copies: cell (i, j) is column i, row j + 1 (``c3_0.V``).
+LATTICE_PREFIX = "c"
+
+
+def lattice_unit(rows: int) -> tuple[Unit, dict]:
+    """The lattice's cell and the `vary` of its row actuators (one phase per row).
+
+    Copy (i, j) holds the vertical bar V from node (j, i) (its point B) to node (j + 1, i)
+    (T), and — in every column but the last — the horizontal bar H from T to the next
+    column's top node (R).  V is pinned to the V below (the ground in row 0) at B; H to V
+    and to the next column's V (written by that copy as ``left.H``) at T.  Column 0 drives
+    V relative to the H below it (the ground in row 0).
+    """
+    phases = [2 * np.pi * r / max(rows, 1) for r in range(rows)]
+    cell = Unit(
+        "cell",
+        points={"B": (0.0, 0.0), "T": (0.0, 1.0), "R": (1.0, 1.0)},
+        bodies=[Body("V", origin="B", angle=math.pi / 2, points=("B", "T")),
+                OnCopies(Body("H", origin="T", points=("T", "R")), i=(0, -2))],
+        joints=[Revolute(("V", "below.V"), at="B"), Revolute(("H", "V"), at="T"), Revolute(("left.H", "V"), at="T")],
+        drivers=[OnCopies(RotationalDriver(("V", "below.H"), law=Harmonic(amplitude=LATTICE_AMPLITUDE,
+                                                                           omega=LATTICE_OMEGA)), i=0)],
+    )  # fmt: skip
+    vary = {"drivers[0].law.phase": Cycle([float(phase) for phase in phases]),
+            "drivers[0].law.offset": Cycle([math.pi / 2 - LATTICE_AMPLITUDE * math.sin(phase) for phase in phases])}
+    return cell, vary
+
+
 def lattice(rows: int, cols: int) -> Mechanism:
     """A grid of rows × cols parallelogram cells on a fixed base: rows·(2·cols+1) bodies.
 
-    Node (r, c) starts at (c, r).  Row r (1 … rows) has vertical bars V{r}_{c} from node
-    (r-1, c) to (r, c) and horizontal bars H{r}_{c} from (r, c) to (r, c+1); the bottom
-    nodes are ground pivots.  Pinned at the nodes, the grid has one degree of freedom per
-    row (its shear); an actuator at the left edge drives the angle of V{r}_0 relative to
-    the bar below it to π/2 + 0.3 (sin(2 t + phase_r) - sin(phase_r)), so the grid starts
-    as drawn.  Every vertical bar of row r turns with it and the horizontal bars
-    translate; the angles stay within 0.6 rad of vertical, far from the folded positions
-    (a bar horizontal, 1.57 rad away).  Interior nodes join four bars, so the
+    Node (r, c) starts at (c, r).  Row r (1 … rows) has vertical bars from node (r-1, c)
+    to (r, c) and horizontal bars from (r, c) to (r, c+1); the bottom nodes are ground
+    pivots.  Pinned at the nodes, the grid has one degree of freedom per row (its
+    shear); an actuator at the left edge drives the angle of the row's first vertical bar
+    relative to the bar below it to π/2 + 0.3 (sin(2 t + phase_r) - sin(phase_r)), so the
+    grid starts as drawn.  Every vertical bar of row r turns with it and the horizontal
+    bars translate; the angles stay within 0.6 rad of vertical, far from the folded
+    positions (a bar horizontal, 1.57 rad away).  Interior nodes join four bars, so the
     Jacobian graph is a two-dimensional mesh.
+
+    Built as a grid repeat (``examples/lattice.toml``) of `lattice_unit` over cols + 1
+    columns and `rows` rows: the bars of row r, column c are ``c{c}_{r-1}.V`` and
+    ``c{c}_{r-1}.H``, node (r, c) is point ``c{c}_{r-1}.T`` (r >= 1) or ``c{c}_0.B`` (r = 0).
     """
     for value, label in ((rows, "rows"), (cols, "cols")):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise ValueError(f"`{label}` must be a whole number >= 1, got {value!r}.")
-    points = {f"n{r}_{c}": (float(c), float(r)) for r in range(rows + 1) for c in range(cols + 1)}
-    bodies, joints, drivers = [], [], []
-    for r in range(1, rows + 1):
-        for c in range(cols + 1):
-            bodies.append(Body(f"V{r}_{c}", origin=f"n{r - 1}_{c}", angle=math.pi / 2, points=(f"n{r - 1}_{c}", f"n{r}_{c}")))
-        for c in range(cols):
-            bodies.append(Body(f"H{r}_{c}", origin=f"n{r}_{c}", points=(f"n{r}_{c}", f"n{r}_{c + 1}")))
-        for c in range(cols + 1):
-            below = "ground" if r == 1 else f"V{r - 1}_{c}"
-            joints.append(Revolute((f"V{r}_{c}", below), at=f"n{r - 1}_{c}"))
-            if c < cols:
-                joints.append(Revolute((f"H{r}_{c}", f"V{r}_{c}"), at=f"n{r}_{c}"))
-            if c > 0:
-                joints.append(Revolute((f"H{r}_{c - 1}", f"V{r}_{c}"), at=f"n{r}_{c}"))
-        phase = 2 * np.pi * (r - 1) / max(rows, 1)
-        below = "ground" if r == 1 else f"H{r - 1}_0"
-        drivers.append(
-            RotationalDriver(
-                (f"V{r}_0", below),
-                law=Harmonic(amplitude=LATTICE_AMPLITUDE, omega=LATTICE_OMEGA, phase=float(phase),
-                             offset=math.pi / 2 - LATTICE_AMPLITUDE * math.sin(phase)),
-            )
-        )  # fmt: skip
-    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"lattice_{rows}x{cols}")
+    cell, vary = lattice_unit(int(rows))
+    repeat = Repeat(cell, count=(int(cols) + 1, int(rows)), prefix=LATTICE_PREFIX,
+                    offset=((1.0, 0.0), (0.0, 1.0)), vary=vary, boundary={"below.V": "ground", "below.H": "ground"})  # fmt: skip
+    return Mechanism(points={}, bodies=[], repeats=[repeat], name=f"lattice_{rows}x{cols}")
+
+
+#: Prefix of the rotating squares' copies: square (i, j) is body ``s{i}_{j}.sq``.
+SQUARES_PREFIX = "s"
+#: Default amplitude (rad) and angular frequency (rad/s) of the rotating squares' driver:
+#: with the drawn angle 0.3 rad the opening stays within 0.1 … 0.5 rad, far from the
+#: closed (0) and the aligned (π/2) states where the lattice locks.
+SQUARES_AMPLITUDE = 0.2
+SQUARES_OMEGA = 1.0
+
+
+def _turned(angle: float, x: float, y: float) -> tuple[float, float]:
+    """(x, y) turned by `angle`."""
+    cosine, sine = math.cos(angle), math.sin(angle)
+    return (cosine * x - sine * y, sine * x + cosine * y)
+
+
+def _rotating_unit(name: str, body: str, angle: float, width: float, height: float) -> tuple[Unit, dict]:
+    """One width × height rectangle of a rotating-rectangles lattice and its checkerboard `vary`.
+
+    The rectangle `body` turns by +angle where i + j is even and −angle where it is odd
+    (the cycles of its drawn angle and of its points).  Its points: its centre C, its
+    corners (``ll``, ``lr``, ``ur``, ``ul`` in its own frame) and the two corners it
+    shares with its neighbours: L with the one on its left, D with the one below.
+    """
+    signs = (1.0, -1.0)  # i + j even, odd
+    half = (width / 2, height / 2)
+    corners = {"ll": (-half[0], -half[1]), "lr": (half[0], -half[1]), "ur": half, "ul": (-half[0], half[1])}
+    # the corner shared with the left neighbour: ul of a +angle rectangle, ll of a −angle one;
+    # with the one below: ll of a +angle rectangle, lr of a −angle one
+    shared = {"L": ("ul", "ll"), "D": ("ll", "lr")}
+    points = {"C": (0.0, 0.0), **{name_: _turned(angle, *xy) for name_, xy in corners.items()}}
+    points |= {name_: points[pair[0]] for name_, pair in shared.items()}
+    vary = {f"points.{name_}": Cycle([_turned(s * angle, *xy) for s in signs]) for name_, xy in corners.items()}
+    vary |= {f"points.{name_}": Cycle([_turned(s * angle, *corners[corner]) for s, corner in zip(signs, pair)])
+             for name_, pair in shared.items()}  # fmt: skip
+    vary[f"bodies.{body}.angle"] = Cycle([s * angle for s in signs])
+    unit = Unit(
+        name,
+        points=points,
+        bodies=[Body(body, origin="C", angle=angle, points=tuple(corners))],
+        joints=[Revolute((body, f"left.{body}"), at="L"), Revolute((body, f"below.{body}"), at="D")],
+    )
+    return unit, vary
+
+
+def rotating_squares_unit(angle: float = 0.3) -> tuple[Unit, dict]:
+    """One unit square ``sq`` of the rotating-squares lattice and its checkerboard `vary`:
+    turned by +angle where i + j is even, −angle where it is odd; points C (centre),
+    ``ll``, ``lr``, ``ur``, ``ul`` (corners), L and D (the corners shared with the square
+    on the left and the one below)."""
+    return _rotating_unit("square", "sq", angle, 1.0, 1.0)
+
+
+def _rotating_lattice(unit: Unit, vary: dict, body: str, prefix: str, n: tuple[int, int], pitch: tuple[float, float],
+                      amplitude: float, omega: float, name: str) -> Mechanism:  # fmt: skip
+    """The grid of `unit` with its ground joints and driver: copy (0, 0) pinned at its
+    centre and driven relative to the ground, the centre of copy (1, 0) in a slot along x."""
+    repeat = Repeat(unit, count=n, prefix=prefix, offset=((pitch[0], 0.0), (0.0, pitch[1])), vary=vary)
+    first, second = f"{prefix}0_0", f"{prefix}1_0"
+    return Mechanism(
+        points={},
+        bodies=[],
+        joints=[Revolute((f"{first}.{body}", "ground"), at=f"{first}.C"),
+                PinInSlot(("ground", f"{second}.{body}"), at=f"{second}.C", direction=(1.0, 0.0))],
+        drivers=[RotationalDriver((f"{first}.{body}", "ground"), law=Harmonic(amplitude=amplitude, omega=omega))],
+        repeats=[repeat],
+        name=name,
+    )  # fmt: skip
+
+
+def _check_side(n, label: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise ValueError(f"`{label}` must be a whole number >= 2, got {n!r}.")
+    return int(n)
+
+
+@_collection_paused()
+def rotating_squares(n: int, angle: float = 0.3, amplitude: float = SQUARES_AMPLITUDE,
+                     omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
+    """Grima and Evans' rotating squares: n × n unit squares hinged at their corners.
+
+    Square (i, j) (column i, row j; body ``s{i}_{j}.sq``) is centred at (i·p, j·p),
+    p = cos(angle) + sin(angle), and turned by +angle where i + j is even, −angle where it
+    is odd; neighbours in a row or a column are pinned at their common corner
+    (2·n·(n−1) revolutes).  Square (0, 0) is pinned to the ground at its centre, the
+    centre of square (1, 0) slides in a slot of the ground along x, and square (0, 0) is
+    driven relative to the ground: θ(t) = angle + amplitude · sin(omega · t).
+
+    3·n² coordinates and 4·n² − 4·n + 4 equations of rank 3·n²: no degree of freedom and
+    (n − 2)² redundant equations (states of self-stress).  The exact motion: square
+    (i, j) is centred at (i·p(θ), j·p(θ)) with p(θ) = cos θ + sin θ and turned by
+    (−1)^(i+j)·θ — the lattice's width and height scale alike, Poisson's ratio −1.
+    """
+    n = _check_side(n, "n")
+    unit, vary = rotating_squares_unit(angle)
+    pitch = math.cos(angle) + math.sin(angle)
+    return _rotating_lattice(unit, vary, "sq", SQUARES_PREFIX, (n, n), (pitch, pitch), amplitude, omega,
+                             f"rotating_squares_{n}x{n}")  # fmt: skip
+
+
+def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.5, angle: float = 0.3,
+                        amplitude: float = SQUARES_AMPLITUDE, omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
+    """Rotating rectangles (Grima, Gatt, Alderson and Evans 2005): ni × nj rectangles of
+    `width` × `height` hinged at their corners, built and held as `rotating_squares`.
+
+    Rectangle (i, j) (body ``r{i}_{j}.rect``) is turned by (−1)^(i+j)·θ and centred at
+    (i·a(θ), j·b(θ)) with a(θ) = width·cos θ + height·sin θ and b(θ) = width·sin θ +
+    height·cos θ: the lattice opens unequally in x and y, with Poisson's ratio
+    ν = −(d ln b / d ln a) = −(a/b)·(width·cos θ − height·sin θ)/(height·cos θ − width·sin θ),
+    −1 only for squares.
+    """
+    ni, nj = _check_side(ni, "ni"), _check_side(nj, "nj")
+    for value, label in ((width, "width"), (height, "height")):
+        if not (isinstance(value, (int, float)) and value > 0):
+            raise ValueError(f"`{label}` must be a positive length, got {value!r}.")
+    unit, vary = _rotating_unit("rectangle", "rect", angle, float(width), float(height))
+    pitch = (width * math.cos(angle) + height * math.sin(angle), width * math.sin(angle) + height * math.cos(angle))
+    return _rotating_lattice(unit, vary, "rect", "r", (ni, nj), pitch, amplitude, omega,
+                             f"rotating_rectangles_{ni}x{nj}")  # fmt: skip

@@ -38,6 +38,7 @@ PAGES_WITH_CODE = {
     "how-to/linear-solver.md": (),
     "how-to/reading-results.md": ("pandas", "xarray"),
     "how-to/chained-mechanisms.md": ("xarray",),
+    "how-to/lattices.md": (),
     "how-to/forces.md": (),
     "how-to/design-studies.md": ("distributed",),
     "reference/python/index.md": (),

@@ -147,7 +147,7 @@ def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(
     from sparsekin.solve import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
-    grid = testset.lattice(6, 8)
+    grid = testset.lattice(6, 8).expanded()  # every bar with its own mass below
     bodies = tuple(replace(body, mass=2.0, inertia=0.2) for body in grid.bodies)
     mechanism, times = replace(grid, bodies=bodies, gravity=(0.0, -9.81)), np.linspace(0.0, 1.0, 11)
     result = solve_kinematics(mechanism, times, forces="all")

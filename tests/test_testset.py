@@ -62,7 +62,7 @@ def test_lattice_rows_shear_with_their_drivers():
     position, velocity, acceleration = lattice_nodes(rows, cols, times)
     for r in range(1, rows + 1):
         for c in (0, cols // 2, cols):
-            motion = result.point(f"n{r}_{c}")
+            motion = result.point(f"c{c}_{r - 1}.T")  # node (r, c)
             np.testing.assert_allclose(motion.position, position[:, r - 1] + [c, 0.0], atol=1e-11)
             np.testing.assert_allclose(motion.velocity, velocity[:, r - 1], atol=1e-10)
             np.testing.assert_allclose(motion.acceleration, acceleration[:, r - 1], atol=1e-9)

@@ -29,6 +29,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 from sphinx.errors import ExtensionError
@@ -56,7 +57,19 @@ GALLERY_TITLES = {
     "four_bar_chain": "Four-bar chain (1000 loops)",
     "task5_chain": "Task 5 chain (1000 units)",
     "task5_dynamics": "Task 5 with masses and a payload",
+    "lattice": "Lattice of parallelograms (a grid repeat)",
+    "rotating_squares": "Rotating squares (an auxetic metamaterial)",
+    "rotating_rectangles": "Rotating rectangles",
 }
+#: Lattice metamaterials: drawn whole and animated without labels, with the figure of
+#: their size against their opening (`sparsekin.plots.metamaterials.plot_lattice_size`):
+#: name -> (two bodies across, two bodies up, the body whose angle is the opening).
+METAMATERIALS = {
+    "rotating_squares": (("s0_0.a", "s3_0.b"), ("s0_0.a", "s0_3.c"), "s0_0.a"),
+    "rotating_rectangles": (("r0_0.rect", "r5_0.rect"), ("r0_0.rect", "r0_3.rect"), "r0_0.rect"),
+}
+#: The animations of the metamaterials: clip length (s) and frames per second.
+METAMATERIAL_CLIP = (6.0, 10)
 #: Model files put into the scratch folder of the command examples: a file of the
 #: repository, or a Python expression of sparsekin saved as a model file (the pages say
 #: how to make them).
@@ -156,18 +169,26 @@ def make_gallery(folder: Path) -> None:
         text = path.read_text(encoding="utf-8")
         mechanism = sk.load_model(path)
         analysis = mechanism.analysis
-        result = sk.solve_kinematics(mechanism, np.linspace(0.0, analysis.t_end, analysis.steps))
+        with warnings.catch_warnings():
+            if name in METAMATERIALS:  # over-constrained by design: their states of self-stress are left out
+                warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
+            result = sk.solve_kinematics(mechanism, np.linspace(0.0, analysis.t_end, analysis.steps))
         trace = analysis.points or ()
         shown, part = None, ""
-        if mechanism.n_bodies > GALLERY_MAX_BODIES:
+        if mechanism.n_bodies > GALLERY_MAX_BODIES and name not in METAMATERIALS:
             shown = [mechanism.body_names[k] for k in range(GALLERY_MAX_BODIES)]
             point_map = build_point_map(mechanism)
             trace = [point for point in trace if 0 <= point_map.locate(point)[0] < GALLERY_MAX_BODIES]
             part = f" The pictures show its first {GALLERY_MAX_BODIES} bodies."
-        drawing = draw_mechanism(mechanism, result, folder / "images", bodies=shown)
-        drawing.rename(folder / "images" / f"{name}.png")
+        labels = name not in METAMATERIALS  # a lattice's hundreds of names would hide it
+        if labels:
+            drawing = draw_mechanism(mechanism, result, folder / "images", bodies=shown)
+            drawing.rename(folder / "images" / f"{name}.png")
+        else:
+            save_frame(result, folder / "images" / f"{name}.png", 0.0, labels=False)
         frame_time = round(FRAME_AT * analysis.t_end, 3)
-        save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown)
+        save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown,
+                   labels=labels)  # fmt: skip
         if name not in GALLERY_TITLES:
             raise ValueError(f"examples/{name}.toml has no gallery title: add it to GALLERY_TITLES in {__file__}")
         title = GALLERY_TITLES[name]
@@ -189,6 +210,7 @@ def make_gallery(folder: Path) -> None:
             "",
             f"![{title} at t = {frame_time:g} s](images/{name}-frame.png)",
             "",
+            *metamaterial_section(name, result, folder / "images"),
             "```bash",
             f"sparsekin check examples/{name}.toml",
             f"sparsekin run examples/{name}.toml --plot",
@@ -207,6 +229,26 @@ def make_gallery(folder: Path) -> None:
         index += [f"## [{title}]({name}.md)", "", f"{first_sentence}.", "",
                   f"[![{title}](images/{name}-frame.png)]({name}.md)", ""]  # fmt: skip
     (folder / "index.md").write_text("\n".join(index), encoding="utf-8")
+
+
+def metamaterial_section(name: str, result, images: Path) -> list[str]:
+    """For a lattice metamaterial: its animation, and its size against its opening."""
+    if name not in METAMATERIALS:
+        return []
+    from sparsekin.plots import animate
+    from sparsekin.plots.metamaterials import plot_lattice_size
+
+    across, up, body = METAMATERIALS[name]
+    duration, fps = METAMATERIAL_CLIP
+    animate(result, images / f"{name}.gif", fps=fps, duration=duration, labels=False)
+    plot_lattice_size(result, across, up, body, images / f"{name}-size.png")
+    return [
+        "The whole run, animated:", "", f"![{name} animated](images/{name}.gif)", "",
+        (f"What a metamaterial researcher reads off it: the lattice's width (centre of {across[0]} to centre "
+         f"of {across[1]}) and height ({up[0]} to {up[1]}) against the opening angle (of {body}), and "
+         "Poisson's ratio −dε_y/dε_x from the samples:"),
+        "", f"![{name}: size against opening](images/{name}-size.png)", "",
+    ]  # fmt: skip
 
 
 # ---------------------------------------------------------------------- command line

@@ -135,6 +135,10 @@ class ModelReport:
         The notices of `sparsekin.analysis.notices`: drivers whose law at t = 0 is away
         from the drawing, which sign extends each actuator, points carried by bodies that
         no joint connects there (a warning; not a problem of the verdict).
+    left_out : tuple of str
+        For each repeat that leaves parts out of some copies (a grid's open boundaries,
+        ``copies = {…}``): one line saying how many, ``repeat[0]: 20 elements on the
+        open boundary or restricted to some copies``.
     """
 
     name: str
@@ -161,6 +165,7 @@ class ModelReport:
     law_offsets: tuple[str, ...] = ()
     actuator_directions: tuple[str, ...] = ()
     unjoined_points: tuple[str, ...] = ()
+    left_out: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -321,6 +326,8 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         n_loads=mechanism.n_loads,
         gravity=mechanism.gravity,
         has_forces=mechanism.has_forces,
+        left_out=tuple(f"{c.label}: {c.n_left_out()} element{'s' * (c.n_left_out() != 1)} on the open boundary or "
+                       "restricted to some copies" for c in mechanism.copies if c.n_left_out()),
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -343,9 +350,10 @@ def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
     names = [body.name for body in mechanism.own("bodies") if not body.mass]
     count = len(names)
     for copies in mechanism.copies:
-        local = [body.name for body in copies.unit.bodies if not body.mass]
-        count += copies.count * len(local)
-        names += [copies.name(k, name) for k in range(min(copies.count, LISTED_MASSLESS)) for name in local]
+        massless = [e for e, body in enumerate(copies.unit.bodies) if not body.mass]
+        count += int(sum(copies.having("bodies")[e] for e in massless))
+        names += [copies.name(k, copies.unit.bodies[e].name) for k in range(min(copies.count, LISTED_MASSLESS))
+                  for e in massless if copies.present("bodies", k, e)]  # fmt: skip
     return tuple(names[:LISTED_MASSLESS]), count
 
 
@@ -409,6 +417,7 @@ def format_report(report: ModelReport) -> str:
         f"degrees of freedom by rank: {rank_without} without the drivers, {rank_with} with them",
         f"condition number of the scaled Jacobian (on its rank): {_number(analysis.condition)}",
     ]
+    lines[1:1] = report.left_out
     if report.redundant:
         lines.append(f"redundant equations ({len(report.redundant)}):")
         for equation in report.redundant:

@@ -107,25 +107,29 @@ class ObjectColumns:
 
 
 class TiledColumns:
-    """Columns of a unit's elements of one kind over every copy of a repeat, copy-major.
+    """Columns of a unit's elements of one kind over the copies of a repeat, copy-major.
 
     Parameters
     ----------
     copies : Copies
     elements : sequence
         The unit's elements of one kind.
-    rows : ndarray of int, shape (count · len(elements),)
+    rows : ndarray of int, shape (len(ks) · len(elements),)
         The first row of each copy's element, copy-major.
     resolver : Resolver
+    ks : ndarray of int, optional
+        The copies that have these elements (a grid leaves some out at its boundaries);
+        default all.
     """
 
-    def __init__(self, copies, elements, rows: np.ndarray, resolver: Resolver) -> None:
+    def __init__(self, copies, elements, rows: np.ndarray, resolver: Resolver, ks=None) -> None:
         self.copies, self.elements, self.rows, self.resolver = copies, list(elements), rows, resolver
+        self.ks = np.arange(copies.count, dtype=np.int64) if ks is None else ks
         self.ground, self.frames = resolver.ground, resolver.frames
         self._unit = ObjectColumns(self.elements, np.zeros(len(self.elements), dtype=np.int64), resolver)
 
     def _bodies(self, references) -> np.ndarray:
-        return self.copies.body_columns(references, self.resolver.body).ravel()
+        return self.copies.body_columns(references, self.resolver.body, self.ks).ravel()
 
     def pair(self, field: str = "bodies") -> tuple[np.ndarray, np.ndarray]:
         return (self._bodies([getattr(element, field)[0] for element in self.elements]),
@@ -139,13 +143,13 @@ class TiledColumns:
         if item is not None:
             references = [None if reference is None else reference[item] for reference in references]
         given = [k for k, reference in enumerate(references) if reference is not None]
-        out = np.full((self.copies.count, len(references), 2), np.nan)
+        out = np.full((len(self.ks), len(references), 2), np.nan)
         if given:
-            out[:, given] = self.copies.reference_positions([references[k] for k in given])
+            out[:, given] = self.copies.reference_positions([references[k] for k in given], self.ks)
         return out.reshape(-1, 2)
 
     def _tiled(self, unit_values: np.ndarray) -> np.ndarray:
-        return np.tile(unit_values, (self.copies.count,) + (1,) * (unit_values.ndim - 1))
+        return np.tile(unit_values, (len(self.ks),) + (1,) * (unit_values.ndim - 1))
 
     def number(self, field: str) -> np.ndarray:
         return self._tiled(self._unit.number(field))
@@ -164,7 +168,7 @@ class TiledColumns:
         unit_joints = self.copies.joint_index
         if all(name in unit_joints for name in names):  # the copy's own joints
             return TiledColumns(self.copies, [self.copies.unit.joints[unit_joints[name]] for name in names],
-                                self.rows, self.resolver)  # fmt: skip
+                                self.rows, self.resolver, self.ks)  # fmt: skip
         # a joint of the model: the same object in every copy
-        named = [self.resolver.joint(self.copies.joint_name(k, name)) for k in range(self.copies.count) for name in names]
+        named = [self.resolver.joint(self.copies.joint_name(k, name)) for k in self.ks.tolist() for name in names]
         return ObjectColumns(named, self.rows, self.resolver)

@@ -126,11 +126,11 @@ def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
         if body.com is not None:
             com[b] = mechanism.position(body.com)
     for copies in mechanism.copies:
-        bodies = copies.first_body + np.arange(copies.count * copies.n_bodies).reshape(copies.count, -1)
-        for e, body in enumerate(copies.unit.bodies):
-            mass[bodies[:, e]], inertia[bodies[:, e]] = body.mass or 0.0, body.inertia or 0.0
+        for body, (ks, starts) in zip(copies.unit.bodies, copies.placed("bodies")):
+            bodies = copies.first_body + starts
+            mass[bodies], inertia[bodies] = body.mass or 0.0, body.inertia or 0.0
             if body.com is not None:
-                com[bodies[:, e]] = copies.reference_positions([body.com])[:, 0]
+                com[bodies] = copies.reference_positions([body.com], ks)[:, 0]
     return MassArrays(mass, inertia, np.ascontiguousarray(to_local(resolver.frames[:n], com)))
 
 
@@ -230,10 +230,8 @@ def _label_and_kind(mechanism: Mechanism, kind: str, index: int) -> tuple[str, t
         element = own[index]
     else:
         for copies in mechanism.copies:
-            first, size = ((copies.first_joint, copies.n_joints) if kind == "joints"
-                           else (copies.first_driver, copies.n_drivers))  # fmt: skip
-            if 0 <= index - first < copies.count * size:
-                k, e = divmod(index - first, size)
+            if 0 <= index - copies.first[kind] < copies.total(kind):
+                k, e = copies.locate(kind, index - copies.first[kind])
                 unit_element = getattr(copies.unit, kind)[e]
                 name = copies.name(k, unit_element.name) if unit_element.name else None
                 return name or f"{kind}[{index}]", type(unit_element)

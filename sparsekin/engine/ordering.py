@@ -53,6 +53,8 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     """
     if not mechanism.copies or pattern.n_equations != pattern.n_coordinates:
         return None
+    if any(c.is_grid or c.total("bodies") != c.count * c.n_bodies or c.n_left_out() for c in mechanism.copies):
+        return None  # a grid, or parts left out of some copies: no short chain to tile from
     middles = [_middle_copies(copies) for copies in mechanism.copies]
     try:
         short = dataclasses.replace(

@@ -148,12 +148,17 @@ def element_columns(mechanism: Mechanism, kind: str, first_rows: np.ndarray, res
         yield element_kind, indices, ObjectColumns([own[k] for k in indices], first_rows[indices], resolver)
     for copies in mechanism.copies:
         unit_elements = getattr(copies.unit, kind)
-        first = {"joints": copies.first_joint, "drivers": copies.first_driver, "loads": copies.first_load}[kind]
-        grid = first + np.arange(copies.count * len(unit_elements), dtype=np.int64).reshape(copies.count, -1)
+        placed = copies.placed(kind)
         for element_kind, indices in _by_kind(unit_elements).items():
-            positions = grid[:, indices].ravel()
-            columns = TiledColumns(copies, [unit_elements[k] for k in indices], first_rows[positions], resolver)
-            yield element_kind, positions, columns
+            # elements in the same copies are tiled together; a grid's boundary parts apart
+            groups: dict[bytes, list[int]] = {}
+            for e in indices:
+                groups.setdefault(placed[e][0].tobytes() if len(placed[e][0]) < copies.count else b"", []).append(e)
+            for group in groups.values():
+                ks = placed[group[0]][0]
+                positions = copies.first[kind] + np.stack([placed[e][1] for e in group], axis=1).ravel()
+                columns = TiledColumns(copies, [unit_elements[e] for e in group], first_rows[positions], resolver, ks)
+                yield element_kind, positions, columns
 
 
 def _blocks(mechanism: Mechanism, kind: str, first_rows: np.ndarray, resolver: Resolver, method: str) -> list:
@@ -175,8 +180,14 @@ def per_element(mechanism: Mechanism, kind: str, value) -> np.ndarray:
     """``value(element)`` for every joint, driver or load, in model order: the own elements',
     then each repeat's unit values tiled over its copies."""
     own = [value(element) for element in mechanism.own(kind)]
-    tiled = [np.tile([value(element) for element in getattr(c.unit, kind)], c.count) for c in mechanism.copies]
-    return np.concatenate([np.array(own, dtype=np.int64), *(t.astype(np.int64) for t in tiled)])
+    tiled = []
+    for copies in mechanism.copies:
+        values = np.array([value(element) for element in getattr(copies.unit, kind)], dtype=np.int64)
+        out = np.empty(copies.total(kind), dtype=np.int64)
+        for e, (_, starts) in enumerate(copies.placed(kind)):
+            out[starts] = values[e]
+        tiled.append(out)
+    return np.concatenate([np.array(own, dtype=np.int64), *tiled])
 
 
 def pack_element_laws(mechanism: Mechanism, kind: str, initial: np.ndarray | None = None) -> tuple[LawTable, list, int]:
@@ -211,18 +222,18 @@ def pack_element_laws(mechanism: Mechanism, kind: str, initial: np.ndarray | Non
         for law in element.laws():
             packer.add(law, np.array([target]), drawn(np.array([target])))
             target += 1
-    for copies in mechanism.copies:  # each unit law over all the copies, by arrays
+    for copies in mechanism.copies:  # each unit law over the copies that have it, by arrays
         unit = getattr(copies.unit, kind)
-        per_copy = sum(len(element.laws()) for element in unit)
-        within = 0
-        for e, element in enumerate(unit):
+        sizes = [len(element.laws()) for element in unit]
+        for e, (element, (ks, starts)) in enumerate(zip(unit, copies.placed(kind, sizes))):
             laws = element.laws()
             variations = copies.law_variations(e) if kind == "drivers" else {}
-            for field_name, law in zip(getattr(element, "law_fields", ()) or [None] * len(laws), laws):
-                targets = target + within + per_copy * np.arange(copies.count, dtype=np.int64)
-                packer.add(law, targets, drawn(targets), variations.get(field_name))
-                within += 1
-        target += per_copy * copies.count
+            for c, (field_name, law) in enumerate(zip(getattr(element, "law_fields", ()) or [None] * len(laws), laws)):
+                targets = target + starts + c
+                varied = variations.get(field_name)
+                varied = None if varied is None else {key: values[ks] for key, values in varied.items()}
+                packer.add(law, targets, drawn(targets), varied)
+        target += sum(n * size for n, size in zip(copies.having(kind), sizes))
     return packer.table(), packer.others, target
 
 
@@ -356,13 +367,13 @@ class PointMap:
         self._unit_carriers = []
         self._model_carriers: dict[str, int] = {}  # model points that units' bodies list: copy 0's body
         for copies in mechanism.copies:
-            carriers: dict[str, int] = {}
+            carriers: dict[str, list[int]] = {}  # the unit's bodies that list each unit point, in order
             for index, body in enumerate(copies.unit.bodies):
                 for point in body.points:
                     if point in copies.point_index:
-                        carriers.setdefault(point, index)
-                    else:
-                        self._model_carriers.setdefault(point, copies.first_body + index)
+                        carriers.setdefault(point, []).append(index)
+                    elif copies.present("bodies", 0, index):  # copy 0 has that body
+                        self._model_carriers.setdefault(point, copies.first_body + int(copies.slot("bodies", 0, index)))
             self._unit_carriers.append(carriers)
         self._frames: np.ndarray | None = None
 
@@ -376,9 +387,10 @@ class PointMap:
             located = mechanism.points.locate(name)
             if located is not None:
                 copies, k, p = located
-                unit_body = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], -1)
+                listing = self._unit_carriers[copies.index].get(list(copies.unit.points)[p], ())
+                unit_body = next((b for b in listing if copies.present("bodies", k, b)), -1)  # copy k has it
                 if unit_body >= 0:
-                    candidates.append(copies.first_body + k * copies.n_bodies + unit_body)
+                    candidates.append(copies.first_body + int(copies.slot("bodies", k, unit_body)))
             body = min((c for c in candidates if c >= 0), default=-1)  # the first body that lists it
         if body < 0:
             return -1, position

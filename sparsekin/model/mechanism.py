@@ -43,7 +43,7 @@ from .elements import (
     PointRef,
 )
 from .elements.base import _Element
-from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message
+from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message, find_copy
 
 __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
 
@@ -162,9 +162,7 @@ class Mechanism:
         table = PointTable(own_points, copies)  # filled below: the copies may name each other's points
         for index, repeat in enumerate(self.repeats):
             copies.append(Copies(repeat, index, *first, model_position=table.__getitem__))
-            unit = repeat.unit
-            parts = (unit.bodies, unit.joints, unit.drivers, unit.loads)
-            first = [start + repeat.count * len(part) for start, part in zip(first, parts)]
+            first = [start + copies[-1].total(kind) for start, kind in zip(first, ("bodies", "joints", "drivers", "loads"))]
         _set(self, "_copies", copies)
         if copies:  # the points of the whole model, for every check below
             _set(self, "points", table)
@@ -185,8 +183,8 @@ class Mechanism:
         """Number of constraint equations, joints and drivers."""
         total = sum(element.n_equations for element in (*self.own("joints"), *self.own("drivers")))
         for copies in self._copies:
-            unit = copies.unit
-            total += copies.count * sum(element.n_equations for element in (*unit.joints, *unit.drivers))
+            for kind in ("joints", "drivers"):
+                total += sum(n * element.n_equations for n, element in zip(copies.having(kind), getattr(copies.unit, kind)))
         return total
 
     @property
@@ -212,7 +210,7 @@ class Mechanism:
     def total_mass(self) -> float:
         """The sum of the bodies' masses, kg."""
         own = sum(body.mass or 0.0 for body in self.own("bodies"))
-        return own + sum(c.count * sum(body.mass or 0.0 for body in c.unit.bodies) for c in self._copies)
+        return own + sum(n * (body.mass or 0.0) for c in self._copies for n, body in zip(c.having("bodies"), c.unit.bodies))
 
     def declared(self, kind: str):
         """The bodies, joints, drivers or loads (`kind`) as declared: the model's own, then
@@ -257,8 +255,9 @@ class Mechanism:
             return own[index].name
         for copies in self._copies:
             within = index - copies.first_body
-            if 0 <= within < copies.count * copies.n_bodies:
-                return copies.name(within // copies.n_bodies, copies.unit.bodies[within % copies.n_bodies].name)
+            if 0 <= within < copies.total("bodies"):
+                k, e = copies.locate("bodies", within)
+                return copies.name(k, copies.unit.bodies[e].name)
         raise IndexError(f"body index {index} out of range")
 
     def body_index(self, name: str) -> int:
@@ -268,10 +267,10 @@ class Mechanism:
         index = self._body_index.get(name)
         if index is not None:
             return index
-        for copies in self._copies:
-            split = copies.split(name)
-            if split is not None and split[1] in copies.body_index:
-                return copies.first_body + split[0] * copies.n_bodies + copies.body_index[split[1]]
+        found = find_copy(self._copies, "bodies", name)
+        if found is not None:
+            copies, k, e = found
+            return copies.first_body + int(copies.slot("bodies", k, e))
         raise KeyError(name)
 
     def position(self, reference: PointRef) -> tuple[float, float]:
@@ -312,10 +311,9 @@ class Mechanism:
         index = self._joint_index.get(name)
         if index is not None:
             return self.own("joints")[index]
-        for copies in self._copies:
-            split = copies.split(name)
-            if split is not None and split[1] in copies.joint_index:
-                return copies.element("joints", split[0], copies.joint_index[split[1]])
+        found = find_copy(self._copies, "joints", name)
+        if found is not None:
+            return found[0].element("joints", found[1], found[2])
         raise KeyError(name)
 
     def index_of(self, kind: str, name: str) -> int:
@@ -330,15 +328,10 @@ class Mechanism:
             for index, element in enumerate(self.own(kind)):
                 if element.name == name:
                     return index
-        for copies in self._copies:
-            split = copies.split(name)
-            if split is None:
-                continue
-            local = {"joints": copies.joint_index, "drivers": copies.driver_index}[kind].get(split[1])
-            if local is not None:
-                first, size = (copies.first_joint, copies.n_joints) if kind == "joints" else (copies.first_driver,
-                                                                                               copies.n_drivers)
-                return first + split[0] * size + local
+        found = find_copy(self._copies, kind, name)
+        if found is not None:
+            copies, k, e = found
+            return copies.first[kind] + int(copies.slot(kind, k, e))
         raise KeyError(name)
 
     def element_label(self, kind: str, index: int) -> str:
@@ -363,11 +356,7 @@ class Mechanism:
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))
 
     def _is_copy_body(self, name: str) -> bool:
-        for copies in self._copies:
-            split = copies.split(name)
-            if split is not None and split[1] in copies.body_index:
-                return True
-        return False
+        return find_copy(self._copies, "bodies", name) is not None
 
     def _check_copies(self) -> None:
         """Each repeat's names are its own, its references resolve, its copies are sound.
@@ -392,14 +381,14 @@ class Mechanism:
                 if split is not None and (split[1] in c.point_index or split[1] in c.body_index
                                           or split[1] in c.joint_index or split[1] in c.driver_index
                                           or split[1] in c.load_index):  # fmt: skip
-                    raise ModelError(f'"{name}" is also the name of copy {split[0]}\'s {split[1]}',
+                    raise ModelError(f'"{name}" is also the name of {c.tiling.label(split[0])}\'s {split[1]}',
                                      element=f"{c.label}.prefix")
             for target in c.repeat.first.values():
                 self._check_body(target, "{}.first", c.label)
             for k in _copies_to_check(c):
-                where = f"{c.label} copy {k}: units.{c.unit.name}"
+                where = f"{c.label} {c.tiling.label(k)}: units.{c.unit.name}"
                 for kind in ("bodies", "joints", "drivers", "loads"):
-                    for e in range(len(getattr(c.unit, kind))):
+                    for e in c.parts_of(kind, k):
                         self._check_copy_element(c, kind, k, e, where)
 
     def _check_copy_element(self, copies: Copies, kind: str, k: int, e: int, where: str) -> None:
@@ -465,7 +454,7 @@ def _copies_to_check(copies: Copies) -> list[int]:
     cycles = [len(v.values) for v in copies.repeat.vary.values() if isinstance(v, Cycle)]
     stepped = any(isinstance(v, Step) for v in copies.repeat.vary.values())
     period = min(int(np.lcm.reduce(cycles)) if cycles else 1, 64)
-    return sorted({*range(min(period + stepped, copies.count)), copies.count - 1})
+    return copies.tiling.corners_and_period(period + stepped + copies.is_grid)
 
 
 class _BodyNames(Sequence):

@@ -33,7 +33,7 @@ from .elements import DRIVER_KINDS, JOINT_KINDS, LOAD_KINDS
 from .laws import BUILT_IN_LAWS, Spline
 from .mechanism import Analysis, Body, Mechanism
 from .shared_points import warn_unjoined_points
-from .units import Cycle, Repeat, Step, Unit
+from .units import Cycle, OnCopies, Repeat, Step, Unit
 
 __all__ = ["load_model", "save_model"]
 
@@ -91,7 +91,9 @@ _TOP_LEVEL_KEYS = ("name", "points", "bodies", "joints", "drivers", "loads", "co
 #: The sections of a unit: those of a model but `gravity`, `[analysis]` and nested units.
 _UNIT_KEYS = ("points", "bodies", "joints", "drivers", "loads", "composites")
 #: The keys of a `[[repeat]]` entry.
-_REPEAT_KEYS = ("unit", "count", "prefix", "offset", "first", "vary")
+_REPEAT_KEYS = ("unit", "count", "prefix", "offset", "first", "vary", "boundary")
+#: The keys of a unit's part's `copies = { i = …, j = … }` (the columns and rows that keep it).
+_COPIES_KEYS = ("i", "j")
 _BODY = _Spec(Body)
 _JOINTS = {type_name: _Spec(kind) for type_name, kind in JOINT_KINDS.items()}
 _DRIVERS = {type_name: _Spec(kind) for type_name, kind in DRIVER_KINDS.items()}
@@ -198,22 +200,19 @@ class _Reader:
     def parts(self, document: dict[str, Any], prefix: str):
         """Points, bodies, joints, drivers and loads of a model (`prefix` "") or a unit ("units.NAME.")."""
         body_tables = _table(document.get("bodies", {}), f"{prefix}bodies", f"tables [{prefix}bodies.NAME]")
+        in_unit = bool(prefix)
         bodies = [
-            self.element(table, f"{prefix}bodies.{name}", _BODY, f"a table [{prefix}bodies.{name}]", name=name)
+            self.placed(in_unit, table, f"{prefix}bodies.{name}",
+                        lambda table, where, name=name: self.element(table, where, _BODY, f"a table [{where}]", name=name))
             for name, table in body_tables.items()
-        ]
-        joints = [
-            self.typed(table, f"{prefix}joints[{index}]", _JOINTS, f"a table [[{prefix}joints]]")
-            for index, table in enumerate(_array(document.get("joints", []), f"{prefix}joints"))
-        ]
-        drivers = [
-            self.typed(table, f"{prefix}drivers[{index}]", _DRIVERS, f"a table [[{prefix}drivers]]")
-            for index, table in enumerate(_array(document.get("drivers", []), f"{prefix}drivers"))
-        ]
-        loads = [
-            self.typed(table, f"{prefix}loads[{index}]", _LOADS, f"a table [[{prefix}loads]]")
-            for index, table in enumerate(_array(document.get("loads", []), f"{prefix}loads"))
-        ]
+        ]  # fmt: skip
+        joints, drivers, loads = (
+            [self.placed(in_unit, table, f"{prefix}{kind}[{index}]",
+                         lambda table, where, specs=specs, kind=kind: self.typed(table, where, specs,
+                                                                                 f"a table [[{prefix}{kind}]]"))
+             for index, table in enumerate(_array(document.get(kind, []), f"{prefix}{kind}"))]
+            for kind, specs in (("joints", _JOINTS), ("drivers", _DRIVERS), ("loads", _LOADS))
+        )  # fmt: skip
         points = _table(document.get("points", {}), f"{prefix}points", f"a table [{prefix}points] of name = [x, y]")
         composites = [
             self.typed(table, f"{prefix}composites[{index}]", _COMPOSITES, f"a table [[{prefix}composites]]")
@@ -221,6 +220,19 @@ class _Reader:
         ]
         generated = _expand_composites(composites, points, prefix, bodies, joints, drivers)
         return points, bodies, joints, drivers, loads, list(body_tables), generated
+
+    def placed(self, in_unit: bool, table: object, where: str, build: Callable[[object, str], Any]) -> Any:
+        """A part built by `build`; in a unit, wrapped in `OnCopies` when its table says
+        ``copies = { i = …, j = … }``."""
+        if not (in_unit and isinstance(table, dict) and "copies" in table):
+            return build(table, where)
+        element = build({key: value for key, value in table.items() if key != "copies"}, where)
+        copies = _table(table["copies"], f"{where}.copies", "an inline table { i = I, j = J }")
+        _check_keys(copies, f"{where}.copies", _COPIES_KEYS)
+        try:
+            return OnCopies(element, **{key: tuple(v) if isinstance(v, list) else v for key, v in copies.items()})
+        except ModelError as error:
+            raise error.within(where) from None
 
     def unit(self, value: object, name: str) -> Unit:
         """The `Unit` of a table ``[units.NAME]``."""
@@ -247,10 +259,12 @@ class _Reader:
         vary = {}
         for path, variation in _table(table.get("vary", {}), f"{where}.vary", "a table of path = { step = … }").items():
             vary[path] = _variation(variation, f'{where}.vary."{path}"')
+        count, offset = (_tuples(table.get(key, default)) for key, default in (("count", None), ("offset", (0.0, 0.0))))
         try:
             return Repeat(
-                units[unit_name], count=table["count"], prefix=table.get("prefix"), offset=table.get("offset", (0.0, 0.0)),
+                units[unit_name], count=count, prefix=table.get("prefix"), offset=offset,
                 first=_table(table.get("first", {}), f"{where}.first", 'a table { "prev.NAME" = "BODY" }'), vary=vary,
+                boundary=_table(table.get("boundary", {}), f"{where}.boundary", 'a table { "below.NAME" = "BODY" }'),
             )  # fmt: skip
         except ModelError as error:
             raise error.within(where) from None
@@ -480,7 +494,7 @@ def _variation(value: object, element: str) -> Step | Cycle:
     """``{ step = x }`` or ``{ cycle = [v0, v1, ...] }``."""
     table = _table(value, element, "{ step = … } or { cycle = […] }")
     if set(table) == {"step"}:
-        return Step(table["step"] if not isinstance(table["step"], list) else tuple(table["step"]))
+        return Step(_tuples(table["step"]))
     if set(table) == {"cycle"}:
         values = table["cycle"]
         if not isinstance(values, list):
@@ -491,6 +505,16 @@ def _variation(value: object, element: str) -> Step | Cycle:
             raise error.within(element) from None
     raise ModelError(f"expected {{ step = … }} or {{ cycle = […] }}, got keys {', '.join(table) or 'none'}",
                      element=element)  # fmt: skip
+
+
+def _flat(value: object) -> list:
+    """The numbers of a nested tuple, in order."""
+    return [x for item in value for x in _flat(item)] if isinstance(value, (tuple, list)) else [value]
+
+
+def _tuples(value: object) -> object:
+    """TOML arrays (nested ones too) as tuples, as the model's pairs and vectors are."""
+    return tuple(_tuples(item) for item in value) if isinstance(value, list) else value
 
 
 def _csv_samples(text: str, shown: str) -> tuple[list[float], list[float]]:
@@ -633,31 +657,48 @@ def _model_text(mechanism: Mechanism) -> str:
         if units.setdefault(repeat.unit.name, repeat.unit) is not repeat.unit:
             raise ModelError(f'two different units are called "{repeat.unit.name}"', element=f"repeat[{index}].unit")
     for name, unit in units.items():
-        blocks += _parts_text(unit.points, unit.bodies, unit.joints, unit.drivers, unit.loads, f"units.{_key(name)}.")
+        blocks += _parts_text(unit.points, unit.bodies, unit.joints, unit.drivers, unit.loads, f"units.{_key(name)}.",
+                              unit.only)  # fmt: skip
     for repeat in mechanism.repeats:
-        pairs = [("unit", _string(repeat.unit.name)), ("count", str(repeat.count)), ("prefix", _string(repeat.prefix))]
-        if repeat.offset != (0.0, 0.0):
+        pairs = [("unit", _string(repeat.unit.name)), ("count", _value(repeat.count, "repeat.count")),
+                 ("prefix", _string(repeat.prefix))]  # fmt: skip
+        if any(value != 0.0 for value in _flat(repeat.offset)):
             pairs.append(("offset", _value(repeat.offset, "repeat.offset")))
-        if repeat.first:
-            pairs.append(("first", "{ " + ", ".join(f"{_key(k)} = {_string(v)}" for k, v in repeat.first.items()) + " }"))
+        for attachment in ("first", "boundary"):
+            if getattr(repeat, attachment):
+                names = getattr(repeat, attachment).items()
+                pairs.append((attachment, "{ " + ", ".join(f"{_key(k)} = {_string(v)}" for k, v in names) + " }"))
         blocks.append(_block("[[repeat]]", pairs))
         if repeat.vary:  # a sub-table of this entry, one variation a line (long cycles: one value a line)
             blocks.append("\n".join(["[repeat.vary]", *(_variation_line(path, v) for path, v in repeat.vary.items())]))
     return "\n\n".join(blocks) + "\n"
 
 
-def _parts_text(points, bodies, joints, drivers, loads, prefix: str) -> list[str]:
-    """The blocks of the points, bodies, joints, drivers and loads of a model or a unit."""
+def _parts_text(points, bodies, joints, drivers, loads, prefix: str, only=None) -> list[str]:
+    """The blocks of the points, bodies, joints, drivers and loads of a model or a unit
+    (`only`: a unit's parts restricted to some copies, written ``copies = { i = …, j = … }``)."""
+    only = only or {}
+
+    def copies(kind: str, index: int) -> list[tuple[str, str]]:
+        restriction = only.get((kind, index))
+        if restriction is None:
+            return []
+        bounds = [(axis, bound[0] if bound[0] == bound[1] else list(bound))
+                  for axis, bound in zip("ij", restriction) if bound is not None]  # fmt: skip
+        return [("copies", "{ " + ", ".join(f"{axis} = {_value(b, 'copies')}" for axis, b in bounds) + " }")]
+
     blocks = []
     if points:
         blocks.append(_block(f"[{prefix}points]", [(name, _value(xy, f"points.{name}")) for name, xy in points.items()]))
-    for body in bodies:
-        blocks.append(_block(f"[{prefix}bodies.{_key(body.name)}]", _pairs(body, _BODY, f"bodies.{body.name}")))
+    for index, body in enumerate(bodies):
+        blocks.append(_block(f"[{prefix}bodies.{_key(body.name)}]",
+                             _pairs(body, _BODY, f"bodies.{body.name}") + copies("bodies", index)))  # fmt: skip
     for kind, specs, items in (("joints", _JOINTS, joints), ("drivers", _DRIVERS, drivers), ("loads", _LOADS, loads)):
         for index, item in enumerate(items):
             element = f"{prefix}{kind}[{index}]"
             type_name = _type_name(item, specs, element)
-            blocks.append(_block(f"[[{prefix}{kind}]]", _pairs(item, specs[type_name], element, type_name)))
+            blocks.append(_block(f"[[{prefix}{kind}]]", _pairs(item, specs[type_name], element, type_name)
+                                 + copies(kind, index)))  # fmt: skip
     return blocks
 
 

@@ -1,19 +1,25 @@
-"""Units repeated into chains: one description, many copies, no object per copy.
+"""Units repeated into chains and grids: one description, many copies, no object per copy.
 
 A `Unit` is a small sub-mechanism (points, bodies, joints, drivers, loads) whose names are
-local to it; a body named ``prev.NAME`` is body NAME of the copy before.  A `Repeat` makes
-``count`` copies of a unit: copy k's names are ``PREFIX{k}.NAME``, its drawing is
-translated by ``k · offset``, and `vary` gives copies their own law parameters or point
-positions (`Step`: the unit's value + k · step; `Cycle`: values[k mod len]).  A
-`Mechanism` takes repeats beside its own elements; the result is exactly the mechanism
-one would write by hand with the copies' names.
+local to it.  A `Repeat` makes copies of it: a chain of ``count`` copies, where
+``prev.NAME`` is body NAME of the copy before, or a grid of ``count = (ni, nj)`` copies,
+where ``left.NAME`` and ``below.NAME`` are body NAME of copies (i − 1, j) and (i, j − 1).
+Copy k's names are ``PREFIX{k}.NAME``, copy (i, j)'s ``PREFIX{i}_{j}.NAME``; its drawing is
+translated by ``k · offset`` or ``i · offset[0] + j · offset[1]``, and `vary` gives copies
+their own law parameters, points or body angles (`Step`, `Cycle`:
+`sparsekin.model.variations`).  A part wrapped in `OnCopies` exists only on some columns
+or rows, and a part that names a neighbour outside the grid is left out there (an open
+boundary) unless `Repeat.boundary` attaches it.  A `Mechanism` takes repeats beside its
+own elements; the result is exactly the mechanism one would write by hand with the
+copies' names.
 
 The copies are never built one by one.  `Copies` resolves a repeat inside its mechanism
-(where its bodies and elements start, what its references mean) and answers by index
-arithmetic: the expanded name of a body, the drawn position of every copy's points (one
-array), and — on demand, for messages and small models — any copy's element as an
-object (`ElementList`, `PointTable`).  `sparsekin.engine.pattern` tiles the unit's equations
-over the copies from the same arithmetic.
+(where its bodies and elements start, which copies have which parts, what its references
+mean) and answers by index arithmetic (`sparsekin.model.tiling`): the expanded name of a
+body, the drawn position of every copy's points (one array), and — on demand, for
+messages and small models — any copy's element as an object (`ElementList`,
+`PointTable`).  `sparsekin.engine.pattern` tiles the unit's equations over the copies
+from the same arithmetic.
 
 >>> from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver
 >>> loop = Unit(
@@ -37,8 +43,6 @@ over the copies from the same arithmetic.
 from __future__ import annotations
 
 import dataclasses
-import numbers
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -48,30 +52,15 @@ from ..errors import ModelError
 from . import _validate
 from .bodies import Body, _point_pair, _tuple_of
 from .elements import DRIVER_KINDS, GROUND, JOINT_KINDS, LOAD_KINDS
+from .paths import DRIVER_PATH
+from .tiling import BELOW, LEFT, PREV, OnCopies, Tiling, neighbour_prefix
+from .variations import Cycle, Step, base_value, checked_variation, resolve_path, varied_values
 
-__all__ = ["Unit", "Repeat", "Step", "Cycle", "Copies", "ElementList", "PointTable", "PREV"]
+__all__ = ["Unit", "Repeat", "Step", "Cycle", "OnCopies", "Copies", "ElementList", "PointTable", "PREV", "LEFT", "BELOW",
+           "DRIVER_PATH", "find_copy"]
 
-#: A unit's name for body NAME of the copy before: ``prev.NAME``.
-PREV = "prev."
-
-
-@dataclass(frozen=True, slots=True)
-class Step:
-    """Copy k takes the unit's value + k · `value` (a number, or ``(dx, dy)`` for a point)."""
-
-    value: float | tuple[float, float]
-
-
-@dataclass(frozen=True, slots=True)
-class Cycle:
-    """Copy k takes ``values[k % len(values)]``."""
-
-    values: tuple
-
-    def __post_init__(self) -> None:
-        if isinstance(self.values, (str, bytes)) or not _validate.is_sequence(self.values) or not len(self.values):
-            raise ModelError(f"expected a non-empty list of values, got {self.values!r}", element="cycle")
-        object.__setattr__(self, "values", tuple(self.values))
+#: The kinds of a unit's parts, in the order their copies are laid out.
+KINDS = ("bodies", "joints", "drivers", "loads")
 
 
 @dataclass(frozen=True)
@@ -79,9 +68,18 @@ class Unit:
     """A sub-mechanism to be repeated: its points, bodies, joints, drivers and loads.
 
     Names are local to the unit.  A reference to a body that is not the unit's is either
-    ``prev.NAME`` (body NAME of the copy before; for copy 0 what `Repeat.first` says, by
-    default the ground) or a body of the model (its own, another repeat's copy, the
-    ground); a point reference that is not the unit's names a point of the model.
+    a neighbour's body — ``prev.NAME`` in a chain (the copy before; for copy 0 what
+    `Repeat.first` says, by default the ground), ``left.NAME`` or ``below.NAME`` in a grid
+    (copy (i − 1, j) or (i, j − 1)) — or a body of the model (its own, another repeat's
+    copy, the ground); a point reference that is not the unit's names a point of the model.
+    A part wrapped in `OnCopies` exists only in the columns and rows it names; the
+    wrappers are unwrapped here, into `only`.
+
+    Attributes
+    ----------
+    only : dict
+        ``(kind, index) -> (i, j)`` for the parts restricted to some copies (`OnCopies`:
+        each bound None or an inclusive ``(first, last)``).
     """
 
     name: str
@@ -90,6 +88,7 @@ class Unit:
     joints: tuple = ()
     drivers: tuple = ()
     loads: tuple = ()
+    only: Mapping[tuple[str, int], tuple] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
 
@@ -97,13 +96,21 @@ class Unit:
         if not isinstance(self.points, Mapping):
             raise ModelError(f"expected a mapping of name to [x, y], got {type(self.points).__name__}", element="points")
         object.__setattr__(self, "points", {_validate.name(k, "points"): _point_pair(k, v) for k, v in self.points.items()})
-        object.__setattr__(self, "bodies", _tuple_of(self.bodies, (Body,), "bodies"))
-        object.__setattr__(self, "joints", _tuple_of(self.joints, tuple(JOINT_KINDS.values()), "joints"))
-        object.__setattr__(self, "drivers", _tuple_of(self.drivers, tuple(DRIVER_KINDS.values()), "drivers"))
-        object.__setattr__(self, "loads", _tuple_of(self.loads, tuple(LOAD_KINDS.values()), "loads"))
+        only = dict(self.only)
+        for kind, kinds in (("bodies", (Body,)), ("joints", tuple(JOINT_KINDS.values())),
+                            ("drivers", tuple(DRIVER_KINDS.values())), ("loads", tuple(LOAD_KINDS.values()))):  # fmt: skip
+            given = getattr(self, kind)
+            parts = list(given) if _validate.is_sequence(given) else given
+            if isinstance(parts, list):
+                for index, part in enumerate(parts):
+                    if isinstance(part, OnCopies):
+                        only[(kind, index)] = (part.i, part.j)
+                        parts[index] = part.element
+            object.__setattr__(self, kind, _tuple_of(parts, kinds, kind))
+        object.__setattr__(self, "only", only)
         bodies: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
-            if body.name == GROUND or body.name.startswith(PREV):
+            if body.name == GROUND or neighbour_prefix(body.name):
                 raise ModelError(f'"{body.name}" is reserved; expected a name of the unit', element=f"bodies[{index}].name")
             if body.name in bodies:
                 raise ModelError(f'duplicate body name "{body.name}"', element=f"bodies[{index}].name")
@@ -120,63 +127,124 @@ class Unit:
             if driver_name in named["joints"]:
                 raise ModelError(_same_name_message(driver_name, f'joints[{named["joints"][driver_name]}]'),
                                  element=f"drivers[{index}].name")  # fmt: skip
-        for kind in ("joints", "drivers", "loads"):  # a "prev." reference must name a body of the unit
-            for index, element in enumerate(getattr(self, kind)):
-                for field_name, k, name in _body_references(element):
-                    if name.startswith(PREV) and name[len(PREV) :] not in bodies:
-                        where = f"{kind}[{index}].{field_name}" + ("" if k is None else f"[{k}]")
-                        raise ModelError(f'"{name}" names no body of the unit (its bodies: '
-                                         f"{_validate.known_list(list(bodies))})", element=where)  # fmt: skip
+        for kind, index, where, name, prefix in self.neighbour_references():  # must name a body of the unit
+            if name[len(prefix) :] not in bodies:
+                raise ModelError(f'"{name}" names no body of the unit (its bodies: '
+                                 f"{_validate.known_list(list(bodies))})", element=where)  # fmt: skip
 
     @property
     def body_index(self) -> dict[str, int]:
         return {body.name: index for index, body in enumerate(self.bodies)}
 
+    def neighbour_references(self):
+        """``(kind, index, element, name, prefix)`` of every ``prev.``, ``left.`` or ``below.``
+        body reference of the unit's joints, drivers and loads (`element` spelled for messages)."""
+        for kind in ("joints", "drivers", "loads"):
+            for index, element in enumerate(getattr(self, kind)):
+                for field_name, k, name in _body_references(element):
+                    prefix = neighbour_prefix(name)
+                    if prefix is not None:
+                        yield kind, index, f"{kind}[{index}].{field_name}" + ("" if k is None else f"[{k}]"), name, prefix
+
 
 @dataclass(frozen=True)
 class Repeat:
-    """`count` copies of `unit`, each on the one before.
+    """Copies of `unit`: a chain, each copy on the one before, or a grid of columns and rows.
 
     Parameters
     ----------
     unit : Unit
-    count : int
-        Number of copies, at least 1.
+    count : int or (ni, nj)
+        A chain of `count` copies (at least 1), or a grid of ni columns and nj rows,
+        copy (i, j) for i < ni, j < nj, laid out row by row.
     prefix : str, optional
-        Copy k's names are ``f"{prefix}{k}.{name}"``; default the unit's name.
-    offset : (dx, dy)
-        Copy k is drawn translated by ``k · offset`` (m).
+        Copy k's names are ``f"{prefix}{k}.{name}"``, copy (i, j)'s ``f"{prefix}{i}_{j}.{name}"``;
+        default the unit's name.
+    offset : (dx, dy), or two such vectors for a grid
+        Copy k is drawn translated by ``k · offset`` (m); copy (i, j) by
+        ``i · offset[0] + j · offset[1]``.
     first : mapping
-        What ``prev.NAME`` means for copy 0: ``{"prev.crank": "crank0"}``; default the ground.
+        A chain's: what ``prev.NAME`` means for copy 0, ``{"prev.crank": "crank0"}``;
+        default the ground.
     vary : mapping of path to Step or Cycle
         Per-copy values of a law's number parameter (``drivers[0].law.phase``,
-        ``drivers.NAME.law.amplitude``) or of a point (``points.M``); checked here,
-        against the unit, for every copy.
+        ``drivers.NAME.law.amplitude``), of a point (``points.M``) or of a body's drawn
+        angle (``bodies.NAME.angle``); checked here, against the unit, for every copy.
+    boundary : mapping
+        A grid's attached boundaries: ``{"below.V": "ground"}`` — where copy (i, j) has no
+        such neighbour, the reference means that body of the model and the element is
+        kept.  References not listed stay open: their elements are left out there.
+
+    Examples
+    --------
+    >>> from sparsekin import Body, Revolute
+    >>> cell = Unit("cell", points={"A": (0.0, 0.0), "B": (1.0, 0.0)},
+    ...             bodies=[Body("bar", origin="A", points=("A", "B"))],
+    ...             joints=[Revolute(("bar", "left.bar"), at="A")])
+    >>> from sparsekin import Mechanism
+    >>> row = Mechanism(points={}, bodies=[], repeats=[Repeat(cell, count=(3, 2), prefix="c",
+    ...                 offset=((1.0, 0.0), (0.0, 1.0)))])
+    >>> row.n_bodies, row.n_joints, row.joints[0].bodies, row.points["c2_1.B"]
+    (6, 4, ('c1_0.bar', 'c0_0.bar'), (3.0, 1.0))
     """
 
     unit: Unit
-    count: int
+    count: int | tuple[int, int]
     prefix: str | None = None
-    offset: tuple[float, float] = (0.0, 0.0)
+    offset: tuple = (0.0, 0.0)
     first: Mapping[str, str] = field(default_factory=dict)
     vary: Mapping[str, Step | Cycle] = field(default_factory=dict)
+    boundary: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.unit, Unit):
             raise ModelError(f"expected a Unit, got {type(self.unit).__name__}", element="unit")
-        object.__setattr__(self, "count", _validate.positive_int(self.count, "count"))
+        grid = _validate.is_sequence(self.count) and not isinstance(self.count, (str, bytes))
+        if grid:
+            if len(self.count) != 2:
+                raise ModelError(f"expected a number of copies or [ni, nj], got {self.count!r}", element="count")
+            count = (_validate.positive_int(self.count[0], "count[0]"), _validate.positive_int(self.count[1], "count[1]"))
+        else:
+            count = _validate.positive_int(self.count, "count")
+        object.__setattr__(self, "count", count)
         prefix = self.unit.name if self.prefix is None else _validate.name(self.prefix, "prefix")
         object.__setattr__(self, "prefix", prefix)
-        object.__setattr__(self, "offset", _validate.pair(self.offset, "offset"))
-        if not isinstance(self.first, Mapping):
-            raise ModelError(f'expected a table {{ "prev.NAME" = "BODY" }}, got {self.first!r}', element="first")
+        tiling = Tiling(prefix, self.shape)
+        if grid:
+            offset = ((0.0, 0.0), (0.0, 0.0)) if self.offset == (0.0, 0.0) else self.offset
+            if (isinstance(offset, (str, bytes)) or not _validate.is_sequence(offset) or len(offset) != 2
+                    or not all(_validate.is_sequence(vector) for vector in offset)):  # fmt: skip
+                raise ModelError(f"expected two lattice vectors [[dxi, dyi], [dxj, dyj]], got {offset!r}", element="offset")
+            offset = (_validate.pair(offset[0], "offset[0]"), _validate.pair(offset[1], "offset[1]"))
+        else:
+            offset = _validate.pair(self.offset, "offset")
+        object.__setattr__(self, "offset", offset)
         unit_bodies = self.unit.body_index
-        for key, target in self.first.items():
-            if not isinstance(key, str) or not key.startswith(PREV) or key[len(PREV) :] not in unit_bodies:
-                raise ModelError(f'expected keys "prev.NAME" with NAME a body of unit "{self.unit.name}", got {key!r}',
-                                 element="first")  # fmt: skip
-            _validate.name(target, f'first."{key}"')
-        object.__setattr__(self, "first", dict(self.first))
+        for attachment, prefixes, what in (("first", (PREV,), "prev.NAME"), ("boundary", (LEFT, BELOW), "left.NAME")):
+            table = getattr(self, attachment)
+            if not isinstance(table, Mapping):
+                raise ModelError(f'expected a table {{ "{what}" = "BODY" }}, got {table!r}', element=attachment)
+            if table and (attachment == "first") == grid:
+                hint = ("a grid's missing neighbours are attached with boundary = { \"below.NAME\" = \"BODY\" }"
+                        if grid else "boundary applies to grids; a chain's copy 0 is attached with first")
+                raise ModelError(hint, element=attachment)
+            for key, target in table.items():
+                prefix_ = neighbour_prefix(key) if isinstance(key, str) else None
+                if prefix_ not in prefixes or key[len(prefix_) :] not in unit_bodies:
+                    spelled = " or ".join(f'"{p}NAME"' for p in prefixes)
+                    raise ModelError(f'expected keys {spelled} with NAME a body of unit "{self.unit.name}", got {key!r}',
+                                     element=attachment)  # fmt: skip
+                _validate.name(target, f'{attachment}."{key}"')
+            object.__setattr__(self, attachment, dict(table))
+        for kind, index, where, name, prefix_ in self.unit.neighbour_references():
+            if grid and prefix_ == PREV:
+                raise ModelError(f'"{name}": a grid has no copy before; use "left.NAME" (copy (i−1, j)) or '
+                                 f'"below.NAME" (copy (i, j−1))', element=f"units.{self.unit.name}.{where}")  # fmt: skip
+            if not grid and prefix_ != PREV:
+                raise ModelError(f'"{name}" needs a grid (count = [ni, nj]); in a chain the copy before is "prev.NAME"',
+                                 element=f"units.{self.unit.name}.{where}")  # fmt: skip
+        for (kind, index), restriction in self.unit.only.items():
+            tiling.check_restriction(restriction, f"units.{self.unit.name}.{_part_label(self.unit, kind, index)}")
         if not isinstance(self.vary, Mapping):
             raise ModelError(f"expected a table of path = {{ step = … }} or {{ cycle = […] }}, got {self.vary!r}",
                              element="vary")  # fmt: skip
@@ -184,100 +252,26 @@ class Repeat:
         for path, variation in self.vary.items():
             if not isinstance(variation, (Step, Cycle)):
                 raise ModelError(f"expected {{ step = … }} or {{ cycle = […] }}, got {variation!r}", element=f'vary."{path}"')
-            target = _resolve_path(self.unit, path)
+            target = resolve_path(self.unit, path)
             try:
-                vary[path] = _checked_variation(self.unit, target, variation, self.count)
+                vary[path] = checked_variation(self.unit, target, variation, tiling)
             except ModelError as error:
                 raise error.within(f'vary."{path}"') from None
         object.__setattr__(self, "vary", vary)
 
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """``(count,)`` for a chain, ``(ni, nj)`` for a grid."""
+        return tuple(self.count) if isinstance(self.count, tuple) else (self.count,)
 
-# ---------------------------------------------------------------------- variation paths
-_DRIVER_PATH = re.compile(r"drivers(?:\[(\d+)\]|\.([^.]+))\.(law(?:_x|_y)?)\.(\w+)")
-_POINT_PATH = re.compile(r"points\.(.+)")
-
-
-def _resolve_path(unit: Unit, path: str):
-    """``("law", driver index, law field, key)`` or ``("point", name)`` for a `vary` path."""
-    where = f'vary."{path}"'
-    if not isinstance(path, str):
-        raise ModelError(f"expected a path such as drivers[0].law.phase or points.M, got {path!r}", element="vary")
-    match = _DRIVER_PATH.fullmatch(path)
-    if match:
-        index_text, name, law_field, key = match.groups()
-        if index_text is not None:
-            index = int(index_text)
-            if index >= len(unit.drivers):
-                raise ModelError(f'unit "{unit.name}" has {len(unit.drivers)} drivers', element=where)
-        else:
-            names = [driver.name for driver in unit.drivers]
-            if name not in names:
-                raise ModelError(f'unit "{unit.name}" has no driver named "{name}"', element=where)
-            index = names.index(name)
-        driver = unit.drivers[index]
-        if law_field not in driver.law_fields:
-            raise ModelError(f"drivers[{index}] has no field {law_field} (its laws: {', '.join(driver.law_fields)})",
-                             element=where)  # fmt: skip
-        law = getattr(driver, law_field)
-        if not dataclasses.is_dataclass(law) or key not in {f.name for f in dataclasses.fields(law) if f.init}:
-            raise ModelError(f"{type(law).__name__} has no parameter {key}", element=where)
-        value = getattr(law, key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
-            kind = getattr(law, "type_name", type(law).__name__)
-            shown = "a list" if _validate.is_sequence(value) else _validate._shown(value)
-            raise ModelError(f"{key} of a {kind} law is {shown}, not a number: vary steps or cycles a law's number "
-                             "parameters only", element=where)  # fmt: skip
-        return ("law", index, law_field, key)
-    match = _POINT_PATH.fullmatch(path)
-    if match:
-        if match[1] not in unit.points:
-            raise ModelError(f'unit "{unit.name}" has no point "{match[1]}"', element=where)
-        return ("point", match[1])
-    raise ModelError("expected drivers[i].law.KEY, drivers.NAME.law.KEY or points.NAME", element=where)
+    @property
+    def is_grid(self) -> bool:
+        return isinstance(self.count, tuple)
 
 
-def _checked_variation(unit: Unit, target: tuple, variation: Step | Cycle, count: int) -> Step | Cycle:
-    """`variation` of the parameter or point `target` (`_resolve_path`), checked for every
-    copy and in its canonical form (floats; ``(x, y)`` pairs for a point)."""
-    if target[0] == "point":
-        if isinstance(variation, Cycle):
-            return Cycle(_pairs(variation.values, "cycle"))
-        step = _validate.pair(variation.value, "step")
-        _check_stepped(np.array(unit.points[target[1]]), np.array(step), count)
-        return Step(step)
-    _, driver, law_field, key = target
-    base = getattr(getattr(unit.drivers[driver], law_field), key)
-    if isinstance(variation, Cycle):
-        return Cycle(tuple(_validate.finite_float(value, f"cycle[{n}]") for n, value in enumerate(variation.values)))
-    if base is None:
-        raise ModelError(f"cannot step a parameter left at its default: give {key} in the unit, or use a cycle")
-    step = _validate.finite_float(variation.value, "step")
-    _check_stepped(np.array([float(base)]), np.array([step]), count)
-    return Step(step)
-
-
-def _pairs(values: tuple, element: str) -> tuple:
-    """`values` as a tuple of ``(x, y)`` pairs of finite numbers of sensible magnitude."""
-    if all(type(v) is tuple and len(v) == 2 and type(v[0]) is float and type(v[1]) is float for v in values):
-        array = np.array(values)  # the common case (a file's, a sweep's long cycles): checked at once
-        if np.all(np.abs(array) <= _validate.MAX_MAGNITUDE):  # False for NaN
-            return values
-    return tuple(_validate.pair(value, f"{element}[{n}]") for n, value in enumerate(values))
-
-
-def _check_stepped(base: np.ndarray, step: np.ndarray, count: int) -> None:
-    """Refuse a step that takes a copy's value beyond `_validate.MAX_MAGNITUDE`, naming the
-    first such copy.  |base + k · step| is largest at k = 0 or k = count - 1: one test."""
-    def good(values):
-        return np.isfinite(values) & (np.abs(values) <= _validate.MAX_MAGNITUDE)
-
-    if good(base + (count - 1) * step).all():
-        return
-    values = base[None] + np.arange(count, dtype=float)[:, None] * step[None]
-    k = int(np.flatnonzero(~good(values).all(axis=1))[0])
-    shown = ", ".join(f"{v:.6g}" for v in values[k])
-    raise ModelError(f"copy {k} takes {shown}: the varied value must be a finite number of magnitude at most "
-                     f"{_validate.MAX_MAGNITUDE:g}")  # fmt: skip
+def _part_label(unit: Unit, kind: str, index: int) -> str:
+    """A unit's part as the file spells it: ``bodies.NAME`` or ``joints[3]``."""
+    return f"bodies.{unit.bodies[index].name}" if kind == "bodies" else f"{kind}[{index}]"
 
 
 def _same_name_message(name: str, other: str) -> str:
@@ -300,6 +294,13 @@ def _body_references(element):
 class Copies:
     """A `Repeat` resolved inside a mechanism: where its copies are, what their names mean.
 
+    Copies are laid out one after the other (a grid's row by row), each with the unit's
+    parts in the unit's order — those that exist in it: a part restricted to some copies
+    (`OnCopies`), or one that names a neighbour outside the grid (an open boundary) or a
+    body absent from a copy, is left out of that copy.  Which parts exist where is one
+    boolean array per kind (None when every copy has every part: then copy k's part e is
+    at ``k · n + e``), and their positions are its running count.
+
     Parameters
     ----------
     repeat : Repeat
@@ -317,10 +318,16 @@ class Copies:
         self.repeat, self.index = repeat, index
         self.model_position = model_position  # the drawn position of a point name of the model
         self.unit = unit = repeat.unit
-        self.count, self.prefix = repeat.count, repeat.prefix
-        self.offset = np.asarray(repeat.offset, dtype=float)
+        self.tiling = Tiling(repeat.prefix, repeat.shape)
+        self.count, self.prefix, self.is_grid = self.tiling.count, repeat.prefix, self.tiling.is_grid
+        #: The translation of one step along i and along j, shape (2, 2).
+        self.lattice = np.array(repeat.offset if repeat.is_grid else (repeat.offset, (0.0, 0.0)), dtype=float)
+        self.offset = self.lattice[0]
+        #: What a neighbour reference means where the copy has no such neighbour.
+        self.attached = repeat.boundary if repeat.is_grid else repeat.first
         self.first_body, self.first_joint, self.first_driver = first_body, first_joint, first_driver
         self.first_load = first_load
+        self.first = {"bodies": first_body, "joints": first_joint, "drivers": first_driver, "loads": first_load}
         self.n_bodies, self.n_joints, self.n_drivers = len(unit.bodies), len(unit.joints), len(unit.drivers)
         self.n_loads = len(unit.loads)
         self.body_index = unit.body_index
@@ -328,36 +335,157 @@ class Copies:
         self.joint_index = {joint.name: k for k, joint in enumerate(unit.joints) if joint.name is not None}
         self.driver_index = {driver.name: k for k, driver in enumerate(unit.drivers) if driver.name is not None}
         self.load_index = {load.name: k for k, load in enumerate(unit.loads) if load.name is not None}
-        self._variations = {path: (_resolve_path(unit, path), variation) for path, variation in repeat.vary.items()}
+        self._local = {"bodies": self.body_index, "joints": self.joint_index, "drivers": self.driver_index,
+                       "loads": self.load_index, "points": self.point_index}  # fmt: skip
+        self._variations = {path: (resolve_path(unit, path), variation) for path, variation in repeat.vary.items()}
         self._positions: np.ndarray | None = None
+        self._present = self._presence()
+        self._slots: dict = {}  # kind (or ("through", kind)) -> running counts, made when asked
+        self._totals = {kind: (self.count * len(getattr(unit, kind)) if self._present[kind] is None
+                               else int(self._present[kind].sum())) for kind in KINDS}  # fmt: skip
 
     @property
     def label(self) -> str:
         return f"repeat[{self.index}]"
 
+    # ------------------------------------------------------------------ which parts exist where
+    def _presence(self) -> dict[str, np.ndarray | None]:
+        """For each kind: which copies have which of the unit's parts, shape (count, n); None if all."""
+        unit, tiling, count = self.unit, self.tiling, self.count
+        ks = np.arange(count)
+        neighbours = {}
+
+        def restricted(kind: str) -> np.ndarray:
+            mask = np.ones((count, len(getattr(unit, kind))), dtype=bool)
+            for (part_kind, e), restriction in unit.only.items():
+                if part_kind == kind:
+                    mask[:, e] = tiling.kept(restriction)
+            return mask
+
+        bodies = restricted("bodies")
+
+        def reference_present(name: str) -> np.ndarray | None:
+            if name in self.body_index:
+                return bodies[:, self.body_index[name]]
+            prefix = neighbour_prefix(name)
+            if prefix is None:
+                return None  # a body of the model: in every copy
+            if prefix not in neighbours:
+                neighbours[prefix] = tiling.neighbour(ks, prefix)
+            other = neighbours[prefix]
+            inside = other >= 0
+            present = np.zeros(count, dtype=bool)
+            present[inside] = bodies[other[inside], self.body_index[name[len(prefix) :]]]
+            present[~inside] = prefix == PREV or name in self.attached  # a chain's copy 0 is always attached
+            return present
+
+        present = {"bodies": bodies}
+        for kind in ("joints", "drivers", "loads"):
+            mask = restricted(kind)
+            for e, element in enumerate(getattr(unit, kind)):
+                for _, _, name in _body_references(element):
+                    body_present = reference_present(name)
+                    if body_present is not None:
+                        mask[:, e] &= body_present
+                for field_name in type(element).joint_fields:  # a driver of the copy's own joint
+                    joint = self.joint_index.get(getattr(element, field_name))
+                    if joint is not None:
+                        mask[:, e] &= present["joints"][:, joint]
+            present[kind] = mask
+        return {kind: None if mask.all() else mask for kind, mask in present.items()}
+
+    def total(self, kind: str) -> int:
+        """How many bodies, joints, drivers or loads (`kind`) the copies have together."""
+        return self._totals[kind]
+
+    def n_left_out(self) -> int:
+        """How many of the copies' joints, drivers and loads are left out (open boundaries,
+        restricted parts, absent bodies)."""
+        return sum(self.count * len(getattr(self.unit, kind)) - self._totals[kind] for kind in ("joints", "drivers", "loads"))
+
+    def having(self, kind: str) -> np.ndarray:
+        """For each of the unit's parts of `kind`: how many copies have it."""
+        mask = self._present[kind]
+        return np.full(len(getattr(self.unit, kind)), self.count) if mask is None else mask.sum(axis=0)
+
+    def present(self, kind: str, k: int, e: int) -> bool:
+        mask = self._present[kind]
+        return True if mask is None else bool(mask[k, e])
+
+    def parts_of(self, kind: str, k: int):
+        """The unit's parts of `kind` that copy k has (their indices in the unit)."""
+        mask = self._present[kind]
+        return range(len(getattr(self.unit, kind))) if mask is None else np.flatnonzero(mask[k]).tolist()
+
+    def slot(self, kind: str, ks, e: int):
+        """Position, among the repeat's parts of `kind`, of part e of copies `ks` (-1 where absent)."""
+        mask = self._present[kind]
+        if mask is None:
+            return ks * len(getattr(self.unit, kind)) + e
+        if kind not in self._slots:
+            slots = np.cumsum(mask.ravel(), dtype=np.int64).reshape(mask.shape) - 1
+            slots[~mask] = -1
+            self._slots[kind] = slots
+        return self._slots[kind][ks, e]
+
+    def placed(self, kind: str, sizes=None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """For each of the unit's parts of `kind`: ``(ks, starts)``, the copies that have it
+        and its first place in the repeat's block when part e takes ``sizes[e]`` places
+        (its equations, its laws; default one)."""
+        n = len(getattr(self.unit, kind))
+        sizes = np.ones(n, dtype=np.int64) if sizes is None else np.asarray(sizes, dtype=np.int64)
+        mask = self._present[kind]
+        if mask is None:
+            ks = np.arange(self.count, dtype=np.int64)
+            before = np.cumsum(sizes) - sizes
+            return [(ks, ks * int(sizes.sum()) + before[e]) for e in range(n)]
+        weights = (mask * sizes[None]).ravel()
+        starts = (np.cumsum(weights) - weights).reshape(mask.shape)
+        return [(np.flatnonzero(mask[:, e]), starts[mask[:, e], e]) for e in range(n)]
+
+    def locate(self, kind: str, within: int) -> tuple[int, int]:
+        """``(k, e)`` of the repeat's part number `within` of `kind`."""
+        n = len(getattr(self.unit, kind))
+        mask = self._present[kind]
+        if mask is None:
+            return divmod(within, n)
+        if ("through", kind) not in self._slots:  # the parts of the copies up to each copy, once
+            self._slots[("through", kind)] = np.cumsum(mask.sum(axis=1))
+        per_copy = self._slots[("through", kind)]
+        k = int(np.searchsorted(per_copy, within, side="right"))
+        before = int(per_copy[k - 1]) if k else 0
+        return k, int(np.flatnonzero(mask[k])[within - before])
+
+    def find(self, kind: str, name: str) -> tuple[int, int] | None:
+        """``(k, e)`` if `name` is the expanded name of part e of `kind` (or of point e,
+        `kind` ``"points"``) in copy k, which has it; else None."""
+        split = self.tiling.split(name)
+        if split is None:
+            return None
+        e = self._local[kind].get(split[1])
+        if e is None or (kind != "points" and not self.present(kind, split[0], e)):
+            return None
+        return split[0], e
+
     # ------------------------------------------------------------------ names
     def name(self, k: int, local: str) -> str:
         """The expanded name of the unit's `local` name in copy k."""
-        return f"{self.prefix}{k}.{local}"
+        return self.tiling.name(k, local)
 
     def split(self, name: str) -> tuple[int, str] | None:
-        """``(k, local)`` if `name` is ``PREFIX{k}.local`` for one of this repeat's copies."""
-        if not name.startswith(self.prefix):
-            return None
-        digits, dot, local = name[len(self.prefix) :].partition(".")
-        if not dot or not digits.isdigit() or (len(digits) > 1 and digits[0] == "0"):
-            return None
-        k = int(digits)
-        return (k, local) if k < self.count else None
+        """``(k, local)`` if `name` is one of this repeat's copies' names."""
+        return self.tiling.split(name)
 
     def body_name(self, k: int, reference: str) -> str:
         """What a unit's body reference names in copy k (an expanded name, or the model's)."""
         if reference in self.body_index:
             return self.name(k, reference)
-        if reference.startswith(PREV):
-            if k == 0:
-                return self.repeat.first.get(reference, GROUND)
-            return self.name(k - 1, reference[len(PREV) :])
+        prefix = neighbour_prefix(reference)
+        if prefix is not None:
+            other = int(self.tiling.neighbour(np.array([k]), prefix)[0])
+            if other < 0:
+                return self.attached.get(reference, GROUND)
+            return self.name(other, reference[len(prefix) :])
         return reference
 
     def point_name(self, k: int, reference):
@@ -365,103 +493,108 @@ class Copies:
         coordinates translated with the copy."""
         if isinstance(reference, str):
             return self.name(k, reference) if reference in self.point_index else reference
-        return (reference[0] + k * self.offset[0], reference[1] + k * self.offset[1])
+        x, y = self.shift(np.array([k]))[0]
+        return (reference[0] + float(x), reference[1] + float(y))
 
     def joint_name(self, k: int, reference: str) -> str:
         return self.name(k, reference) if reference in self.joint_index else reference
 
     # ------------------------------------------------------------------ geometry
+    def shift(self, ks: np.ndarray) -> np.ndarray:
+        """The translation of copies `ks`, shape (len(ks), 2), m."""
+        i, j = self.tiling.columns_rows(np.asarray(ks))
+        return i[:, None] * self.lattice[0] + j[:, None] * self.lattice[1]
+
     @property
     def positions(self) -> np.ndarray:
         """Drawn position of every copy's every unit point, shape (count, n_points, 2), m."""
         if self._positions is None:
             base = np.array(list(self.unit.points.values()), dtype=float).reshape(-1, 2)
-            shift = np.arange(self.count, dtype=float)[:, None] * self.offset
             positions = np.repeat(base[None], self.count, axis=0)
-            for (target, variation) in self._variations.values():
+            for target, variation in self._variations.values():
                 if target[0] == "point":
                     p = self.point_index[target[1]]
-                    positions[:, p] = self._varied_pairs(variation, base[p])
-            positions += shift[:, None, :]
+                    positions[:, p] = varied_values(variation, base[p], self.tiling)
+            positions += self.shift(np.arange(self.count))[:, None, :]
             self._positions = positions
         return self._positions
 
-    def reference_positions(self, references) -> np.ndarray:
-        """Drawn positions of unit point references in every copy, shape (count, len(references), 2)."""
-        out = np.empty((self.count, len(references), 2))
-        ks = np.arange(self.count, dtype=float)[:, None] * self.offset
+    def reference_positions(self, references, ks=None) -> np.ndarray:
+        """Drawn positions of unit point references in copies `ks` (default all), shape
+        (len(ks), len(references), 2)."""
+        ks = np.arange(self.count) if ks is None else ks
+        out = np.empty((len(ks), len(references), 2))
+        shift = None
         for e, reference in enumerate(references):
             if isinstance(reference, str) and reference in self.point_index:
-                out[:, e] = self.positions[:, self.point_index[reference]]
+                out[:, e] = self.positions[ks, self.point_index[reference]]
             elif isinstance(reference, str):
                 out[:, e] = self.model_position(reference)
             else:
-                out[:, e] = np.asarray(reference, dtype=float) + ks
+                shift = self.shift(ks) if shift is None else shift
+                out[:, e] = np.asarray(reference, dtype=float) + shift
         return out
 
-    def body_columns(self, references, resolve) -> np.ndarray:
-        """Stored body index of unit body references in every copy, shape (count, len(references)).
+    def body_columns(self, references, resolve, ks=None) -> np.ndarray:
+        """Stored body index of unit body references in copies `ks` (default all), shape
+        (len(ks), len(references)).
 
         `resolve` maps a model body name to its stored index (the ground included).
         """
-        k = np.arange(self.count, dtype=np.int64)[:, None]
-        out = np.empty((self.count, len(references)), dtype=np.int64)
+        ks = np.arange(self.count, dtype=np.int64) if ks is None else ks
+        out = np.empty((len(ks), len(references)), dtype=np.int64)
         for e, reference in enumerate(references):
+            prefix = neighbour_prefix(reference)
             if reference in self.body_index:
-                out[:, e] = self.first_body + k[:, 0] * self.n_bodies + self.body_index[reference]
-            elif reference.startswith(PREV):
-                out[1:, e] = self.first_body + (k[:-1, 0]) * self.n_bodies + self.body_index[reference[len(PREV) :]]
-                out[0, e] = resolve(self.repeat.first.get(reference, GROUND))
+                out[:, e] = self.first_body + self.slot("bodies", ks, self.body_index[reference])
+            elif prefix is not None:
+                other = self.tiling.neighbour(ks, prefix)
+                inside = other >= 0
+                out[inside, e] = self.first_body + self.slot("bodies", other[inside], self.body_index[reference[len(prefix) :]])
+                if not inside.all():
+                    out[~inside, e] = resolve(self.attached.get(reference, GROUND))
             else:
                 out[:, e] = resolve(reference)
         return out
 
     def frames(self) -> np.ndarray:
-        """Drawn frames ``(x, y, angle)`` of every copy's bodies, shape (count · n_bodies, 3)."""
+        """Drawn frames ``(x, y, angle)`` of every copy's bodies, shape (n bodies of the copies, 3)."""
         origins = self.reference_positions([body.origin for body in self.unit.bodies])
         frames = np.empty((self.count, self.n_bodies, 3))
         frames[:, :, :2] = origins
         frames[:, :, 2] = [body.angle for body in self.unit.bodies]
-        return frames.reshape(-1, 3)
+        for target, variation in self._variations.values():
+            if target[0] == "angle":
+                frames[:, target[1], 2] = varied_values(variation, base_value(self.unit, target), self.tiling)
+        mask = self._present["bodies"]
+        return frames.reshape(-1, 3) if mask is None else frames[mask]
 
     # ------------------------------------------------------------------ variations of laws
-    def law_variations(self, driver: int) -> dict[str, dict[str, np.ndarray]]:
-        """For unit driver `driver`: law field -> {key: value of every copy}."""
+    def law_variations(self, driver: int, ks=None) -> dict[str, dict[str, np.ndarray]]:
+        """For unit driver `driver`: law field -> {key: value of every copy (of copies `ks`)}."""
         varied: dict[str, dict[str, np.ndarray]] = {}
         for target, variation in self._variations.values():
             if target[0] == "law" and target[1] == driver:
-                _, _, law_field, key = target
-                law = getattr(self.unit.drivers[driver], law_field)
-                varied.setdefault(law_field, {})[key] = self._varied_numbers(variation, getattr(law, key))
+                varied.setdefault(target[2], {})[target[3]] = varied_values(variation, base_value(self.unit, target),
+                                                                            self.tiling, ks)  # fmt: skip
         return varied
-
-    def _varied_numbers(self, variation, base) -> np.ndarray:
-        """Every copy's value of a law parameter (`variation` checked by `Repeat`)."""
-        k = np.arange(self.count)
-        if isinstance(variation, Cycle):
-            values = np.array(variation.values, dtype=float)
-            return values[k % values.size]
-        return base + k * variation.value
-
-    def _varied_pairs(self, variation, base) -> np.ndarray:
-        """Every copy's drawn point, before the translation by k · offset (checked by `Repeat`)."""
-        k = np.arange(self.count)
-        if isinstance(variation, Cycle):
-            values = np.array(variation.values, dtype=float).reshape(-1, 2)
-            return values[k % len(values)]
-        return base + k[:, None] * np.asarray(variation.value, dtype=float)
 
     # ------------------------------------------------------------------ elements on demand
     def element(self, kind: str, k: int, e: int):
         """Copy k's element e of the unit's `kind` ("bodies", "joints", "drivers", "loads"), as an object."""
         unit_element = getattr(self.unit, kind)[e]
         if kind == "bodies":
+            angle = unit_element.angle
+            for target, variation in self._variations.values():
+                if target[0] == "angle" and target[1] == e:
+                    angle = float(varied_values(variation, angle, self.tiling, [k])[0])
             return dataclasses.replace(
                 unit_element,
                 name=self.name(k, unit_element.name),
                 origin=self.point_name(k, unit_element.origin),
                 points=tuple(self.point_name(k, p) for p in unit_element.points),
                 com=None if unit_element.com is None else self.point_name(k, unit_element.com),
+                angle=angle,
             )
         declaration = type(unit_element)
         changes = {}
@@ -483,13 +616,23 @@ class Copies:
             changes["name"] = self.name(k, unit_element.name)
         try:
             if kind == "drivers":
-                for law_field, keys in self.law_variations(e).items():
+                for law_field, keys in self.law_variations(e, [k]).items():
                     law = getattr(unit_element, law_field)
-                    copy_values = {key: float(values[k]) for key, values in keys.items()}
+                    copy_values = {key: float(values[0]) for key, values in keys.items()}
                     changes[law_field] = dataclasses.replace(law, **copy_values)
             return dataclasses.replace(unit_element, **changes)
         except ModelError as error:
-            raise error.within(f"{self.label} copy {k}: units.{self.unit.name}.{kind}[{e}]") from None
+            raise error.within(f"{self.label} {self.tiling.label(k)}: units.{self.unit.name}.{kind}[{e}]") from None
+
+
+def find_copy(copies_list, kind: str, name: str):
+    """``(copies, k, e)`` of the copy's part of `kind` (or point) whose expanded name is
+    `name`, among the repeats `copies_list`; None if no copy has it."""
+    for copies in copies_list:
+        found = copies.find(kind, name)
+        if found is not None:
+            return copies, found[0], found[1]
+    return None
 
 
 # ---------------------------------------------------------------------- lazy views of the whole model
@@ -499,7 +642,7 @@ class ElementList(Sequence):
 
     def __init__(self, kind: str, own: tuple, copies: list[Copies]) -> None:
         self.kind, self.own, self.copies = kind, own, copies
-        self._sizes = [len(own)] + [c.count * _unit_size(c, kind) for c in copies]
+        self._sizes = [len(own)] + [c.total(kind) for c in copies]
         self._starts = np.cumsum([0] + self._sizes)
 
     def __len__(self) -> int:
@@ -516,16 +659,13 @@ class ElementList(Sequence):
             return self.own[index]
         segment = int(np.searchsorted(self._starts, index, side="right")) - 1
         copies = self.copies[segment - 1]
-        within = index - int(self._starts[segment])
-        size = _unit_size(copies, self.kind)
-        return copies.element(self.kind, within // size, within % size)
+        return copies.element(self.kind, *copies.locate(self.kind, index - int(self._starts[segment])))
 
     def __iter__(self):
         yield from self.own
         for copies in self.copies:
-            size = _unit_size(copies, self.kind)
             for k in range(copies.count):
-                for e in range(size):
+                for e in copies.parts_of(self.kind, k):
                     yield copies.element(self.kind, k, e)
 
     def __eq__(self, other) -> bool:
@@ -539,10 +679,6 @@ class ElementList(Sequence):
         return f"ElementList({self.kind}: {len(self.own)} own + {', '.join(f'{c.count}×{c.unit.name}' for c in self.copies)})"
 
 
-def _unit_size(copies: Copies, kind: str) -> int:
-    return {"bodies": copies.n_bodies, "joints": copies.n_joints, "drivers": copies.n_drivers, "loads": copies.n_loads}[kind]
-
-
 class PointTable(Mapping):
     """The named points of a mechanism with repeats: its own, then every copy's, resolved by
     name on demand (``u17.Q``) without a dict of every point."""
@@ -552,11 +688,7 @@ class PointTable(Mapping):
 
     def locate(self, name: str):
         """``(copies, k, unit point index)`` of a copy's point, or None."""
-        for copies in self.copies:
-            split = copies.split(name)
-            if split is not None and split[1] in copies.point_index:
-                return copies, split[0], copies.point_index[split[1]]
-        return None
+        return find_copy(self.copies, "points", name)
 
     def __getitem__(self, name: str) -> tuple[float, float]:
         if name in self.own:

@@ -16,12 +16,12 @@ import numpy as np
 from ..errors import ModelError
 from ..model import _validate
 from ..model.mechanism import Mechanism
+from ..model.paths import DRIVER_PATH as _DRIVER_PATH
 from ..model.units import Cycle
 
 #: The path forms, in words (for messages).
 PATH_FORMS = "drivers[i].law.KEY, drivers.NAME.law.KEY, points.NAME[.x|.y], or units.UNIT. before one of them"
 
-_DRIVER_PATH = re.compile(r"drivers(?:\[(\d+)\]|\.([^.\[\]]+))\.(law(?:_x|_y)?)\.(\w+)")
 _UNIT_PATH = re.compile(r"units\.([^.]+)\.(.+)")
 _PERTURB_KINDS = ("points",)
 
