@@ -129,7 +129,7 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             row = [f"{bodies:,}"]
             if mine:
                 row += [
-                    _seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "superlu-chord" else "")
+                    _seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "reuse" else "")
                 ]
                 row += [
                     _seconds(mine[f"{phase}_seconds_per_step"])
