@@ -100,3 +100,42 @@ def test_bad_arguments():
         fill_reducing_column_order(csr_array(np.eye(2)), method="amd")
     with pytest.raises(ValueError, match="2-D scipy.sparse"):
         fill_reducing_column_order(np.eye(2))
+
+
+@pytest.mark.skipif(not metis_installed(), reason="no pymetis")
+def test_refactorization_on_metis_order(rng):
+    """`RefactorSolver(ordering="metis")`: its first factorization and refactorizations at
+    other values solve as SuperLU does, and its fresh factorizations keep METIS's order."""
+    from sparsekin.engine.linalg import RefactorSolver
+
+    jacobian = _lattice_jacobian(20, 20, rng)
+    solver = RefactorSolver(ordering="metis")
+    solver.factor(jacobian)
+    for _ in range(3):
+        jacobian.data *= 1.0 + 0.01 * rng.standard_normal(jacobian.nnz)
+        solver.factor(jacobian)
+        rhs = rng.standard_normal(jacobian.shape[0])
+        expected = splu(jacobian.tocsc()).solve(rhs)
+        for transposed, operator in ((False, jacobian), (True, jacobian.T)):
+            x = solver.solve(rhs, transposed=transposed)
+            np.testing.assert_allclose(operator @ x, rhs, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(solver.solve(rhs), expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    assert (solver.n_factorizations, solver.n_refactorizations) == (1, 3)
+    colamd = RefactorSolver()
+    colamd.factor(jacobian)
+    assert solver.nnz_factors < 1.3 * colamd.nnz_factors
+
+
+def test_refactorization_ordering_is_checked():
+    from sparsekin.engine.linalg import RefactorSolver
+
+    with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
+        RefactorSolver(ordering="amd")
+
+
+def test_metis_without_pymetis_names_the_extra(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pymetis", None)  # import pymetis raises ImportError
+    with pytest.raises(ImportError, match=r"pip install 'sparsekin\[meshes\]'"):
+        fill_reducing_column_order(csr_array(np.eye(3)), method="metis")

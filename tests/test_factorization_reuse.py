@@ -96,6 +96,9 @@ def test_keeps_the_factorization_for_nearby_jacobians(inner, rng):
     assert solver.n_krylov_iterations > 0
     many = solver.solve(np.stack([b, 2 * b], axis=1))
     np.testing.assert_allclose(many[:, 1], 2 * many[:, 0], rtol=1e-12, atol=1e-12)
+    in_place = b.copy()
+    solver.solve(in_place, out=in_place)
+    np.testing.assert_allclose(in_place, solver.solve(b), rtol=0, atol=1e-14 * np.abs(in_place).max())
     held = solver.solve_held(b)
     assert np.linalg.norm(changed @ held - b) > 1e-12 * np.linalg.norm(b)  # an older matrix's solution
 

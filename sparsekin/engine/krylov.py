@@ -227,6 +227,8 @@ class ReusingSolver:
             out = np.empty(rhs.shape)
         if self._exact:
             return self.inner.solve(rhs, out=out, transposed=transposed)
+        if np.shares_memory(rhs, out):  # GMRES reads the right-hand side to the end
+            rhs = rhs.copy()
         columns = [(rhs, out)] if rhs.ndim == 1 else [(rhs[:, c].copy(), np.empty(n)) for c in range(rhs.shape[1])]
         for c, (b, x) in enumerate(columns):
             self._solve_one(b, x, transposed)
