@@ -188,6 +188,7 @@ class Stepper:
         if linear_solver == "sparsekin" and fill_is_heavy(solver, pattern):
             # as `start` does under "auto"; a refactorization GMRES finds necessary inside
             # a solve is timed with the solves
+            # (`start` again solves from the drawing: the first Jacobian is refactored)
             self.stepper.use_linear_solver(_Timed(ReusingSolver(solver), self.seconds, solver_phases))
             self.stepper.start(0.0)
             self.path = "reuse"

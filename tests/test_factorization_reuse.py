@@ -151,3 +151,15 @@ def test_bad_calls(rng):
         ReusingSolver(RefactorSolver(), tolerance=0.0)
     with pytest.raises(ValueError, match="`max_iterations`"):
         ReusingSolver(RefactorSolver(), max_iterations=0)
+
+
+def test_takes_over_a_factorization_already_made(rng):
+    """``factored=True``: the inner solver's factorization of the first Jacobian is kept."""
+    matrix = _jacobian(200, rng)
+    inner = RefactorSolver()
+    inner.factor(matrix)
+    solver = ReusingSolver(inner, factored=True)
+    solver.factor(matrix)
+    b = rng.standard_normal(200)
+    assert _backward_error(matrix, solver.solve(b), b) <= 1e-15
+    assert (solver.n_factorizations, solver.n_refactorizations) == (0, 0)

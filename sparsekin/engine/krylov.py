@@ -126,6 +126,10 @@ class ReusingSolver:
         `MAX_KRYLOV_ITERATIONS`.
     refactor_iterations : int
         `REFACTOR_ITERATIONS`.
+    factored : bool
+        Whether `inner` already holds the factorization of the Jacobian that the first
+        `factor` will give (a run that switches solvers at a converged sample): that
+        factorization is then kept instead of being made again.
 
     Attributes
     ----------
@@ -160,6 +164,7 @@ class ReusingSolver:
         tolerance: float = KRYLOV_TOLERANCE,
         max_iterations: int = MAX_KRYLOV_ITERATIONS,
         refactor_iterations: int = REFACTOR_ITERATIONS,
+        factored: bool = False,
     ) -> None:
         if not (tolerance > 0.0):
             raise ValueError(f"`tolerance` must be positive, got {tolerance!r}.")
@@ -173,6 +178,7 @@ class ReusingSolver:
         self.n_solves = 0
         self.n_krylov_iterations = 0
         self._matrix = None  # the Jacobian of the last `factor`: its values copied
+        self._factored = bool(factored)  # the first `factor`'s Jacobian is factored already
         self._held = False  # whether the inner solver holds a factorization
         self._exact = False  # whether that factorization is of `_matrix` itself
         self._stale = False
@@ -201,10 +207,11 @@ class ReusingSolver:
         ):
             self._matrix = csr_array((jacobian.data.astype(float), jacobian.indices, jacobian.indptr), shape=jacobian.shape)
             self._transposed = None
-            self._held = False
+            self._held = self._exact = self._factored
         else:
             np.copyto(matrix.data, jacobian.data)
-        self._exact = False
+            self._exact = False
+        self._factored = False
         matrix = self._matrix
         columns = np.bincount(matrix.indices, weights=np.abs(matrix.data), minlength=matrix.shape[1])
         self._scale = float(columns.max()) if columns.size else 1.0  # ||J||_1

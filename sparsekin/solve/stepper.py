@@ -257,7 +257,7 @@ class KinematicStepper:
                 # across samples; it takes the Jacobian at the converged position (the
                 # forces of this sample solve with it, the next sample's chord Newton
                 # starts from it).
-                self.use_linear_solver(ReusingSolver(self.linear_solver), path="reuse")
+                self.use_linear_solver(ReusingSolver(self.linear_solver, factored=True), path="reuse")
                 self.factorizer()
                 self._factored = True
         except (NoConvergence, SingularMatrix) as failure:
