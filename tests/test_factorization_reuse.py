@@ -163,3 +163,14 @@ def test_takes_over_a_factorization_already_made(rng):
     b = rng.standard_normal(200)
     assert _backward_error(matrix, solver.solve(b), b) <= 1e-15
     assert (solver.n_factorizations, solver.n_refactorizations) == (0, 0)
+
+
+def test_counts_every_right_hand_side(rng):
+    matrix = _jacobian(50, rng)
+    solver = ReusingSolver(RefactorSolver())
+    solver.factor(matrix)
+    solver.solve(np.ones(50))  # direct: the held factorization is of this matrix
+    solver.factor(_perturbed(matrix, 1e-3, rng))
+    solver.solve(np.ones((50, 2)))  # by GMRES
+    solver.solve_held(np.ones(50))
+    assert solver.n_solves == 4

@@ -183,7 +183,6 @@ class ReusingSolver:
         self._exact = False  # whether that factorization is of `_matrix` itself
         self._stale = False
         self._scale = 1.0
-        self._scratch = None
 
     @property
     def n_factorizations(self) -> int:
@@ -206,6 +205,7 @@ class ReusingSolver:
             or not (matrix.indices is jacobian.indices or np.array_equal(matrix.indices, jacobian.indices))
         ):
             self._matrix = csr_array((jacobian.data.astype(float), jacobian.indices, jacobian.indptr), shape=jacobian.shape)
+            self._row_of = np.repeat(np.arange(jacobian.shape[0]), np.diff(jacobian.indptr))
             self._transposed = None
             self._held = self._exact = self._factored
         else:
@@ -213,8 +213,11 @@ class ReusingSolver:
             self._exact = False
         self._factored = False
         matrix = self._matrix
-        columns = np.bincount(matrix.indices, weights=np.abs(matrix.data), minlength=matrix.shape[1])
-        self._scale = float(columns.max()) if columns.size else 1.0  # ||J||_1
+        magnitudes = np.abs(matrix.data)
+        columns = np.bincount(matrix.indices, weights=magnitudes, minlength=matrix.shape[1])
+        rows = np.bincount(self._row_of, weights=magnitudes, minlength=matrix.shape[0])
+        # max(||J||_1, ||J||_inf): a norm of J and of its transpose, for both kinds of solve
+        self._scale = max(float(columns.max(initial=0.0)), float(rows.max(initial=0.0))) or 1.0
         if not self._held or self._stale:
             self._refactor()
 
@@ -232,6 +235,7 @@ class ReusingSolver:
             raise ValueError(f"`rhs` must have shape ({n},) or ({n}, n_rhs), got {rhs.shape}.")
         if out is None:
             out = np.empty(rhs.shape)
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if self._exact:
             return self.inner.solve(rhs, out=out, transposed=transposed)
         if np.shares_memory(rhs, out):  # GMRES reads the right-hand side to the end
@@ -247,6 +251,7 @@ class ReusingSolver:
         """Solve with the held factorization alone (an earlier Jacobian's): a chord correction."""
         if not self._held:
             raise RuntimeError("no factorization: call `factor` first (the last one failed or none was made).")
+        self.n_solves += 1 if np.ndim(rhs) == 1 else np.shape(rhs)[1]
         return self.inner.solve(rhs, out=out)
 
     # ------------------------------------------------------------------ internals
@@ -273,7 +278,6 @@ class ReusingSolver:
 
         iterations = fgmres(operator.__matmul__, precondition, rhs, self.tolerance, self.max_iterations, out,
                             self._scale)  # fmt: skip
-        self.n_solves += 1
         if iterations < 0:  # the held factorization is too far off: refactor, solve directly
             self._refactor()
             inner.solve(rhs, out=out, transposed=transposed)
