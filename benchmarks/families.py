@@ -11,14 +11,30 @@ import math
 from sparsekin import testset
 from sparsekin.model.mechanism import Mechanism
 
-__all__ = ["FAMILIES", "SIZES", "SMOKE_MAX_BODIES", "DENSE_MAX_BODIES", "build", "steps_per_round"]
+__all__ = [
+    "FAMILIES",
+    "SIZES",
+    "SMOKE_MAX_BODIES",
+    "DENSE_MAX_BODIES",
+    "MESH_BASELINE_MAX_BODIES",
+    "MESHES",
+    "build",
+    "steps_per_round",
+]
 
 #: Approximate numbers of bodies per family; each builder picks the nearest model.
 SIZES = {
     "task5_chain": (10, 100, 1_000, 10_000, 100_000, 1_000_000),
     "four_bar_chain": (10, 100, 1_000, 10_000, 20_000, 100_000, 1_000_000),  # 20 001: issue 4's target
-    "lattice": (10, 100, 1_000, 10_000, 100_000),
+    "lattice": (10, 100, 1_000, 10_000, 100_000, 1_000_000),
 }
+#: The baselines that factor at every Newton iteration (`superlu`, `coo_spsolve`) stop here
+#: on meshes: on the lattice at 10^5 bodies one such factorization takes 1–3 s with fill
+#: ratio 9.5, at 10^6 it would take minutes per step (docs/design-notes.md,
+#: "Fill-reducing column order").
+MESH_BASELINE_MAX_BODIES = 100_000
+#: The families that are meshes.
+MESHES = frozenset({"lattice"})
 #: The test suite's smoke run stops here.
 SMOKE_MAX_BODIES = 100
 #: The dense baseline stops here: one dense solve at 3·10^4 coordinates (10^4 bodies)

@@ -14,7 +14,9 @@ The paths compared, measured in the same run:
   pattern is fixed and refilled in place by the numba kernels, `RefactorSolver`
   refactors it numerically on the L and U patterns fixed by a first SuperLU
   factorization, and chord Newton reuses the previous sample's factorization; when the
-  refactorization's fill-in is heavy (`MAX_REFACTOR_FILL`, meshes), SuperLU with chord.
+  refactorization's fill-in is heavy (`MAX_REFACTOR_FILL`, meshes), the refactorization
+  (METIS-ordered when pymetis is installed and the model large) reused across samples by
+  `ReusingSolver` (GMRES preconditioned by the held factorization): path ``"reuse"``.
 * ``superlu`` — the same with a fresh SuperLU factorization (COLAMD, through the CSC
   view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
@@ -36,10 +38,12 @@ from scipy.sparse import coo_array
 from scipy.sparse.linalg import spsolve
 
 from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.krylov import ReusingSolver
 from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model.mechanism import Mechanism
 from sparsekin.engine.pattern import build_pattern
-from sparsekin.solve.stepper import KinematicStepper, fill_is_heavy
+from sparsekin.engine.ordering import metis_installed
+from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -101,7 +105,9 @@ class RebuildBaseline:
 
 #: Linear solvers by path name: each is built from the mechanism's pattern.
 LINEAR_SOLVERS = {
-    "sparsekin": lambda pattern: RefactorSolver(),
+    "sparsekin": lambda pattern: RefactorSolver(
+        ordering="metis" if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed() else "colamd"
+    ),
     "superlu": lambda pattern: SuperLUSolver(),
     "dense": DenseBaseline,
     "coo_spsolve": RebuildBaseline,
@@ -140,8 +146,8 @@ class Stepper:
 
     A `sparsekin.solve.stepper.KinematicStepper` whose assembler and linear solver are wrapped
     in timers.  The ``sparsekin`` path follows ``linear_solver="auto"``'s rule above
-    `COMPILED_MAX_COORDINATES`: a refactorization, or SuperLU with chord Newton when its
-    fill-in is heavy.
+    `COMPILED_MAX_COORDINATES`: a refactorization, reused across samples when its fill-in
+    is heavy.
 
     Parameters
     ----------
@@ -169,7 +175,9 @@ class Stepper:
                 "fill_in_order": "factorization",
             },  # fmt: skip
         )
-        solver_phases = {"factor": "factorization", "factor_ordered": "factorization", "solve": "solves"}
+        solver_phases = {
+            "factor": "factorization", "factor_ordered": "factorization", "solve": "solves", "solve_held": "solves",
+        }  # fmt: skip
         solver = LINEAR_SOLVERS[linear_solver](pattern)
         self.stepper = KinematicStepper(
             mechanism, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
@@ -178,9 +186,12 @@ class Stepper:
         self.stepper.start(0.0)
         self.path = linear_solver
         if linear_solver == "sparsekin" and fill_is_heavy(solver, pattern):
-            self.stepper.use_linear_solver(_Timed(SuperLUSolver(), self.seconds, solver_phases))
+            # as `start` does under "auto"; a refactorization GMRES finds necessary inside
+            # a solve is timed with the solves
+            # (`start` again solves from the drawing: the first Jacobian is refactored)
+            self.stepper.use_linear_solver(_Timed(ReusingSolver(solver), self.seconds, solver_phases))
             self.stepper.start(0.0)
-            self.path = "superlu-chord"
+            self.path = "reuse"
         self._start = (
             self.stepper.time, self.stepper.coordinates.copy(), self.stepper.velocities.copy(),
             self.stepper.accelerations.copy(),

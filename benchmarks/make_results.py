@@ -103,8 +103,9 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "residual, Jacobian and γ refills; factorization; solves) and the Newton iterations per",
         "step are those of the last round. Ratios are baseline time / sparsekin time in the same",
         "run. `sparsekin`: refactorization on a fixed pattern and chord Newton (what",
-        "`solve_kinematics` runs above `COMPILED_MAX_COORDINATES`; SuperLU with chord Newton where the",
-        "refactorization's fill-in exceeds `MAX_REFACTOR_FILL`, marked †); `superlu`: a SuperLU factorization per",
+        "`solve_kinematics` runs above `COMPILED_MAX_COORDINATES`; where the refactorization's fill-in",
+        "exceeds `MAX_REFACTOR_FILL`, its factorization reused across samples by GMRES, marked †);",
+        "`superlu`: a SuperLU factorization per",
         "Newton iteration; `coo_spsolve`: Jacobian rebuilt COO → CSR and `spsolve` for every system; `dense`:",
         "dense Jacobian and `numpy.linalg.solve` for every system. Build: making the `Mechanism`;",
         "pattern: `build_pattern`; first sample: pattern, assembler and the first Newton solve;",
@@ -129,7 +130,7 @@ def render(steps: dict, setups: dict, document: dict) -> str:
             row = [f"{bodies:,}"]
             if mine:
                 row += [
-                    _seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "superlu-chord" else "")
+                    _seconds(mine["seconds_per_step"]) + (" †" if mine.get("path") == "reuse" else "")
                 ]
                 row += [
                     _seconds(mine[f"{phase}_seconds_per_step"])

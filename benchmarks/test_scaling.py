@@ -22,7 +22,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from families import DENSE_MAX_BODIES, SIZES, SMOKE_MAX_BODIES, STEP, build, steps_per_round
+from families import (
+    DENSE_MAX_BODIES,
+    MESH_BASELINE_MAX_BODIES,
+    MESHES,
+    SIZES,
+    SMOKE_MAX_BODIES,
+    STEP,
+    build,
+    steps_per_round,
+)
 from harness import LINEAR_SOLVERS, PHASES, Stepper
 
 #: Timed rounds per benchmark, fewer for the slow ones.
@@ -37,6 +46,8 @@ def _cases(config, solver_names):
                 continue
             for solver in solver_names:
                 if solver == "dense" and bodies > DENSE_MAX_BODIES:
+                    continue
+                if solver != "sparsekin" and family in MESHES and bodies > MESH_BASELINE_MAX_BODIES:
                     continue
                 yield pytest.param(family, bodies, solver, id=f"{family}-{bodies}-{solver}")
 

@@ -126,24 +126,41 @@ def test_auto_refactors_a_model_above_the_compiled_size():
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
-def test_auto_leaves_a_refactorization_with_heavy_fill_for_superlu(monkeypatch):
-    """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on with
-    SuperLU (and chord Newton) from the first sample on; the motion is the same."""
+def test_auto_reuses_a_factorization_with_heavy_fill(monkeypatch):
+    """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on
+    reusing the refactorization across samples (GMRES preconditioned by it) from the first
+    sample on; the motion is the same, with far fewer factorizations than samples."""
     from sparsekin.solve import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)
     result = solve_kinematics(mechanism, times)
-    assert result.linear_solver == "superlu-chord"
-    # one SuperLU factorization per sample (chord), besides the refactorization's first
-    assert result.n_factorizations <= 1 + result.n_times + result.newton_iterations[:2].sum()
+    assert result.linear_solver == "reuse"
+    assert result.n_factorizations + result.n_refactorizations < result.n_times // 5
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
+@pytest.mark.parametrize("name", ["task5_chain", "four_bar_chain", "lattice"])
+def test_reuse_agrees_with_superlu_on_every_family(monkeypatch, name):
+    """The reusing path on the families whose paths are compared above (velocities and
+    accelerations included), over their whole motions."""
+    from sparsekin.solve import kinematics, stepper
+
+    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 0.0)  # every model reuses
+    monkeypatch.setattr(stepper, "COMPILED_MAX_COORDINATES", 0)  # none runs the compiled loop
+    monkeypatch.setattr(kinematics, "COMPILED_MAX_COORDINATES", 0)
+    build, times = FAMILIES[name]
+    mechanism = build()
+    result = solve_kinematics(mechanism, times)
+    assert result.linear_solver == "reuse"
+    scale = max(np.abs(mechanism.positions(list(mechanism.points))).max(), 1e-3)
+    assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), scale)
+
+
 def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(monkeypatch):
-    """Leaving the refactorization at the first sample, ``auto`` factors the Jacobian there
-    again with SuperLU: the forces of that sample are solved with it (they failed with "no
-    factorization"), and every sample's forces are those of ``linear_solver="superlu"``."""
+    """Reusing the factorization from the first sample on, the forces (transposed systems,
+    solved by GMRES with the held factorization) are those of ``linear_solver="superlu"``
+    at every sample, the first included."""
     from sparsekin.solve import stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
@@ -152,9 +169,8 @@ def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(
     mechanism, times = replace(grid, bodies=bodies, gravity=(0.0, -9.81)), np.linspace(0.0, 1.0, 11)
     result = solve_kinematics(mechanism, times, forces="all")
     reference = solve_kinematics(mechanism, times, forces="all", linear_solver="superlu")
-    assert result.linear_solver == "superlu-chord" and result.complete
+    assert result.linear_solver == "reuse" and result.complete
     assert result.force_labels == reference.force_labels and len(result.force_labels) > 100
-    # one SuperLU factorization per sample: at the switch, then at each converged position
-    assert result.n_factorizations == 1 + result.n_times
+    assert result.n_factorizations + result.n_refactorizations < result.n_times
     scale = np.abs(reference.force_tracks).max()
     np.testing.assert_allclose(result.force_tracks, reference.force_tracks, rtol=0, atol=1e-9 * scale)

@@ -41,6 +41,7 @@ __all__ = [
     "SingularMatrix",
     "MIN_PIVOT_RATIO",
     "MAX_GROWTH",
+    "ORDERINGS",
 ]
 
 #: Guard of `RefactorSolver`: the smallest accepted ratio of a pivot to the largest
@@ -53,8 +54,11 @@ MIN_PIVOT_RATIO = 1e-3
 #: The rounding errors of LU scale with the growth: at 1e3 they stay below about
 #: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
 MAX_GROWTH = 1e3
-#: The column ordering of every SuperLU factorization.
+#: The column ordering of every SuperLU factorization (unless `RefactorSolver`'s
+#: ``ordering="metis"``).
 _ORDERING = "COLAMD"
+#: The column orderings of `RefactorSolver`'s fresh factorizations.
+ORDERINGS = ("colamd", "metis")
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
 
@@ -206,6 +210,12 @@ class RefactorSolver:
         Guard on the smallest pivot relative to its column (`MIN_PIVOT_RATIO`).
     max_growth : float
         Guard on the growth max |U| / max |A| (`MAX_GROWTH`).
+    ordering : {"colamd", "metis"}
+        The column order of the fresh factorizations: SuperLU's COLAMD, or METIS's nested
+        dissection (`sparsekin.engine.ordering.fill_reducing_column_order`, the
+        ``meshes`` extra), computed once per pattern; on meshes it has less fill and
+        much faster refactorizations and solves (docs/design-notes.md, "Fill-reducing
+        column order").
 
     Attributes
     ----------
@@ -248,13 +258,19 @@ class RefactorSolver:
 
     name = "refactor"
 
-    def __init__(self, *, min_pivot_ratio: float = MIN_PIVOT_RATIO, max_growth: float = MAX_GROWTH) -> None:
+    def __init__(
+        self, *, min_pivot_ratio: float = MIN_PIVOT_RATIO, max_growth: float = MAX_GROWTH, ordering: str = "colamd"
+    ) -> None:
+        if ordering not in ORDERINGS:
+            raise ValueError(f"`ordering` must be one of {', '.join(map(repr, ORDERINGS))}, got {ordering!r}.")
         if not (0.0 <= min_pivot_ratio <= 1.0):
             raise ValueError(f"`min_pivot_ratio` must be in [0, 1], got {min_pivot_ratio!r}.")
         if not (max_growth >= 1.0):
             raise ValueError(f"`max_growth` must be >= 1, got {max_growth!r}.")
         self.min_pivot_ratio = float(min_pivot_ratio)
         self.max_growth = float(max_growth)
+        self.ordering = ordering
+        self._column_order = None  # METIS's order of the analysed pattern, once computed
         self.n_factorizations = 0
         self.n_refactorizations = 0
         self.n_fallbacks = 0
@@ -424,7 +440,7 @@ class RefactorSolver:
             raise ValueError("`jacobian` must have sorted column indices without duplicates (canonical CSR).")
         self._indptr, self._indices = matrix.indptr, matrix.indices
         self._n, self._nnz = matrix.shape[0], matrix.nnz
-        self._perm_c = None
+        self._perm_c = self._column_order = None
         suggested, self._suggested = self._suggested, None
         if suggested is not None and suggested[0].size == self._n and self._factor_on(matrix, *suggested):
             return
@@ -452,11 +468,14 @@ class RefactorSolver:
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
         try:
-            lu = _splu(matrix)
+            if self.ordering == "metis":
+                lu, perm_c = self._splu_in_column_order(matrix)
+            else:
+                lu = _splu(matrix)
+                perm_c = lu.perm_c.astype(np.int64)
         except RuntimeError as error:  # "Factor is exactly singular"
             raise SingularMatrix(str(error)) from error
         perm_r = lu.perm_r.astype(np.int64)
-        perm_c = lu.perm_c.astype(np.int64)
         capacity = lu.nnz
         del lu
         self._analyse(perm_r, perm_c, capacity)
@@ -467,6 +486,21 @@ class RefactorSolver:
                 raise SingularMatrix("the matrix holds non-finite values")
             raise SingularMatrix(f"zero or non-finite pivot in column {column} of the permuted matrix")
         self._factored = True
+
+    def _splu_in_column_order(self, matrix: csc_array):
+        """SuperLU of ``matrix[:, order]`` with METIS's column order (computed once per
+        pattern) and the ordering it takes as given; ``(lu, perm_c)`` for `matrix`."""
+        from scipy.sparse.linalg import splu
+
+        from .ordering import fill_reducing_column_order
+
+        if self._column_order is None:
+            self._column_order = fill_reducing_column_order(matrix, method="metis")
+        order = self._column_order
+        lu = splu(matrix[:, order], permc_spec="NATURAL")
+        perm_c = np.empty(order.size, dtype=np.int64)
+        perm_c[order] = lu.perm_c  # column order[j] of `matrix` is column j of the ordered one
+        return lu, perm_c
 
     def _analyse(self, perm_r: np.ndarray, perm_c: np.ndarray, capacity: int) -> None:
         """Pattern of ``B = Pr A Pc`` by columns, the maps to A's values, L and U patterns."""

@@ -203,13 +203,18 @@ def solve_positions(
 
 def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor, correction) -> int:
     previous_norm = np.inf
+    # A chord correction only has to contract: a solver that holds an older factorization
+    # than the Jacobian it solves with (`sparsekin.engine.krylov.ReusingSolver`) solves it
+    # with that factorization alone, the polish included (one more contraction of a
+    # residual already within the tolerance: docs/design-notes.md, "Factorization reuse").
+    solve_chord = getattr(linear_solver, "solve_held", linear_solver.solve) if chord else linear_solver.solve
     for iteration in range(max_iterations + 1):
         norm = system.fill_residual_jacobian(q)
         verdict = newton_verdict(iteration, norm, previous_norm, tolerance, max_iterations, chord)
         if verdict == CONVERGED:
             factor()
             if polishes(iteration, norm, tolerance, chord):
-                q -= linear_solver.solve(system.residual, out=correction)
+                q -= solve_chord(system.residual, out=correction)
                 return iteration + 1
             return iteration
         if verdict != CORRECT:
@@ -217,5 +222,5 @@ def _newton(system, linear_solver, q, tolerance, max_iterations, chord, factor, 
         if not chord:
             factor()
         previous_norm = norm
-        q -= linear_solver.solve(system.residual, out=correction)
+        q -= solve_chord(system.residual, out=correction)
     raise AssertionError("newton_verdict stops at max_iterations")  # pragma: no cover

@@ -1,4 +1,9 @@
-"""A pivot order for a chain of repeated units, tiled from a short chain: no SuperLU on the long one.
+"""Orders for the LU of a Jacobian: a pivot order tiled from a short chain, and a
+fill-reducing column order for meshes.
+
+`fill_reducing_column_order` orders the columns of any sparse matrix (square or tall) by
+nested dissection of its column intersection graph: METIS's (the ``meshes`` extra) or
+level-set separators without dependency.  The rest of this docstring is about chains.
 
 The first factorization of `RefactorSolver` runs SuperLU (COLAMD ordering, partial
 pivoting) to fix the order in which the equations are eliminated and the coordinate each
@@ -27,13 +32,23 @@ from ..model.units import Cycle, Step
 from .assembly import Assembler
 from .pattern import ConstraintPattern, build_pattern
 
-__all__ = ["tiled_ordering", "MIN_TILED_COORDINATES"]
+__all__ = [
+    "tiled_ordering",
+    "fill_reducing_column_order",
+    "metis_installed",
+    "MIN_TILED_COORDINATES",
+    "DISSECTION_LEAF_SIZE",
+]
 
 #: Below this many coordinates SuperLU on the whole model is quick: no tiling.
 MIN_TILED_COORDINATES = 30_000
 #: Copies of each unit in the short chain besides the first and the last: a whole cycle of
 #: varied units (at most this many), or one.
 MAX_MIDDLE_COPIES = 64
+#: Parts of the column graph of at most this many columns are not dissected further (they
+#: keep their breadth-first order): below about this size a separator saves less fill than
+#: it costs in balance (docs/design-notes.md, "Fill-reducing column order").
+DISSECTION_LEAF_SIZE = 16
 
 
 def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
@@ -169,3 +184,87 @@ def _unmap(short_body, shift, mechanism, short):
             return None
         out[inside] = c.first_body + k * c.n_bodies + within % cs.n_bodies
     return None if np.any(out < 0) else out
+
+
+def fill_reducing_column_order(matrix, *, method: str = "auto") -> np.ndarray:
+    """A fill-reducing column order for the LU factorization of a sparse matrix.
+
+    Nested dissection of the column intersection graph (columns are adjacent when they
+    share a row: the pattern of ``matrix.T @ matrix``).  For any row pivoting, the fill of
+    ``L + U`` of ``matrix[:, order]`` is bounded by that of the Cholesky factor of
+    ``matrix.T @ matrix`` in this order (George and Ng), which nested dissection keeps
+    small on planar meshes.
+
+    Parameters
+    ----------
+    matrix : sparse array, shape (m, n), m >= n
+        For a Jacobian: rows are equations, columns coordinates; a tall matrix (more
+        equations than coordinates) is accepted.  Only the pattern is read.
+    method : {"auto", "metis", "level-sets"}
+        ``"metis"``: METIS's multilevel nested dissection (``pip install
+        sparsekin[meshes]``, the `pymetis` binding).  ``"level-sets"``: separators from
+        breadth-first level structures (`sparsekin.engine._ordering_kernels`), no
+        dependency, but more fill than METIS and than SuperLU's COLAMD on the lattice
+        (docs/design-notes.md, "Fill-reducing column order").  ``"auto"``: METIS if
+        installed, else level sets.
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+        ``order[k]`` is the column eliminated k-th: factor ``matrix[:, order]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> order = fill_reducing_column_order(csr_array(np.eye(4) + np.eye(4, k=1)))
+    >>> sorted(order.tolist())
+    [0, 1, 2, 3]
+    """
+    if method not in ("auto", "metis", "level-sets"):
+        raise ValueError(f"`method` must be 'auto', 'metis' or 'level-sets', got {method!r}.")
+    if not hasattr(matrix, "tocsr") or len(matrix.shape) != 2:
+        raise ValueError(f"`matrix` must be a 2-D scipy.sparse array, got {type(matrix).__name__}.")
+    m, n = matrix.shape
+    if m < n:
+        raise ValueError(f"`matrix` must have at least as many rows as columns, got shape {matrix.shape}.")
+    if method == "auto":
+        method = "metis" if metis_installed() else "level-sets"
+    xadj, adjacency = _column_graph(matrix)
+    if method == "metis":
+        return _metis_order(xadj, adjacency)
+    from ._ordering_kernels import nested_dissection
+
+    return nested_dissection(xadj, adjacency, DISSECTION_LEAF_SIZE)
+
+
+def metis_installed() -> bool:
+    """Whether `pymetis` (the ``meshes`` extra) can be imported."""
+    import importlib.util
+
+    return importlib.util.find_spec("pymetis") is not None
+
+
+def _column_graph(matrix) -> tuple[np.ndarray, np.ndarray]:
+    """``(xadj, adjacency)``: the column intersection graph of `matrix`, without loops."""
+    from scipy.sparse import csr_array
+
+    csr = matrix if getattr(matrix, "format", None) == "csr" else csr_array(matrix)
+    pattern = csr_array((np.ones(csr.nnz, dtype=np.float32), csr.indices, csr.indptr.copy()), shape=csr.shape)
+    graph = (pattern.T @ pattern).tocsr()
+    graph.setdiag(0.0)
+    graph.eliminate_zeros()
+    return graph.indptr.astype(np.int64), graph.indices.astype(np.int64)
+
+
+def _metis_order(xadj: np.ndarray, adjacency: np.ndarray) -> np.ndarray:
+    """METIS_NodeND through pymetis: its `perm` (new position -> vertex) is the order."""
+    try:
+        import pymetis
+    except ImportError:
+        raise ImportError("METIS orderings need pymetis: pip install 'sparsekin[meshes]'") from None
+    if xadj.size == 1:
+        return np.zeros(0, dtype=np.int64)
+    graph = pymetis.CSRAdjacency(xadj.astype(np.int32), adjacency.astype(np.int32))
+    perm, _ = pymetis.nested_dissection(graph)
+    return np.asarray(perm, dtype=np.int64)

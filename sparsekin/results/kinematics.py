@@ -115,9 +115,9 @@ class KinematicsResult:
     linear_solver : str
         The path that solved the run: ``"compiled"`` (the compiled dense loop all the
         way), ``"compiled+dense"`` (the Python loop took over from it), ``"dense"``,
-        ``"refactor"``, ``"superlu-chord"`` (``"auto"`` left a refactorization with too
-        much fill-in at the first sample), ``"superlu"``, or ``"none"`` for a model with
-        nothing to solve (no body, no equation).
+        ``"refactor"``, ``"reuse"`` (``"auto"`` found the refactorization's fill-in
+        heavy at the first sample and reused its factorization across samples),
+        ``"superlu"``, or ``"none"`` for a model with nothing to solve (no body, no equation).
     recorded_points : tuple of str
         Points whose motion the run recorded (`point_tracks`).
     point_tracks : array, shape (n_times, n_recorded_points, 6), or None

@@ -38,9 +38,10 @@ from numba import njit
 from .._jit import JIT
 from ..analysis.failures import Diagnosis
 from ..engine.assembly import Assembler
+from ..engine.krylov import ReusingSolver
 from ..engine.linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER, Factorizer, NoConvergence, solve_positions
-from ..engine.ordering import MIN_TILED_COORDINATES, tiled_ordering
+from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed, tiled_ordering
 from ..engine.pattern import ConstraintPattern, build_pattern
 from ..engine.reduced import ReducedSystem
 from ..errors import ConvergenceError, ModelError
@@ -51,6 +52,7 @@ __all__ = [
     "LINEAR_SOLVERS",
     "COMPILED_MAX_COORDINATES",
     "MAX_REFACTOR_FILL",
+    "MIN_METIS_COORDINATES",
     "TOLERANCE_RANGE",
     "fill_is_heavy",
 ]
@@ -84,11 +86,18 @@ LINEAR_SOLVERS = ("auto", "superlu", "refactor", "dense")
 #: the dense path up to this many coordinates and the refactorization path above: the
 #: crossover measured on the test set (benchmarks/RESULTS.md, "Crossover").
 COMPILED_MAX_COORDINATES = 120
-#: ``linear_solver="auto"`` keeps the refactorization while its L and U hold at most this
+#: ``linear_solver="auto"`` refactors at every sample while L and U hold at most this
 #: many entries per entry of the Jacobian.  With more fill-in (meshes rather than chains)
-#: SuperLU's supernodal factorization beats the numba refactorization, and the run goes on
-#: with SuperLU (and chord Newton); docs/design-notes.md gives the measured fill ratios.
+#: a factorization costs tens of solves, and the run goes on reusing it across samples
+#: (`sparsekin.engine.krylov.ReusingSolver`: GMRES preconditioned by the held
+#: factorization, path ``"reuse"``); docs/design-notes.md gives the measured fill ratios.
 MAX_REFACTOR_FILL = 8.0
+#: ``linear_solver="auto"`` orders the refactorization's fresh factorizations by METIS's
+#: nested dissection from this many coordinates on, when `pymetis` is installed (the
+#: ``meshes`` extra): on the lattice at 10^4 bodies (3·10^4 coordinates) it and COLAMD
+#: give the same fill, at 10^5 METIS's refactorization is twice as fast
+#: (docs/design-notes.md, "Fill-reducing column order").
+MIN_METIS_COORDINATES = 30_000
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
 
@@ -135,8 +144,8 @@ class KinematicStepper:
         `advance`, which reuses the arrays.
     path : str
         The linear-solver path: ``"dense"``, ``"refactor"``, ``"superlu"``, the name of a
-        given solver, or ``"superlu-chord"`` once ``"auto"`` left a refactorization with
-        too much fill-in.
+        given solver, or ``"reuse"`` once ``"auto"`` found a refactorization at every
+        sample too costly (`fill_is_heavy`) and reuses it across samples.
     n_subdivisions : int
         How many times a step was halved.
     redundant_rows : ndarray of int
@@ -178,7 +187,10 @@ class KinematicStepper:
             if self.auto:
                 linear_solver = "dense" if pattern.n_coordinates <= COMPILED_MAX_COORDINATES else "refactor"
             self.chord = linear_solver != "superlu" if chord is None else bool(chord)
-            linear_solver = _SOLVER_CLASSES[linear_solver]()
+            if self.auto and pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed():
+                linear_solver = RefactorSolver(ordering="metis")
+            else:
+                linear_solver = _SOLVER_CLASSES[linear_solver]()
         else:
             self.chord = True if chord is None else bool(chord)
         self.linear_solver = linear_solver
@@ -241,9 +253,11 @@ class KinematicStepper:
             corrections = self._solve_positions(q, chord=False)
             self._solve_rates(q, velocity, acceleration)
             if self.auto and fill_is_heavy(self.linear_solver, self.pattern):
-                # SuperLU factors the Jacobian at the converged position again: the forces of
-                # this sample solve with it, and the next sample's chord Newton starts from it.
-                self.use_linear_solver(SuperLUSolver(), path="superlu-chord")
+                # The refactorization goes on under a solver that reuses its factorization
+                # across samples; it takes the Jacobian at the converged position (the
+                # forces of this sample solve with it, the next sample's chord Newton
+                # starts from it).
+                self.use_linear_solver(ReusingSolver(self.linear_solver, factored=True), path="reuse")
                 self.factorizer()
                 self._factored = True
         except (NoConvergence, SingularMatrix) as failure:
@@ -417,8 +431,8 @@ class KinematicStepper:
         """Go on with another linear solver (its counts add to the stepper's).
 
         ``"auto"`` does this at the first sample when a refactorization's fill-in makes it
-        slower than SuperLU (`fill_is_heavy`): the refactorization's factors are freed and
-        `start` factors the Jacobian at the converged position with the new solver.  Called
+        costly at every sample (`fill_is_heavy`): `start` hands the Jacobian at the
+        converged position to a `ReusingSolver` around the refactorization.  Called
         alone, it leaves the new solver without a factorization: the next sample runs
         plain Newton, then chord Newton again.
         """

@@ -1,0 +1,298 @@
+"""Solves with a held factorization of an earlier Jacobian: flexible GMRES, and the solver that reuses it.
+
+On a mesh, one factorization costs as much as tens of solves with it (a lattice of 10^5
+bodies: about 1 s against 30–40 ms).  Along a motion the Jacobian changes little from one
+sample to the next, so the factorization of an earlier sample, ``P``, is a good
+preconditioner of today's Jacobian ``J``: right-preconditioned GMRES on ``J P^-1`` reaches
+the accuracy of a direct solve in a few iterations, each one solve with ``P`` and one
+product with ``J``.  `ReusingSolver` holds such a factorization, solves every system
+(Newton's corrections, velocities, accelerations, the forces' transposed systems) by
+`fgmres`, and refactors when an iteration count says the held factorization has gone stale.
+
+Symbols: ``J`` the Jacobian to solve with (the one last given to ``factor``), ``P`` the
+held factorization, ``b`` the right-hand side, ``x`` the solution, ``r = b - J x``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import _krylov_kernels as _kernels
+from .linalg import SingularMatrix
+
+__all__ = ["fgmres", "ReusingSolver", "KRYLOV_TOLERANCE", "MAX_KRYLOV_ITERATIONS", "REFACTOR_ITERATIONS"]
+
+#: A solve is accepted when ``||b - J x||_2 <= KRYLOV_TOLERANCE * (||b||_2 + ||J||_1 ||x||_2)``: a
+#: backward error of a few units of rounding, what a direct LU reaches (measured on the
+#: lattice, docs/design-notes.md, "Factorization reuse").
+KRYLOV_TOLERANCE = 1e-15
+#: Most GMRES iterations of one solve; beyond them the solver refactors and solves directly.
+MAX_KRYLOV_ITERATIONS = 12
+#: A solve that needed more iterations than this marks the held factorization stale: the
+#: next `ReusingSolver.factor` refactors (docs/design-notes.md, "Factorization reuse").
+REFACTOR_ITERATIONS = 4
+
+
+def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
+    """Right-preconditioned (flexible) GMRES from the preconditioned start ``x0 = P^-1 b``.
+
+    Parameters
+    ----------
+    matvec : callable
+        ``matvec(x)``: ``J @ x``.
+    precondition : callable
+        ``precondition(v, out)``: ``P^-1 v`` into `out`.
+    rhs : ndarray, shape (n,)
+    tolerance : float
+        Accept ``x`` when ``||b - J x||_2 <= tolerance * (||b||_2 + scale * ||x||_2)``.
+    max_iterations : int
+    out : ndarray, shape (n,)
+        Receives ``x``.
+    scale : float
+        A norm of ``J`` (its largest column sum).
+
+    Returns
+    -------
+    int
+        Iterations taken (0 when the start was accepted), or -1 if the residual did not
+        reach the tolerance within `max_iterations` (`out` then holds the last iterate).
+    """
+    n = rhs.size
+    rhs_norm = _kernels.norm2(rhs)
+    basis = np.empty((max_iterations + 1, n))
+    precondition(rhs, out)
+    beta = _kernels.residual_into(rhs, matvec(out), basis[0])
+    if not math.isfinite(beta):
+        return -1
+    if beta <= tolerance * (rhs_norm + scale * _kernels.norm2(out)):
+        return 0
+    basis[0] /= beta
+    directions = np.empty((max_iterations, n))  # P^-1 of the basis vectors (flexible)
+    hessenberg = np.zeros((max_iterations + 1, max_iterations))
+    cosines, sines = np.zeros(max_iterations), np.zeros(max_iterations)
+    g = np.zeros(max_iterations + 1)
+    g[0] = beta
+    start = out.copy()
+    work = np.empty(n)
+    for j in range(max_iterations):
+        precondition(basis[j], directions[j])
+        w = matvec(directions[j])
+        _kernels.orthogonalize(basis, j, w, hessenberg[:, j])
+        for i in range(j):  # the earlier rotations on the new column
+            a, b = hessenberg[i, j], hessenberg[i + 1, j]
+            hessenberg[i, j] = cosines[i] * a + sines[i] * b
+            hessenberg[i + 1, j] = -sines[i] * a + cosines[i] * b
+        a, b = hessenberg[j, j], hessenberg[j + 1, j]
+        radius = math.hypot(a, b)
+        if not radius > 0.0:  # breakdown or NaN
+            return -1
+        cosines[j], sines[j] = a / radius, b / radius
+        hessenberg[j, j], hessenberg[j + 1, j] = radius, 0.0
+        g[j + 1] = -sines[j] * g[j]
+        g[j] = cosines[j] * g[j]
+        # GMRES's estimate |g[j + 1]| of the residual drifts from the true one near
+        # rounding: the true residual decides, computed when the estimate may pass.
+        if abs(g[j + 1]) <= tolerance * (rhs_norm + scale * _kernels.norm2(start)) or j == max_iterations - 1:
+            y = np.linalg.solve(np.triu(hessenberg[: j + 1, : j + 1]), g[: j + 1])
+            _kernels.combine(start, directions, y, out)
+            true = _kernels.residual_into(rhs, matvec(out), work)
+            if true <= tolerance * (rhs_norm + scale * _kernels.norm2(out)):
+                return j + 1
+            if not math.isfinite(true):
+                return -1
+    return -1
+
+
+class ReusingSolver:
+    """Solves with the held factorization of an earlier Jacobian, by preconditioned GMRES.
+
+    `factor` takes the Jacobian to solve with (a copy of its values) but keeps the held
+    factorization of the inner solver, unless a solve since the last refactorization
+    needed more than `refactor_iterations` GMRES iterations (then it refactors now).
+    `solve` runs `fgmres` with that factorization as the preconditioner to the backward
+    error `tolerance`; if GMRES does not get there in `max_iterations`, the solver
+    refactors at once and solves directly.  `solve_held` solves with the held
+    factorization alone: chord Newton's corrections, which only need to contract.
+
+    Parameters
+    ----------
+    inner : RefactorSolver or SuperLUSolver
+        The solver that factors; it may already hold an analysis of the pattern.
+    tolerance : float
+        `KRYLOV_TOLERANCE`.
+    max_iterations : int
+        `MAX_KRYLOV_ITERATIONS`.
+    refactor_iterations : int
+        `REFACTOR_ITERATIONS`.
+    factored : bool
+        Whether `inner` already holds the factorization of the Jacobian that the first
+        `factor` will give (a run that switches solvers at a converged sample): that
+        factorization is then kept instead of being made again.
+
+    Attributes
+    ----------
+    n_factorizations, n_refactorizations : int
+        The inner solver's, since this one was made.
+    n_solves : int
+        Right-hand sides solved (a 2-D `rhs` of k columns counts k).
+    n_krylov_iterations : int
+        GMRES iterations over all solves.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> from sparsekin.engine.linalg import RefactorSolver
+    >>> solver = ReusingSolver(RefactorSolver())
+    >>> jacobian = csr_array(np.array([[2.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]]))
+    >>> solver.factor(jacobian)
+    >>> jacobian.data *= 1.01  # the next sample's Jacobian: the factorization is kept
+    >>> solver.factor(jacobian)
+    >>> x = solver.solve(np.ones(3))
+    >>> bool(np.allclose(jacobian @ x, 1.0, rtol=0, atol=1e-14)), solver.n_refactorizations
+    (True, 0)
+    """
+
+    name = "reuse"
+
+    def __init__(
+        self,
+        inner,
+        *,
+        tolerance: float = KRYLOV_TOLERANCE,
+        max_iterations: int = MAX_KRYLOV_ITERATIONS,
+        refactor_iterations: int = REFACTOR_ITERATIONS,
+        factored: bool = False,
+    ) -> None:
+        if not (tolerance > 0.0):
+            raise ValueError(f"`tolerance` must be positive, got {tolerance!r}.")
+        if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
+            raise ValueError(f"`max_iterations` must be a whole number >= 1, got {max_iterations!r}.")
+        self.inner = inner
+        self.tolerance = float(tolerance)
+        self.max_iterations = int(max_iterations)
+        self.refactor_iterations = int(refactor_iterations)
+        self._base = (inner.n_factorizations, inner.n_refactorizations)
+        self.n_solves = 0
+        self.n_krylov_iterations = 0
+        self._matrix = None  # the Jacobian of the last `factor`: its values copied
+        self._factored = bool(factored)  # the first `factor`'s Jacobian is factored already
+        self._held = False  # whether the inner solver holds a factorization
+        self._exact = False  # whether that factorization is of `_matrix` itself
+        self._stale = False
+        self._scale = 1.0
+
+    @property
+    def n_factorizations(self) -> int:
+        return self.inner.n_factorizations - self._base[0]
+
+    @property
+    def n_refactorizations(self) -> int:
+        return self.inner.n_refactorizations - self._base[1]
+
+    def factor(self, jacobian) -> None:
+        """Take `jacobian` (square CSR) as the matrix to solve with; refactor only if the
+        held factorization went stale (or there is none, or the pattern changed)."""
+        from scipy.sparse import csr_array
+
+        matrix = self._matrix
+        if (
+            matrix is None
+            or matrix.shape != jacobian.shape
+            or not (matrix.indptr is jacobian.indptr or np.array_equal(matrix.indptr, jacobian.indptr))
+            or not (matrix.indices is jacobian.indices or np.array_equal(matrix.indices, jacobian.indices))
+        ):
+            self._matrix = csr_array((jacobian.data.astype(float), jacobian.indices, jacobian.indptr), shape=jacobian.shape)
+            self._row_of = np.repeat(np.arange(jacobian.shape[0]), np.diff(jacobian.indptr))
+            self._transposed = None
+            self._held = self._exact = self._factored
+        else:
+            np.copyto(matrix.data, jacobian.data)
+            self._exact = False
+        self._factored = False
+        matrix = self._matrix
+        magnitudes = np.abs(matrix.data)
+        columns = np.bincount(matrix.indices, weights=magnitudes, minlength=matrix.shape[1])
+        rows = np.bincount(self._row_of, weights=magnitudes, minlength=matrix.shape[0])
+        # max(||J||_1, ||J||_inf): a norm of J and of its transpose, for both kinds of solve
+        self._scale = max(float(columns.max(initial=0.0)), float(rows.max(initial=0.0))) or 1.0
+        if not self._held or self._stale:
+            self._refactor()
+
+    def solve(self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs`` (``jacobian.T @ x = rhs`` if `transposed`) for the
+        Jacobian of the last `factor`, to the backward error `tolerance`.
+
+        Parameters and returns as `sparsekin.engine.linalg.RefactorSolver.solve`.
+        """
+        if self._matrix is None or not self._held:
+            raise RuntimeError("no factorization: call `factor` first (the last one failed or none was made).")
+        rhs = np.asarray(rhs, dtype=float)
+        n = self._matrix.shape[0]
+        if rhs.ndim not in (1, 2) or rhs.shape[0] != n:
+            raise ValueError(f"`rhs` must have shape ({n},) or ({n}, n_rhs), got {rhs.shape}.")
+        if out is None:
+            out = np.empty(rhs.shape)
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        if self._exact:
+            return self.inner.solve(rhs, out=out, transposed=transposed)
+        if np.shares_memory(rhs, out):  # GMRES reads the right-hand side to the end
+            rhs = rhs.copy()
+        columns = [(rhs, out)] if rhs.ndim == 1 else [(rhs[:, c].copy(), np.empty(n)) for c in range(rhs.shape[1])]
+        for c, (b, x) in enumerate(columns):
+            self._solve_one(b, x, transposed)
+            if rhs.ndim == 2:
+                out[:, c] = x
+        return out
+
+    def solve_held(self, rhs: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Solve with the held factorization alone (an earlier Jacobian's): a chord correction."""
+        if not self._held:
+            raise RuntimeError("no factorization: call `factor` first (the last one failed or none was made).")
+        self.n_solves += 1 if np.ndim(rhs) == 1 else np.shape(rhs)[1]
+        return self.inner.solve(rhs, out=out)
+
+    # ------------------------------------------------------------------ internals
+    def _refactor(self) -> None:
+        self._held = self._exact = False
+        self.inner.factor(self._matrix)
+        self._held = self._exact = True
+        self._stale = False
+
+    def _solve_one(self, rhs: np.ndarray, out: np.ndarray, transposed: bool) -> None:
+        matrix = self._matrix
+        if transposed:
+            if self._transposed is None:
+                self._transposed = matrix.T.tocsr()  # its pattern, once; values refreshed below
+                self._transposed_map = _transpose_map(matrix)
+            operator = self._transposed
+            operator.data[:] = matrix.data[self._transposed_map]
+        else:
+            operator = matrix
+        inner = self.inner
+
+        def precondition(v, target):
+            inner.solve(v, out=target, transposed=transposed)
+
+        iterations = fgmres(operator.__matmul__, precondition, rhs, self.tolerance, self.max_iterations, out,
+                            self._scale)  # fmt: skip
+        if iterations < 0:  # the held factorization is too far off: refactor, solve directly
+            self._refactor()
+            inner.solve(rhs, out=out, transposed=transposed)
+            return
+        self.n_krylov_iterations += iterations
+        if iterations > self.refactor_iterations:
+            self._stale = True
+        if not np.all(np.isfinite(out)):
+            raise SingularMatrix("the solution is not finite")
+
+
+def _transpose_map(matrix) -> np.ndarray:
+    """For ``matrix.T.tocsr()``: the position in ``matrix.data`` of each of its values."""
+    from scipy.sparse import csr_array
+
+    positions = csr_array((np.arange(matrix.nnz, dtype=float) + 1.0, matrix.indices, matrix.indptr), shape=matrix.shape)
+    transposed = positions.T.tocsr()
+    return transposed.data.astype(np.int64) - 1
