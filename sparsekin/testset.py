@@ -11,6 +11,10 @@ known independently of the solver:
 * `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
   its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
   the horizontal bars translate.
+* `rotating_squares` — Grima and Evans's auxetic mechanism: n×n unit squares hinged at
+  their corners, one driver, (n − 2)² redundant equations.
+* `parallel_bar_chain` — a tower of parallelogram cells with three parallel bars each
+  (one redundant equation per cell), or two and a welded one (the non-redundant twin).
 
 The two chains are a unit repeated (`sparsekin.model.units.Repeat`), as their model files
 ``examples/task5_chain.toml`` and ``examples/four_bar_chain.toml`` write them: a million
@@ -25,12 +29,13 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .model.elements import Revolute, RotationalDriver, Translational, TranslationalDriver
+from .model.elements import PinInSlot, Revolute, Rigid, RotationalDriver, Translational, TranslationalDriver
 from .model.laws import Harmonic, Linear
 from .model.mechanism import Body, Mechanism
 from .model.units import Cycle, Repeat, Unit
 
-__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "task5_unit_phases"]
+__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "task5_unit_phases",
+           "rotating_squares", "parallel_bar_chain"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -233,3 +238,129 @@ def lattice(rows: int, cols: int) -> Mechanism:
             )
         )  # fmt: skip
     return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers, name=f"lattice_{rows}x{cols}")
+
+
+#: Amplitude (rad) and angular frequency (rad/s) of the driver of `rotating_squares`.
+SQUARES_AMPLITUDE = 0.2
+SQUARES_OMEGA = 1.0
+
+
+def _whole(value, label: str, smallest: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < smallest:
+        raise ValueError(f"`{label}` must be a whole number >= {smallest}, got {value!r}.")
+    return int(value)
+
+
+def _corners(centre: np.ndarray, angle: float) -> np.ndarray:
+    """The four corners of a unit square turned by `angle` about its `centre`, shape (4, 2)."""
+    c, s = math.cos(angle), math.sin(angle)
+    local = np.array([(0.5, 0.5), (-0.5, 0.5), (-0.5, -0.5), (0.5, -0.5)])
+    return centre + local @ np.array([[c, s], [-s, c]])
+
+
+def _shared_corner(first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
+    """The corner that two neighbouring squares' corner lists have in common."""
+    distances = np.linalg.norm(first[:, None] - second[None], axis=2)
+    a, b = np.unravel_index(np.argmin(distances), distances.shape)
+    return tuple(map(float, 0.5 * (first[a] + second[b])))
+
+
+@_collection_paused()
+def rotating_squares(n: int, angle: float = 0.3, amplitude: float = SQUARES_AMPLITUDE,
+                     omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
+    """Grima and Evans's rotating squares: n×n unit squares hinged at their corners.
+
+    Square (i, j) (column i, row j) is body ``s{i}_{j}.sq``, centred at (i·p, j·p) with
+    p = cos(angle) + sin(angle), turned by +angle where i + j is even and −angle where it
+    is odd.  Neighbours in a row or a column are pinned at their common corner (2n(n − 1)
+    revolutes, named after the hinges); square (0, 0) is pinned to the ground at its
+    centre, square (1, 0)'s centre slides in a slot of the ground along x, and a
+    rotational driver turns square (0, 0): angle + amplitude·sin(omega·t).
+
+    3n² coordinates, 4n² − 4n + 4 equations of rank 3n² (n >= 3): no degree of freedom
+    and (n − 2)² redundant equations.  Closed form, with θ(t) the driven angle: square
+    (i, j) is centred at (i·p(θ), j·p(θ)), p(θ) = cos θ + sin θ, turned by (−1)^(i+j)·θ.
+    """
+    n = _whole(n, "n", 2)
+    for value, label in ((angle, "angle"), (amplitude, "amplitude"), (omega, "omega")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value):
+            raise ValueError(f"`{label}` must be a finite number, got {value!r}.")
+    pitch = math.cos(angle) + math.sin(angle)
+    points, bodies, joints, corners, own = {}, [], [], {}, {}
+    for j in range(n):
+        for i in range(n):
+            turn = angle if (i + j) % 2 == 0 else -angle
+            points[f"c{i}_{j}"] = (i * pitch, j * pitch)
+            corners[i, j] = _corners(np.array(points[f"c{i}_{j}"]), turn)
+            own[i, j] = [f"c{i}_{j}"]
+            if i > 0:
+                points[f"h{i - 1}_{j}"] = _shared_corner(corners[i - 1, j], corners[i, j])
+                own[i - 1, j].append(f"h{i - 1}_{j}")
+                own[i, j].append(f"h{i - 1}_{j}")
+                joints.append(Revolute((f"s{i}_{j}.sq", f"s{i - 1}_{j}.sq"), at=f"h{i - 1}_{j}"))
+            if j > 0:
+                points[f"v{i}_{j - 1}"] = _shared_corner(corners[i, j - 1], corners[i, j])
+                own[i, j - 1].append(f"v{i}_{j - 1}")
+                own[i, j].append(f"v{i}_{j - 1}")
+                joints.append(Revolute((f"s{i}_{j}.sq", f"s{i}_{j - 1}.sq"), at=f"v{i}_{j - 1}"))
+    for j in range(n):
+        for i in range(n):
+            turn = angle if (i + j) % 2 == 0 else -angle
+            bodies.append(Body(f"s{i}_{j}.sq", origin=f"c{i}_{j}", angle=turn, points=tuple(own[i, j])))
+    joints.append(Revolute(("s0_0.sq", "ground"), at="c0_0"))
+    joints.append(PinInSlot(("ground", "s1_0.sq"), at="c1_0", direction=(1.0, 0.0)))
+    driver = RotationalDriver(("s0_0.sq", "ground"), law=Harmonic(amplitude=float(amplitude), omega=float(omega)))
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=[driver], name=f"rotating_squares_{n}x{n}")
+
+
+#: Amplitude (rad) and angular frequency (rad/s) of the drivers of `parallel_bar_chain`,
+#: and how many distinct phases the cells cycle through.
+BAR_CHAIN_AMPLITUDE = 0.3
+BAR_CHAIN_OMEGA = 2.0
+BAR_CHAIN_PHASES = 7
+
+
+@_collection_paused()
+def parallel_bar_chain(n: int, bars: int = 3) -> Mechanism:
+    """A tower of n parallelogram cells: 4n bodies, one driver per cell.
+
+    Cell k (0 … n−1) joins plate k−1 (the ground for k = 0) at height k to plate k at
+    height k + 1 by vertical bars of length 1 at x = 0, 0.5 and 1 (``a{k}``, ``b{k}``,
+    ``c{k}``), pinned at both ends.  With ``bars=3`` the middle bar is a third parallel
+    bar: one redundant equation per cell.  With ``bars=2`` it is welded to plate k
+    instead (a `Rigid` joint, 3 equations for its 3 coordinates): the non-redundant twin,
+    with the same bodies and nearly the same equations.  A rotational driver turns bar
+    ``a{k}`` relative to plate k−1 to π/2 + 0.3·(sin(2t + φ_k) − sin φ_k), φ_k = 2π·(k mod
+    7)/7.
+
+    Closed form: the plates translate; with θ_k(t) the driven angle, plate k's frame
+    origin (its left node) is plate k−1's plus (cos θ_k, sin θ_k), and bars a, c (and b
+    with ``bars=3``) turn to θ_k, their origins at their lower nodes.
+    """
+    n = _whole(n, "n", 1)
+    if bars not in (2, 3):
+        raise ValueError(f"`bars` must be 2 or 3, got {bars!r}.")
+    points = {f"{name}{k}": (x, float(k)) for k in range(n + 1) for name, x in (("L", 0.0), ("M", 0.5), ("R", 1.0))}
+    bodies, joints, drivers = [], [], []
+    for k in range(n):
+        below, top = ("ground" if k == 0 else f"p{k - 1}"), f"p{k}"
+        for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
+            bodies.append(Body(f"{name}{k}", origin=f"{node}{k}", angle=math.pi / 2,
+                               points=(f"{node}{k}", f"{node}{k + 1}")))  # fmt: skip
+        bodies.append(Body(top, origin=f"L{k + 1}", points=(f"L{k + 1}", f"M{k + 1}", f"R{k + 1}")))
+        for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
+            if name == "b" and bars == 2:
+                joints.append(Rigid((top, f"b{k}")))
+                continue
+            joints.append(Revolute((f"{name}{k}", below), at=f"{node}{k}"))
+            joints.append(Revolute((top, f"{name}{k}"), at=f"{node}{k + 1}"))
+        phase = 2 * math.pi * (k % BAR_CHAIN_PHASES) / BAR_CHAIN_PHASES
+        drivers.append(
+            RotationalDriver(
+                (f"a{k}", below),
+                law=Harmonic(amplitude=BAR_CHAIN_AMPLITUDE, omega=BAR_CHAIN_OMEGA, phase=phase,
+                             offset=math.pi / 2 - BAR_CHAIN_AMPLITUDE * math.sin(phase)),
+            )
+        )  # fmt: skip
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers,
+                     name=f"parallel_bar_chain_{n}_{bars}")  # fmt: skip

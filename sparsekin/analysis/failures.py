@@ -39,7 +39,6 @@ from .describe import (
     equations_summary,
     motion_summary,
     row_preference,
-    shares,
 )
 
 if TYPE_CHECKING:
@@ -161,7 +160,7 @@ class Diagnosis:
         """The error for a square model whose equations are dependent at the first sample."""
         redundancy = self._driver_redundancy(analysis) or "; ".join(
             f"{self.label(row)} depends on "
-            f"{equations_summary(self.mechanism, self.pattern, analysis.dependencies[:, k], exclude=int(row))}"
+            f"{equations_summary(self.mechanism, self.pattern, analysis.dependency(k), exclude=int(row))}"
             for k, row in enumerate(analysis.redundant_rows[:LISTED])
         )
         motions = self._motions(analysis, coordinates)
@@ -175,12 +174,13 @@ class Diagnosis:
     def _driver_redundancy(self, analysis: JacobianAnalysis) -> str:
         """The first redundancy that a driver takes part in, in words, or ``""``."""
         n_joint_rows = int(self.pattern.element_first_row[len(self.mechanism.joints)])
-        for k, row in enumerate(analysis.redundant_rows):
-            dependency = analysis.dependencies[:, k]
-            if np.any(shares(dependency)[n_joint_rows:] >= 1e-12):
-                others = equations_summary(self.mechanism, self.pattern, dependency, exclude=int(row))
-                return f"{self.label(row)} depends on {others}"
-        return ""
+        involved = np.flatnonzero(analysis.involve(np.arange(n_joint_rows, self.pattern.n_equations)))
+        if not involved.size:
+            return ""
+        k = int(involved[0])
+        row = int(analysis.redundant_rows[k])
+        others = equations_summary(self.mechanism, self.pattern, analysis.dependency(k), exclude=row)
+        return f"{self.label(row)} depends on {others}"
 
     def _motions(self, analysis: JacobianAnalysis, coordinates: np.ndarray) -> str:
         motions = "; ".join(

@@ -51,7 +51,15 @@ import scipy.linalg
 from scipy import sparse
 from scipy.sparse.linalg import splu
 
-__all__ = ["JacobianAnalysis", "analyse_jacobian"]
+from .tall_lu import CERTIFICATE_MARGIN, INVOLVEMENT, TallLU
+
+__all__ = ["JacobianAnalysis", "analyse_jacobian", "SMALLEST_TALL_LU"]
+
+#: Tall Jacobians with at least this many coordinates are analysed by `TallLU` first (its
+#: answer certified, the dense analysis otherwise); smaller ones by the dense analysis,
+#: which also gives the smallest nonzero singular values exactly.  Below this size both
+#: take milliseconds (docs/design-notes.md, "Redundant equations at scale").
+SMALLEST_TALL_LU = 300
 
 #: Regularization delta of the augmented matrix: a tenth of the rank tolerance, so that
 #: inverse iteration separates the null spaces from the smallest nonzero singular values,
@@ -105,10 +113,10 @@ class JacobianAnalysis:
     redundant_rows : ndarray of int, shape (n_redundant,)
         Equations to leave out so that the others are independent: later joints first,
         drivers last.
-    dependencies : ndarray, shape (m, n_redundant)
-        Basis of the left null space of A: column k has 1 at ``redundant_rows[k]``, 0 at
-        the other redundant rows, and expresses that row of A as a combination of the
-        kept ones (``row_scale[:, None] * dependencies`` does the same for Phi_q).
+    dependency_source : object
+        What gives the dependencies on demand (`dependency`, `rows_in_dependencies`,
+        `dependencies`): a dense basis of the left null space for the dense analysis, the
+        factors of `sparsekin.analysis.tall_lu.TallLU` for a tall Jacobian of full rank.
     smallest_singular_value : float
         Smallest singular value found, relative to `sigma_max` (0 to rounding for a
         rank-deficient Jacobian).
@@ -129,7 +137,7 @@ class JacobianAnalysis:
     free_motions: np.ndarray
     scaled_free_motions: np.ndarray
     redundant_rows: np.ndarray
-    dependencies: np.ndarray
+    dependency_source: _DenseDependencies | TallLU
     smallest_singular_value: float
     smallest_motion: np.ndarray
     smallest_equations: np.ndarray
@@ -145,6 +153,30 @@ class JacobianAnalysis:
     def n_redundant(self) -> int:
         """Number of redundant equations, ``m - rank`` (up to rounding at the threshold)."""
         return int(self.redundant_rows.size)
+
+    def dependency(self, k: int) -> np.ndarray:
+        """Dependency k, shape (m,): 1 at ``redundant_rows[k]``, 0 at the other redundant
+        rows, and the weights that express that row of A as a combination of the kept ones
+        (``row_scale * dependency(k)`` does the same for Phi_q).  One triangular solve for
+        a tall Jacobian analysed by its LU."""
+        return self.dependency_source.dependency(int(k))
+
+    def rows_in_dependencies(self, rows) -> np.ndarray:
+        """The weights of the equations `rows` (a few) in every dependency, shape
+        (len(rows), n_redundant)."""
+        return self.dependency_source.rows_in_dependencies(np.asarray(rows, dtype=np.int64))
+
+    def involve(self, rows) -> np.ndarray:
+        """For each dependency, whether one of the equations `rows` takes part in it
+        (a weight of at least `INVOLVEMENT` relative to the redundant equation's own 1)."""
+        return np.any(np.abs(self.rows_in_dependencies(rows)) >= INVOLVEMENT, axis=0)
+
+    @property
+    def dependencies(self) -> np.ndarray:
+        """Every dependency, shape (m, n_redundant): a basis of the left null space of A.
+        Dense: for small models; `dependency` gives one."""
+        return np.column_stack([self.dependency(k) for k in range(self.n_redundant)]) if self.n_redundant else (
+            np.zeros((self.shape[0], 0)))  # fmt: skip
 
     @property
     def condition(self) -> float:
@@ -228,11 +260,16 @@ def analyse_jacobian(
                     free_motions=np.zeros((n, 0)),
                     scaled_free_motions=np.zeros((n, 0)),
                     redundant_rows=np.zeros(0, dtype=np.int64),
-                    dependencies=np.zeros((m, 0)),
+                    dependency_source=_DenseDependencies(np.zeros((m, 0))),
                     smallest_singular_value=float(values[0]) / sigma_max,
                     smallest_motion=right[:, 0],
                     smallest_equations=image / np.linalg.norm(image),
                 )
+
+    if m > n >= SMALLEST_TALL_LU:  # the common overconstrained case: full column rank
+        found = _analysis_by_tall_lu(scaled, row_preference, absolute_tolerance, sigma_max, rng, common)
+        if found is not None:
+            return found
 
     augmented = _AugmentedFactor(scaled, max(0.1 * tolerance, SMALLEST_REGULARIZATION) * sigma_max)
     spaces = augmented.near_null(scaled, absolute_tolerance, rng)
@@ -260,11 +297,56 @@ def analyse_jacobian(
         free_motions=column_scale[:, None] * scaled_motions,
         scaled_free_motions=scaled_motions,
         redundant_rows=redundant_rows,
-        dependencies=_basic(null_left, redundant_rows),
+        dependency_source=_DenseDependencies(_basic(null_left, redundant_rows)),
         smallest_singular_value=smallest_value / sigma_max,
         smallest_motion=smallest_motion,
         smallest_equations=smallest_equations,
     )
+
+
+def _analysis_by_tall_lu(scaled, preference, absolute_tolerance, sigma_max, rng, common):
+    """The analysis of a tall Jacobian of full column rank by `TallLU`, or None if its
+    factorization stops at a column or its certificate fails."""
+    m, n = scaled.shape
+    factor = TallLU(scaled, preference, absolute_tolerance)
+    if not factor.complete:
+        return None
+    values, right = factor.smallest_singular_triplets(rng)
+    if not values[0] >= CERTIFICATE_MARGIN * absolute_tolerance:
+        return None
+    # the rows left out are combinations of B's: A's smallest singular value is at least
+    # B's, and a Rayleigh–Ritz step with A on B's smallest directions estimates it from above
+    image = np.linalg.qr(np.asfortranarray(scaled @ right), mode="r")
+    _, values_tall, vectors = np.linalg.svd(image)
+    motion = right @ vectors[-1]
+    equations = scaled @ motion
+    return JacobianAnalysis(
+        **common,
+        rank=n,
+        sigma_max=sigma_max,
+        sigma_min=float(values_tall[-1]),
+        free_coordinates=np.zeros(0, dtype=np.int64),
+        free_motions=np.zeros((n, 0)),
+        scaled_free_motions=np.zeros((n, 0)),
+        redundant_rows=factor.redundant_rows,
+        dependency_source=factor,
+        smallest_singular_value=float(values_tall[-1]) / sigma_max,
+        smallest_motion=motion,
+        smallest_equations=equations / np.linalg.norm(equations),
+    )
+
+
+class _DenseDependencies:
+    """A dense basis of the left null space, with `TallLU`'s interface."""
+
+    def __init__(self, basis: np.ndarray) -> None:
+        self.basis = basis
+
+    def dependency(self, k: int) -> np.ndarray:
+        return self.basis[:, k]
+
+    def rows_in_dependencies(self, rows: np.ndarray) -> np.ndarray:
+        return self.basis[rows]
 
 
 def _analysis_of_zero(*, shape, tolerance, row_scale, column_scale) -> JacobianAnalysis:
@@ -280,7 +362,7 @@ def _analysis_of_zero(*, shape, tolerance, row_scale, column_scale) -> JacobianA
         free_motions=np.diag(column_scale),
         scaled_free_motions=np.eye(n),
         redundant_rows=np.arange(m),
-        dependencies=np.eye(m),
+        dependency_source=_DenseDependencies(np.eye(m)),
         smallest_singular_value=0.0,
         smallest_motion=np.eye(n)[:, 0] if n else np.zeros(0),
         smallest_equations=np.eye(m)[:, 0] if m else np.zeros(0),

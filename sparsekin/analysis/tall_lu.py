@@ -1,0 +1,196 @@
+"""Redundant equations of a tall Jacobian by a sparse LU with threshold row pivoting.
+
+The common overconstrained mechanism has a Jacobian of full column rank with many more
+rows than columns (rotating squares: 3n² coordinates, (n − 2)² redundant equations).
+Its rank is then the number of columns, and naming the redundant equations is choosing
+n independent rows.  `TallLU` factors the tall (scaled) Jacobian ``A`` column by column
+(left-looking, Gilbert–Peierls; `sparsekin.analysis._tall_lu_kernels`), the columns in a
+fill-reducing order (`column_order`), the pivot of each column chosen among the rows not
+yet chosen whose remainder is within `PIVOT_THRESHOLD` of the largest, by the analysis's
+row preference (drivers first, later joints last).  The rows never chosen are the
+redundant ones; the cost follows the fill of the factors, near-linear on chains and
+meshes, instead of (equations × redundant²) for a dense basis of the left null space.
+
+Such an LU is not rank-revealing in theory, so a *certificate* decides whether its answer
+stands: the smallest singular value of the square block ``B`` of the chosen rows,
+estimated by inverse subspace iteration with its factors, must exceed the rank tolerance
+by `CERTIFICATE_MARGIN`.  Every row of ``A`` is a row of ``B`` or a combination of them,
+so ``sigma_min(A) >= sigma_min(B)`` and the rank is n.  A column without a candidate
+above the tolerance (a free coordinate) or a failed certificate sends the analysis back to
+the dense one of `sparsekin.analysis.rank`.
+
+The dependency of a redundant row r on the chosen ones is computed only when a message
+needs it: row r of ``A`` equals its row ``l_r`` of ``L`` times ``U``, so the weights y of
+the chosen rows in ``y^T B = -a_r^T`` solve ``L_K^T y = -l_r``: one triangular solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+
+from . import _tall_lu_kernels as _kernels
+
+__all__ = ["TallLU", "column_order"]
+
+#: A pivot is chosen among the rows whose remainder is at least this fraction of the
+#: column's largest: the row preference decides among them.  0.1 is the classic threshold
+#: of sparse LU codes (UMFPACK's default, SuperLU's ``diag_pivot_thresh`` range); it bounds
+#: every entry of L by 10 (docs/design-notes.md, "Redundant equations at scale").
+PIVOT_THRESHOLD = 0.1
+#: The LU's answer stands if the smallest singular value of the chosen rows' block is at
+#: least this many times the rank tolerance: an estimate from a few sweeps is accurate to
+#: a small factor, and a block this far from singular is not an artefact of rounding.
+CERTIFICATE_MARGIN = 1e3
+#: Sweeps and width of the inverse subspace iteration of the certificate.
+CERTIFICATE_SWEEPS = 4
+CERTIFICATE_BLOCK = 4
+#: Dependencies: a chosen row takes part in a redundant row's dependency if its weight,
+#: relative to the redundant row's own (1), is at least this (shares of 1e-12, squared).
+INVOLVEMENT = 1e-6
+
+
+def column_order(matrix: sparse.csr_array) -> np.ndarray:
+    """A fill-reducing order of the columns of a (tall) sparse matrix.
+
+    Reverse Cuthill–McKee on the graph of ``A^T A`` (columns sharing a row): a narrow
+    band, which keeps the fill of chains linear and that of meshes to the band.  One
+    function, so that a better order (nested dissection) is a one-line change.
+    """
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    pattern = sparse.csr_array((np.ones(matrix.nnz), matrix.indices, matrix.indptr), shape=matrix.shape)
+    graph = sparse.csr_array(pattern.T @ pattern)
+    return np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=np.int64)
+
+
+class TallLU:
+    """``A(chosen rows, order) = L_K U`` and the other rows as combinations of them.
+
+    Parameters
+    ----------
+    scaled : csr_array, shape (m, n), m >= n
+        The (equilibrated) Jacobian.
+    preference : ndarray, shape (m,)
+        Larger values are left out (named redundant) first.
+    tolerance : float
+        Absolute rank tolerance: a column whose largest remainder is at most this fails.
+
+    Attributes
+    ----------
+    complete : bool
+        Every column found a pivot; otherwise `failed_column` is the coordinate where the
+        factorization stopped.
+    order : ndarray of int, shape (n,)
+        Column order of the factorization.
+    chosen_rows : ndarray of int, shape (n,)
+        The row chosen at each pivot step.
+    redundant_rows : ndarray of int, shape (m - n,)
+        The rows never chosen, ascending.
+    min_pivot_ratio, max_abs_u, max_abs_l : float
+        Pivoting statistics.
+    """
+
+    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray, tolerance: float) -> None:
+        m, n = scaled.shape
+        self.shape = (m, n)
+        self.scaled = scaled
+        self.order = column_order(scaled)
+        columns = sparse.csc_array(scaled[:, self.order])
+        columns.sort_indices()
+        stats = np.zeros(_kernels.N_STATS)
+        capacity = 4 * columns.nnz + 16
+        (self.l_indptr, self.l_rows, self.l_values, self.u_indptr, self.u_steps, self.u_values, self.step_of_row,
+         self.row_of_step) = _kernels.factor_tall(
+            columns.indptr.astype(np.int64), columns.indices.astype(np.int64), columns.data, m,
+            np.ascontiguousarray(preference, dtype=float), PIVOT_THRESHOLD, tolerance, capacity, stats,
+        )  # fmt: skip
+        self.min_pivot_ratio = float(stats[_kernels.STAT_MIN_PIVOT_RATIO])
+        self.max_abs_u = float(stats[_kernels.STAT_MAX_ABS_U])
+        self.max_abs_l = float(stats[_kernels.STAT_MAX_ABS_L])
+        failed = int(stats[_kernels.STAT_FAILED_COLUMN])
+        self.complete = failed < 0
+        self.failed_column = int(self.order[failed]) if failed >= 0 else -1
+        self.chosen_rows = self.row_of_step
+        self.redundant_rows = np.flatnonzero(self.step_of_row < 0).astype(np.int64)
+        self._redundant_lower: sparse.csr_array | None = None
+
+    @property
+    def n_entries(self) -> int:
+        """Entries of L and U (the fill)."""
+        return int(self.l_indptr[-1] + self.u_indptr[-1])
+
+    # ------------------------------------------------------------------ solves with B
+    def _lower(self) -> tuple:
+        return self.l_indptr, self.l_rows, self.l_values, self.step_of_row
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``B^-1 rhs``: `rhs` by pivot step, the result by column of the factorization."""
+        out = np.array(rhs, dtype=float)
+        _kernels.solve_lower(*self._lower(), out)
+        _kernels.solve_upper(self.u_indptr, self.u_steps, self.u_values, out)
+        return out
+
+    def solve_transposed(self, rhs: np.ndarray) -> np.ndarray:
+        """``B^-T rhs``: `rhs` by column of the factorization, the result by pivot step."""
+        out = np.array(rhs, dtype=float)
+        _kernels.solve_upper_transposed(self.u_indptr, self.u_steps, self.u_values, out)
+        _kernels.solve_lower_transposed(*self._lower(), out)
+        return out
+
+    # ------------------------------------------------------------------ certificate
+    def smallest_singular_triplets(self, rng):
+        """Ritz values (ascending) and right vectors, in coordinates, of the smallest singular
+        values of B, by inverse subspace iteration ``X <- B^-1 B^-T X`` and a Rayleigh–Ritz
+        step with B."""
+        n = self.shape[1]
+        block = np.linalg.qr(rng.standard_normal((n, min(CERTIFICATE_BLOCK, n))))[0]
+        for _ in range(CERTIFICATE_SWEEPS):
+            block = np.column_stack([self.solve(self.solve_transposed(column)) for column in block.T])
+            block = np.linalg.qr(block)[0]
+        square = self.scaled[self.row_of_step][:, self.order]
+        image = np.linalg.qr(np.asarray(square @ block), mode="r")
+        _, values, right = np.linalg.svd(image)
+        vectors = np.empty_like(block)
+        vectors[self.order] = block @ right.T
+        return values[::-1], vectors[:, ::-1]
+
+    # ------------------------------------------------------------------ dependencies
+    def _lower_of_redundant(self) -> sparse.csr_array:
+        """The rows of L of the redundant equations (CSR, one row per redundant row, by step)."""
+        if self._redundant_lower is None:
+            m, n = self.shape
+            columns = np.repeat(np.arange(n), np.diff(self.l_indptr))
+            used = int(self.l_indptr[-1])
+            lower = sparse.csr_array((self.l_values[:used], (self.l_rows[:used], columns)), shape=(m, n))
+            self._redundant_lower = sparse.csr_array(lower[self.redundant_rows])
+        return self._redundant_lower
+
+    def dependency(self, k: int) -> np.ndarray:
+        """Weights y (m,) with ``y^T A = 0``, 1 on redundant row k, 0 on the others."""
+        m, n = self.shape
+        lower = self._lower_of_redundant()
+        start, end = lower.indptr[k], lower.indptr[k + 1]
+        weights = np.zeros(n)
+        weights[lower.indices[start:end]] = -lower.data[start:end]
+        _kernels.solve_lower_transposed(*self._lower(), weights)
+        dependency = np.zeros(m)
+        dependency[self.row_of_step] = weights
+        dependency[self.redundant_rows[k]] = 1.0
+        return dependency
+
+    def rows_in_dependencies(self, rows: np.ndarray) -> np.ndarray:
+        """The weights of the rows `rows` (few) in every dependency: shape (len(rows), m - n)."""
+        n = self.shape[1]
+        lower = self._lower_of_redundant()
+        weights = np.zeros((len(rows), self.redundant_rows.size))
+        for index, row in enumerate(np.asarray(rows, dtype=np.int64)):
+            step = self.step_of_row[row]
+            if step < 0:  # itself redundant: 1 in its own dependency
+                weights[index, np.searchsorted(self.redundant_rows, row)] = 1.0
+                continue
+            unit = np.zeros(n)
+            unit[step] = 1.0
+            _kernels.solve_lower(*self._lower(), unit)  # y[step] for every r = -(L_K^-1 e_step) . l_r
+            weights[index] = -(lower @ unit)
+        return weights
