@@ -41,7 +41,7 @@ def _grow(array, size):
 
 
 @njit(**_JIT)
-def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, tolerance, capacity, stats):
+def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, tolerance, drop, capacity, stats):
     """Left-looking (Gilbert–Peierls) LU of a tall ``A`` with threshold row pivoting.
 
     For column k: the sparse triangular solve with the columns of L already made gives the
@@ -49,7 +49,9 @@ def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, toler
     magnitude is at least `threshold` times the largest, the one of smallest `preference`
     (ties: the largest).  A column whose largest remainder is at most `tolerance` stops the
     factorization (``stats[STAT_FAILED_COLUMN]``): the Jacobian may have a free coordinate
-    there, a case left to the dense analysis.
+    there, a case left to the dense analysis.  Remainders of rows not chosen that are at
+    most `drop` (rounding) are left out of L: a row that has become a combination of the
+    chosen ones (a redundant row) then stops spreading fill to later columns.
 
     Returns
     -------
@@ -168,6 +170,8 @@ def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, toler
         for p in range(top, m):
             row = reach[p]
             if step_of_row[row] >= 0:
+                continue
+            if abs(x[row]) <= drop:
                 continue
             value = x[row] / pivot
             l_rows[l_used] = row
