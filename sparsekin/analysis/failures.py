@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..engine.forces import MAX_MIN_NORM_EQUATIONS
 from ..engine.pattern import ConstraintPattern
 from ..engine.reduced import CONSISTENCY_TOLERANCE
 from ..errors import (
@@ -144,10 +143,7 @@ class Diagnosis:
             listed += f"; … ({rows.size} equations)"
         reactions = ""
         if forces:
-            reactions = ("; the reactions of the joints involved are not unique: the minimum-norm ones are given"
-                         if rows.size <= MAX_MIN_NORM_EQUATIONS else
-                         f"; the reactions of the joints involved are not unique, and with more than "
-                         f"{MAX_MIN_NORM_EQUATIONS} redundant equations the ones given leave these out")  # fmt: skip
+            reactions = "; the reactions of the joints involved are not unique: the minimum-norm ones are given"
         warn_caller(
             f"{n_equations} equations for {n_coordinates} coordinates: {rows.size} redundant "
             f"equation{'s' * (rows.size != 1)} left out (each depends on the others at t = {t:g} s): {listed}"

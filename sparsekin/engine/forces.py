@@ -31,7 +31,10 @@ configuration (a slow hydraulic machine).
 A model with redundant equations has many λ: the equations left out carry none in the
 solve; the answer given is the one of minimum norm, λ − W (WᵀW)⁻¹ Wᵀ λ with W the
 dependencies of the equations at the sample (one more transposed solve per redundant
-equation), up to `MAX_MIN_NORM_EQUATIONS` of them.  That norm adds squares of newtons
+equation), up to `MAX_MIN_NORM_EQUATIONS` of them; beyond, the same λ from one sparse LU
+per sample of the augmented system ``[[I, Φq], [Φqᵀ, 0]] [λ; −μ] = [0; Q − M q̈ − h]``
+(λ = Φq μ is the minimum-norm solution; the matrix is nonsingular when Φq has full
+column rank, and unlike the normal equations ΦqᵀΦq nothing is squared).  That norm adds squares of newtons
 (the multipliers of position equations) to squares of newton-metres (those of angle
 equations, e.g. a rigid or translational joint's angle row), unweighted: when a
 redundant set mixes both kinds, how the load is shared among them depends on the unit
@@ -67,11 +70,13 @@ __all__ = [
     "build_load_pattern",
     "no_forces",
     "MAX_MIN_NORM_EQUATIONS",
+    "minimum_norm_multipliers",
 ]
 
-#: The minimum-norm multipliers of a redundant model cost one transposed solve per
-#: redundant equation and a dense (n_equations × n_redundant) matrix per sample; above this
-#: many redundant equations the equations left out carry no force (and the warning says so).
+#: The minimum-norm multipliers of a redundant model cost, through the dependencies, one
+#: transposed solve per redundant equation and a dense (n_equations × n_redundant) matrix
+#: per sample; above this many redundant equations a sparse LU of the augmented system
+#: per sample costs less (its cost does not grow with the number of redundant equations).
 MAX_MIN_NORM_EQUATIONS = 64
 
 
@@ -372,6 +377,7 @@ class ForceSolver:
         multipliers[kept] = solver.solve(rhs, transposed=True)
         redundant = stepper.redundant_rows
         if redundant.size > MAX_MIN_NORM_EQUATIONS:
+            multipliers[:] = minimum_norm_multipliers(stepper.assembler.jacobian, rhs)
             return
         # the dependencies w (W's columns): row r of Φq = Σ c_k · kept row k, c from Φ_keptᵀ c = Φ_rᵀ
         jacobian = stepper.assembler.jacobian
@@ -381,6 +387,22 @@ class ForceSolver:
             dependencies[r, c] = 1.0
         gram = dependencies.T @ dependencies
         multipliers -= dependencies @ np.linalg.solve(gram, dependencies.T @ multipliers)
+
+
+def minimum_norm_multipliers(jacobian, rhs: np.ndarray) -> np.ndarray:
+    """The λ of minimum norm with ``Φqᵀ λ = rhs``, for a Φq (m, n) of full column rank.
+
+    One sparse LU (SuperLU, COLAMD) of the augmented matrix ``[[I, Φq], [Φqᵀ, 0]]``, of
+    size m + n: its solution ``(λ, −μ)`` has ``λ = Φq μ``, in the range of Φq, which is
+    the minimum-norm solution.
+    """
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    m, n = jacobian.shape
+    augmented = sparse.block_array([[sparse.identity(m, format="csr"), jacobian], [jacobian.T, None]], format="csc")
+    solution = splu(augmented, permc_spec="COLAMD").solve(np.concatenate([np.zeros(m), rhs]))
+    return solution[:m]
 
 
 def no_forces() -> tuple[LoadArrays, LawTable, ForceOutputArrays]:
