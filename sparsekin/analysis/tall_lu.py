@@ -101,6 +101,8 @@ class TallLU:
         The rows never chosen, ascending.
     min_pivot_ratio, max_abs_u, max_abs_l : float
         Pivoting statistics.
+    n_entries : int
+        Entries of L and U (the fill).
     """
 
     def __init__(self, scaled: sparse.csr_array, preference: np.ndarray, tolerance: float) -> None:
@@ -112,7 +114,7 @@ class TallLU:
         columns.sort_indices()
         stats = np.zeros(_kernels.N_STATS)
         capacity = 4 * columns.nnz + 16
-        (self.l_indptr, self.l_rows, self.l_values, self.u_indptr, self.u_steps, self.u_values, self.step_of_row,
+        (l_indptr, l_rows, l_values, self.u_indptr, self.u_steps, self.u_values, self.step_of_row,
          self.row_of_step) = _kernels.factor_tall(
             columns.indptr.astype(np.int64), columns.indices.astype(np.int64), columns.data, m,
             np.ascontiguousarray(preference, dtype=float), PIVOT_THRESHOLD, tolerance, DROP * tolerance, capacity, stats,
@@ -125,21 +127,24 @@ class TallLU:
         self.failed_column = int(self.order[failed]) if failed >= 0 else -1
         self.chosen_rows = self.row_of_step
         self.redundant_rows = np.flatnonzero(self.step_of_row < 0).astype(np.int64)
-        self._redundant_lower: sparse.csr_array | None = None
+        self.n_entries = int(l_indptr[-1] + self.u_indptr[-1])
+        if self.complete:
+            self._split_lower(l_indptr, l_rows, l_values)
 
-    @property
-    def n_entries(self) -> int:
-        """Entries of L and U (the fill)."""
-        return int(self.l_indptr[-1] + self.u_indptr[-1])
+    def _split_lower(self, l_indptr, l_rows, l_values) -> None:
+        """L's rows split: the chosen ones (L_K, by pivot step, for the solves) and the
+        redundant ones (a CSR array, a row per redundant equation, for the dependencies)."""
+        n_redundant, n = self.redundant_rows.size, self.shape[1]
+        self.k_indptr, self.k_steps, self.k_values, *redundant = _kernels.split_lower(
+            l_indptr, l_rows, l_values, self.step_of_row, n_redundant
+        )
+        self.redundant_lower = sparse.csr_array((redundant[2], redundant[1], redundant[0]), shape=(n_redundant, n))
 
     # ------------------------------------------------------------------ solves with B
-    def _lower(self) -> tuple:
-        return self.l_indptr, self.l_rows, self.l_values, self.step_of_row
-
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """``B^-1 rhs``: `rhs` by pivot step, the result by column of the factorization."""
         out = np.array(rhs, dtype=float)
-        _kernels.solve_lower(*self._lower(), out)
+        _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, out)
         _kernels.solve_upper(self.u_indptr, self.u_steps, self.u_values, out)
         return out
 
@@ -147,7 +152,7 @@ class TallLU:
         """``B^-T rhs``: `rhs` by column of the factorization, the result by pivot step."""
         out = np.array(rhs, dtype=float)
         _kernels.solve_upper_transposed(self.u_indptr, self.u_steps, self.u_values, out)
-        _kernels.solve_lower_transposed(*self._lower(), out)
+        _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, out)
         return out
 
     # ------------------------------------------------------------------ certificate
@@ -168,24 +173,14 @@ class TallLU:
         return values[::-1], vectors[:, ::-1]
 
     # ------------------------------------------------------------------ dependencies
-    def _lower_of_redundant(self) -> sparse.csr_array:
-        """The rows of L of the redundant equations (CSR, one row per redundant row, by step)."""
-        if self._redundant_lower is None:
-            m, n = self.shape
-            columns = np.repeat(np.arange(n), np.diff(self.l_indptr))
-            used = int(self.l_indptr[-1])
-            lower = sparse.csr_array((self.l_values[:used], (self.l_rows[:used], columns)), shape=(m, n))
-            self._redundant_lower = sparse.csr_array(lower[self.redundant_rows])
-        return self._redundant_lower
-
     def dependency(self, k: int) -> np.ndarray:
         """Weights y (m,) with ``y^T A = 0``, 1 on redundant row k, 0 on the others."""
         m, n = self.shape
-        lower = self._lower_of_redundant()
+        lower = self.redundant_lower
         start, end = lower.indptr[k], lower.indptr[k + 1]
         weights = np.zeros(n)
         weights[lower.indices[start:end]] = -lower.data[start:end]
-        _kernels.solve_lower_transposed(*self._lower(), weights)
+        _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, weights)
         dependency = np.zeros(m)
         dependency[self.row_of_step] = weights
         dependency[self.redundant_rows[k]] = 1.0
@@ -194,7 +189,6 @@ class TallLU:
     def rows_in_dependencies(self, rows: np.ndarray) -> np.ndarray:
         """The weights of the rows `rows` (few) in every dependency: shape (len(rows), m - n)."""
         n = self.shape[1]
-        lower = self._lower_of_redundant()
         weights = np.zeros((len(rows), self.redundant_rows.size))
         for index, row in enumerate(np.asarray(rows, dtype=np.int64)):
             step = self.step_of_row[row]
@@ -203,6 +197,6 @@ class TallLU:
                 continue
             unit = np.zeros(n)
             unit[step] = 1.0
-            _kernels.solve_lower(*self._lower(), unit)  # y[step] for every r = -(L_K^-1 e_step) . l_r
-            weights[index] = -(lower @ unit)
+            _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, unit)
+            weights[index] = -(self.redundant_lower @ unit)  # y[step] = -(L_K^-1 e_step) . l_r
         return weights
