@@ -185,7 +185,20 @@ def test_tall_lu_agrees_with_the_dense_analysis(builder, monkeypatch):
     np.testing.assert_allclose(dependencies[tall.redundant_rows], np.eye(tall.n_redundant), atol=0)
     assert np.abs(dependencies.T @ scaled).max() <= 1e-10 * np.abs(dependencies).max()
     drivers = np.arange(int(pattern.element_first_row[len(builder().joints)]), pattern.n_equations)
-    np.testing.assert_allclose(tall.rows_in_dependencies(drivers), dependencies[drivers], atol=1e-12)
+    np.testing.assert_allclose(tall.rows_in_dependencies(drivers).toarray(), dependencies[drivers], atol=1e-12)
+
+
+def test_a_driver_in_a_redundancy_is_named(path):
+    """A second driver on a parallel bar prescribes what the first one and the bars fix."""
+    chain = testset.parallel_bar_chain(30, bars=3)
+    twin = sk.RotationalDriver(("c12", "p11"), law=chain.drivers[12].law, name="twin")
+    mechanism = replace(chain, drivers=(*chain.drivers, twin))
+    report = sk.check_model(mechanism)
+    assert len(report.redundant) == 31
+    assert sum(equation.involves_drivers for equation in report.redundant) >= 1
+    assert report.dof_by_rank == (30, 0)  # one shear per cell without the drivers
+    with pytest.raises(sk.ModelError, match="drivers take part in a redundancy"):
+        sk.solve_kinematics(mechanism, np.linspace(0.0, 1.0, 3))
 
 
 def test_minimum_norm_multipliers_match_least_squares(rng):

@@ -166,12 +166,7 @@ class ModelReport:
         where d is the number of independent dependencies that involve drivers.
         """
         n_free = self.n_coordinates - self.rank
-        involved = self.analysis.rows_in_dependencies(np.arange(self.n_joint_equations, self.n_equations))
-        if involved.size:
-            scale = max(1.0, float(np.abs(involved).max()))  # each dependency has 1 at its own row
-            driver_dependencies = int(np.linalg.matrix_rank(involved, tol=1e-8 * scale))
-        else:
-            driver_dependencies = 0
+        driver_dependencies = self.analysis.dependency_rank(np.arange(self.n_joint_equations, self.n_equations))
         return n_free + self.n_drivers - driver_dependencies, n_free
 
     @property

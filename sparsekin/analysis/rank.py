@@ -161,15 +161,31 @@ class JacobianAnalysis:
         a tall Jacobian analysed by its LU."""
         return self.dependency_source.dependency(int(k))
 
-    def rows_in_dependencies(self, rows) -> np.ndarray:
-        """The weights of the equations `rows` (a few) in every dependency, shape
-        (len(rows), n_redundant)."""
+    def rows_in_dependencies(self, rows):
+        """The weights of the equations `rows` in every dependency, shape (len(rows),
+        n_redundant): a dense array, or a sparse one holding the dependencies that
+        involve them (for a tall Jacobian analysed by its LU)."""
         return self.dependency_source.rows_in_dependencies(np.asarray(rows, dtype=np.int64))
 
     def involve(self, rows) -> np.ndarray:
         """For each dependency, whether one of the equations `rows` takes part in it
         (a weight of at least `INVOLVEMENT` relative to the redundant equation's own 1)."""
-        return np.any(np.abs(self.rows_in_dependencies(rows)) >= INVOLVEMENT, axis=0)
+        weights = self.rows_in_dependencies(rows)
+        if not weights.shape[0]:
+            return np.zeros(self.n_redundant, dtype=bool)
+        largest = abs(weights).max(axis=0)
+        return np.asarray(largest.toarray() if hasattr(largest, "toarray") else largest).ravel() >= INVOLVEMENT
+
+    def dependency_rank(self, rows) -> int:
+        """The rank of the weights of the equations `rows` in the dependencies: how many
+        independent dependencies they take part in."""
+        weights = self.rows_in_dependencies(rows)
+        if sparse.issparse(weights):
+            weights = weights[:, np.unique(weights.tocoo().col)].toarray()
+        if not weights.size:
+            return 0
+        scale = max(1.0, float(np.abs(weights).max()))  # each dependency has 1 at its own row
+        return int(np.linalg.matrix_rank(weights, tol=1e-8 * scale))
 
     @property
     def dependencies(self) -> np.ndarray:

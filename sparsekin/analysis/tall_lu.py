@@ -41,8 +41,12 @@ __all__ = ["TallLU", "column_order"]
 PIVOT_THRESHOLD = 0.5
 #: The LU's answer stands if the smallest singular value of the chosen rows' block is at
 #: least this many times the rank tolerance: an estimate from a few sweeps is accurate to
-#: a small factor, and a block this far from singular is not an artefact of rounding.
-CERTIFICATE_MARGIN = 1e3
+#: a small factor (it comes from above).  Not more: long chains are ill-conditioned in
+#: absolute coordinates (the parallel-bar chain's block has sigma_min 4.5e-5, 4.4e-7,
+#: about 4e-9 at 10^2, 10^3, 10^4 cells, against a tolerance of 5e-11 at 10^4), and a
+#: failed certificate sends the analysis to the dense one, whose memory grows as
+#: equations × redundant.
+CERTIFICATE_MARGIN = 10.0
 #: Remainders of rows not chosen at most this fraction of the rank tolerance are rounding:
 #: they are left out of L, so that a redundant row, once a combination of the chosen rows,
 #: stops spreading fill (without this, its rounding residue reaches every later column:
@@ -54,6 +58,11 @@ CERTIFICATE_BLOCK = 4
 #: Dependencies: a chosen row takes part in a redundant row's dependency if its weight,
 #: relative to the redundant row's own (1), is at least this (shares of 1e-12, squared).
 INVOLVEMENT = 1e-6
+#: Width of the random sketch that finds the dependencies a few rows take part in, and
+#: how far below `INVOLVEMENT` its norm may fall before a dependency is passed over (the
+#: squared norm of 4 Gaussians is below 4/10^4 with probability about 2e-8).
+SKETCH_WIDTH = 4
+SKETCH_SLACK = 100.0
 
 
 def column_order(matrix: sparse.csr_array) -> np.ndarray:
@@ -186,17 +195,32 @@ class TallLU:
         dependency[self.redundant_rows[k]] = 1.0
         return dependency
 
-    def rows_in_dependencies(self, rows: np.ndarray) -> np.ndarray:
-        """The weights of the rows `rows` (few) in every dependency: shape (len(rows), m - n)."""
-        n = self.shape[1]
-        weights = np.zeros((len(rows), self.redundant_rows.size))
-        for index, row in enumerate(np.asarray(rows, dtype=np.int64)):
-            step = self.step_of_row[row]
-            if step < 0:  # itself redundant: 1 in its own dependency
-                weights[index, np.searchsorted(self.redundant_rows, row)] = 1.0
-                continue
-            unit = np.zeros(n)
-            unit[step] = 1.0
-            _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, unit)
-            weights[index] = -(self.redundant_lower @ unit)  # y[step] = -(L_K^-1 e_step) . l_r
-        return weights
+    def rows_in_dependencies(self, rows: np.ndarray) -> sparse.csc_array:
+        """The weights of the rows `rows` in every dependency: shape (len(rows), m - n),
+        sparse, exact in the dependencies that involve them.
+
+        A sketch finds those dependencies without a solve per row: with a Gaussian block
+        W (len(rows), `SKETCH_WIDTH`), ``V = L_R L_K^-1 E W`` (E the unit vectors of the
+        rows' pivot steps) has in row r the combinations ``y_r(rows) W`` of dependency r's
+        weights, whose norm is below ``INVOLVEMENT / SKETCH_SLACK`` with probability
+        < 1e-8 unless those weights are all below `INVOLVEMENT`.  The dependencies so
+        flagged are then computed exactly (one solve each; few in a sound model).
+        """
+        m, n = self.shape
+        rows = np.asarray(rows, dtype=np.int64)
+        steps = self.step_of_row[rows]
+        chosen = steps >= 0
+        sketch = np.random.default_rng(0).standard_normal((rows.size, SKETCH_WIDTH))
+        block = np.zeros((n, SKETCH_WIDTH))
+        np.add.at(block, steps[chosen], sketch[chosen])
+        for column in block.T:
+            _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, column)
+        image = self.redundant_lower @ block
+        flagged = np.linalg.norm(image, axis=1) >= INVOLVEMENT / SKETCH_SLACK
+        flagged[np.searchsorted(self.redundant_rows, rows[~chosen])] = True  # a redundant row: its own 1
+        columns = np.flatnonzero(flagged)
+        weights = np.zeros((rows.size, columns.size))
+        for index, k in enumerate(columns.tolist()):
+            weights[:, index] = self.dependency(k)[rows]
+        entries = sparse.coo_array(weights)
+        return sparse.csc_array((entries.data, (entries.row, columns[entries.col])), shape=(rows.size, self.redundant_rows.size))
