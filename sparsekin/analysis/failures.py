@@ -75,6 +75,7 @@ class Diagnosis:
     def __init__(self, mechanism: Mechanism, pattern: ConstraintPattern) -> None:
         self.mechanism, self.pattern = mechanism, pattern
         self._driven_labels: list[str] | None = None
+        self.redundancy_analysis: JacobianAnalysis | None = None
 
     # ------------------------------------------------------------------ labels
     def label(self, row: int) -> str:
@@ -120,6 +121,7 @@ class Diagnosis:
         assembler.set_time(t)
         assembler.fill_residual_jacobian(coordinates)
         analysis = _analyse(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
+        self.redundancy_analysis = analysis  # its factors give the reduced system a pivot order
         n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
         if analysis.n_free:
             raise ModelError(self._free_motions_message(analysis, coordinates))

@@ -164,6 +164,15 @@ class TallLU:
         _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, out)
         return out
 
+    def pivot_order(self, kept: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(perm_r, perm_c)`` of this factorization for the square system of the rows
+        `kept` (the chosen rows, ascending), as `RefactorSolver.suggest` takes them for
+        ``A = jacobian.T``: coordinate ``order[k]`` and the equation chosen at step k are the
+        k-th pivot."""
+        perm_r = np.empty(self.shape[1], dtype=np.int64)
+        perm_r[self.order] = np.arange(self.shape[1])
+        return perm_r, self.step_of_row[np.asarray(kept, dtype=np.int64)]
+
     # ------------------------------------------------------------------ certificate
     def smallest_singular_triplets(self, rng):
         """Ritz values (ascending) and right vectors, in coordinates, of the smallest singular
