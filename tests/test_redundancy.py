@@ -30,6 +30,7 @@ from sparsekin.analysis.rank import analyse_jacobian
 from sparsekin.analysis.rigidity import counts_line
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.forces import MAX_MIN_NORM_EQUATIONS, minimum_norm_multipliers
+from sparsekin.engine.linalg import SuperLUSolver
 from sparsekin.engine.pattern import build_pattern
 
 G = 9.81
@@ -202,11 +203,15 @@ def test_a_driver_in_a_redundancy_is_named(path):
 
 
 def test_minimum_norm_multipliers_match_least_squares(rng):
-    jacobian = sparse.random_array((40, 25), density=0.15, random_state=rng) + sparse.eye_array(40, 25)
-    jacobian = sparse.csr_array(sparse.vstack([jacobian, jacobian[:10] * 2.0]))  # 10 redundant rows
+    square = sparse.random_array((25, 25), density=0.15, random_state=rng) + 3.0 * sparse.eye_array(25)
+    redundant = sparse.csr_array(sparse.random_array((10, 25), density=0.3, random_state=rng) @ square)
+    jacobian = sparse.csr_array(sparse.vstack([square, redundant]))  # 10 rows combinations of the others
     rhs = rng.standard_normal(25)
+    solver = SuperLUSolver()
+    solver.factor(sparse.csr_array(square))
+    kept, left_out = minimum_norm_multipliers(solver, redundant, solver.solve(rhs, transposed=True))
     expected = np.linalg.lstsq(jacobian.toarray().T, rhs, rcond=None)[0]
-    np.testing.assert_allclose(minimum_norm_multipliers(jacobian, rhs), expected, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.concatenate([kept, left_out]), expected, rtol=0, atol=1e-10)
 
 
 def test_energy_balance_with_more_than_64_redundant_equations():

@@ -31,10 +31,9 @@ configuration (a slow hydraulic machine).
 A model with redundant equations has many λ: the equations left out carry none in the
 solve; the answer given is the one of minimum norm, λ − W (WᵀW)⁻¹ Wᵀ λ with W the
 dependencies of the equations at the sample (one more transposed solve per redundant
-equation), up to `MAX_MIN_NORM_EQUATIONS` of them; beyond, the same λ from one sparse LU
-per sample of the augmented system ``[[I, Φq], [Φqᵀ, 0]] [λ; −μ] = [0; Q − M q̈ − h]``
-(λ = Φq μ is the minimum-norm solution; the matrix is nonsingular when Φq has full
-column rank, and unlike the normal equations ΦqᵀΦq nothing is squared).  That norm adds squares of newtons
+equation), up to `MAX_MIN_NORM_EQUATIONS` of them; beyond, the same λ by conjugate
+gradients on the redundant equations' multipliers, two solves with the factorization
+already held per iteration (`minimum_norm_multipliers`).  That norm adds squares of newtons
 (the multipliers of position equations) to squares of newton-metres (those of angle
 equations, e.g. a rigid or translational joint's angle row), unweighted: when a
 redundant set mixes both kinds, how the load is shared among them depends on the unit
@@ -49,6 +48,7 @@ Python time loop (the compiled loop of `sparsekin.solve._compiled` runs the same
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -78,6 +78,13 @@ __all__ = [
 #: per sample; above this many redundant equations a sparse LU of the augmented system
 #: per sample costs less (its cost does not grow with the number of redundant equations).
 MAX_MIN_NORM_EQUATIONS = 64
+#: Conjugate gradients of `minimum_norm_multipliers`: relative residual and most
+#: iterations.  The system's eigenvalues are 1 + the squared singular values of the
+#: redundant rows written in the kept ones (C); 10^4-cell parallel-bar chain: 3 iterations
+#: per sample, 100×100 rotating squares: about 155 (docs/design-notes.md, "Redundant
+#: equations at scale").
+MIN_NORM_TOLERANCE = 1e-12
+MIN_NORM_ITERATIONS = 500
 
 
 @dataclass(frozen=True, eq=False)
@@ -377,7 +384,10 @@ class ForceSolver:
         multipliers[kept] = solver.solve(rhs, transposed=True)
         redundant = stepper.redundant_rows
         if redundant.size > MAX_MIN_NORM_EQUATIONS:
-            multipliers[:] = minimum_norm_multipliers(stepper.assembler.jacobian, rhs)
+            kept_part, redundant_part = minimum_norm_multipliers(
+                solver, stepper.assembler.jacobian[redundant], multipliers[kept].copy()
+            )
+            multipliers[kept], multipliers[redundant] = kept_part, redundant_part
             return
         # the dependencies w (W's columns): row r of Φq = Σ c_k · kept row k, c from Φ_keptᵀ c = Φ_rᵀ
         jacobian = stepper.assembler.jacobian
@@ -389,20 +399,50 @@ class ForceSolver:
         multipliers -= dependencies @ np.linalg.solve(gram, dependencies.T @ multipliers)
 
 
-def minimum_norm_multipliers(jacobian, rhs: np.ndarray) -> np.ndarray:
-    """The λ of minimum norm with ``Φqᵀ λ = rhs``, for a Φq (m, n) of full column rank.
+def minimum_norm_multipliers(solver, redundant_jacobian, particular: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The multipliers of minimum norm, ``(λ_K, λ_R)``, from a particular solution.
 
-    One sparse LU (SuperLU, COLAMD) of the augmented matrix ``[[I, Φq], [Φqᵀ, 0]]``, of
-    size m + n: its solution ``(λ, −μ)`` has ``λ = Φq μ``, in the range of Φq, which is
-    the minimum-norm solution.
+    With B the kept rows of Φq (square, factored in `solver`) and A_R the redundant rows
+    (`redundant_jacobian`), every solution of ``Bᵀ λ_K + A_Rᵀ λ_R = rhs`` is
+    ``λ_K = particular − C λ_R`` with ``particular = B⁻ᵀ rhs`` and ``C = B⁻ᵀ A_Rᵀ``.  The
+    one of minimum norm has ``(I + CᵀC) λ_R = Cᵀ particular``: a symmetric system with
+    eigenvalues ≥ 1, solved by conjugate gradients, two solves with the factorization
+    already held per iteration (`MIN_NORM_TOLERANCE`, at most `MIN_NORM_ITERATIONS`).
+
+    Raises
+    ------
+    ConvergenceError
+        If the iteration does not converge (the count and the limit in the message).
     """
-    from scipy import sparse
-    from scipy.sparse.linalg import splu
+    def operator(vector: np.ndarray) -> np.ndarray:
+        image = solver.solve(redundant_jacobian.T @ vector, transposed=True)  # C v
+        return vector + redundant_jacobian @ solver.solve(image)  # v + Cᵀ C v
 
-    m, n = jacobian.shape
-    augmented = sparse.block_array([[sparse.identity(m, format="csr"), jacobian], [jacobian.T, None]], format="csc")
-    solution = splu(augmented, permc_spec="COLAMD").solve(np.concatenate([np.zeros(m), rhs]))
-    return solution[:m]
+    rhs = redundant_jacobian @ solver.solve(particular)  # Cᵀ particular
+    solution = np.zeros_like(rhs)
+    residual = rhs.copy()
+    direction = residual.copy()
+    squared = float(residual @ residual)
+    target = MIN_NORM_TOLERANCE**2 * max(squared, np.finfo(float).tiny)
+    for _ in range(MIN_NORM_ITERATIONS):
+        if squared <= target:
+            break
+        image = operator(direction)
+        step = squared / float(direction @ image)
+        solution += step * direction
+        residual -= step * image
+        squared, previous = float(residual @ residual), squared
+        direction = residual + (squared / previous) * direction
+    else:
+        if squared > target:
+            from ..errors import ConvergenceError
+
+            raise ConvergenceError(
+                f"the minimum-norm multipliers of {rhs.size} redundant equations did not converge in "
+                f"{MIN_NORM_ITERATIONS} iterations (relative residual {math.sqrt(squared / target) * MIN_NORM_TOLERANCE:.2g})"
+            )
+    kept = particular - solver.solve(redundant_jacobian.T @ solution, transposed=True)
+    return kept, solution
 
 
 def no_forces() -> tuple[LoadArrays, LawTable, ForceOutputArrays]:
