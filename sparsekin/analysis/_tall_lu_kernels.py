@@ -1,22 +1,24 @@
-"""numba kernels of the LU factorization of a tall Jacobian with threshold row pivoting.
+"""numba kernels of the LU factorization that chooses independent rows of a tall Jacobian.
 
 Symbols (for these kernels only):
 
-* ``A`` — the (scaled) Jacobian, m rows by n columns, m >= n, given by columns (CSC)
-  in the column order of the factorization: ``a_indptr``, ``a_rows``, ``a_values``.
-* ``P A = L U`` with the rows of ``A`` in pivot order first: ``L`` is m by n, unit lower
-  trapezoidal, stored by columns with row indices of ``A`` (``l_indptr``, ``l_rows``,
-  ``l_values``; the first entry of column k is its pivot row, value 1); ``U`` is n by n,
-  upper triangular, stored by columns with row indices that are pivot steps
-  (``u_indptr``, ``u_steps``, ``u_values``; the diagonal last).
-* ``step_of_row`` — the pivot step of each row of ``A``, -1 for a row never chosen
-  (a redundant row); ``row_of_step`` its inverse on the chosen rows.
-* ``L_K`` — the chosen rows of L (square, unit lower triangular), for the solves: its
-  strict part by columns, row indices as pivot steps (``k_indptr``, ``k_steps``,
-  ``k_values``).
-
-Every row of ``A`` is reproduced exactly (up to rounding) by its row of ``L`` times
-``U``, chosen or not: the rows left unchosen are combinations of the chosen ones.
+* ``M = A^T`` — the transpose of the (scaled) Jacobian A (m equations, n coordinates):
+  n rows (coordinates) by m columns (equations), given by columns (CSC; the rows of A as
+  CSR) in the order the equations are offered: ``a_indptr``, ``a_rows``, ``a_values``.
+* The columns of M are taken in turn; a column whose remainder (after the columns kept so
+  far) is at most ``tolerance`` is a combination of them and is skipped (a redundant
+  equation); the others are kept, each with a pivot row (a coordinate) by partial pivoting.
+  With ``K`` the kept columns in pivot-step order and ``P`` the coordinates' pivot order,
+  ``P M_K = L U``.
+* ``L`` — n by n, unit lower triangular, by columns with coordinate row indices
+  (``l_indptr``, ``l_rows``, ``l_values``; the first entry of column s is its pivot row,
+  value 1); ``U`` — upper triangular, by columns with pivot-step row indices (``u_indptr``,
+  ``u_steps``, ``u_values``; the diagonal last).
+* ``step_of_row`` — the pivot step of each coordinate (-1 if none: a free coordinate);
+  ``row_of_step`` its inverse; ``column_of_step`` — the position in the offered order of the
+  equation kept at each step.
+* For the solves, ``L``'s strict part by columns with pivot-step row indices:
+  ``k_indptr``, ``k_steps``, ``k_values`` (`split_lower`).
 """
 
 from __future__ import annotations
@@ -26,12 +28,11 @@ from numba import njit
 
 from .._jit import JIT as _JIT
 
-#: Layout of the `stats` array filled by `factor_tall`.
-STAT_MIN_PIVOT_RATIO = 0  # smallest |pivot| / largest |candidate| of its column
-STAT_MAX_ABS_U = 1  # largest |U| entry (growth: the scaled A has entries up to 1)
-STAT_MAX_ABS_L = 2  # largest |L| entry (at most 1 / threshold)
-STAT_FAILED_COLUMN = 3  # first column without a candidate above the tolerance, else -1
-N_STATS = 4
+#: Layout of the `stats` array filled by `factor_rows`.
+STAT_MAX_ABS_U = 0  # largest |U| entry (growth: the scaled A has entries up to 1)
+STAT_LARGEST_SKIPPED = 1  # largest remainder of a skipped column (rounding, for a sound model)
+STAT_SMALLEST_PIVOT = 2  # smallest |pivot| of a kept column
+N_STATS = 3
 
 
 @njit(**_JIT)
@@ -80,54 +81,65 @@ def _pop(heap, size):
 
 
 @njit(**_JIT)
-def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, tolerance, drop, capacity, stats):
-    """Left-looking (Gilbert–Peierls) LU of a tall ``A`` with threshold row pivoting.
+def factor_rows(a_indptr, a_rows, a_values, n_rows, tolerance, defer, capacity, stats):
+    """Left-looking (Gilbert–Peierls) LU of ``M = A^T`` that keeps the independent columns.
 
-    For column k: the sparse triangular solve with the columns of L already made (each
-    column of L read once: its pivot steps ordered by a heap instead of a depth-first
-    search, which would read every reached column twice) gives the
-    remainder of ``A(:, k)`` on the rows not yet chosen; the pivot is, among those whose
-    magnitude is at least `threshold` times the largest, the one of smallest `preference`
-    (ties: the largest).  A column whose largest remainder is at most `tolerance` stops the
-    factorization (``stats[STAT_FAILED_COLUMN]``): the Jacobian may have a free coordinate
-    there, a case left to the dense analysis.  Remainders of rows not chosen that are at
-    most `drop` (rounding) are left out of L: a row that has become a combination of the
-    chosen ones (a redundant row) then stops spreading fill to later columns.
+    For column k: the sparse triangular solve with the columns of L already made (their
+    pivot steps applied in increasing order from a binary heap: each reached column of L
+    is read once) gives the remainder of ``M(:, k)`` on the coordinates not yet pivoted.
+    If its largest entry is at most `tolerance` the column is skipped; if it is at most
+    `defer`, the column is offered again after all the others (a nearly dependent row kept
+    early makes the kept block ill-conditioned); otherwise the largest entry is the pivot.
+    Stops when every coordinate has a pivot.
 
     Returns
     -------
-    l_indptr, l_rows, l_values, u_indptr, u_steps, u_values, step_of_row, row_of_step
+    l_indptr, l_rows, l_values, u_indptr, u_steps, u_values, step_of_row, row_of_step,
+    column_of_step : ndarray
+        As in the module docstring, sized for n = `n_rows` steps; the arrays of the steps
+        not reached (free coordinates) are left at -1 and 0.
     """
-    n = a_indptr.size - 1
-    m = n_rows
+    n_columns = a_indptr.size - 1
+    n = n_rows
     l_indptr = np.zeros(n + 1, dtype=np.int64)
     u_indptr = np.zeros(n + 1, dtype=np.int64)
     l_rows = np.empty(capacity, dtype=np.int64)
     l_values = np.empty(capacity)
     u_steps = np.empty(capacity, dtype=np.int64)
     u_values = np.empty(capacity)
-    step_of_row = np.full(m, -1, dtype=np.int64)
+    step_of_row = np.full(n, -1, dtype=np.int64)
     row_of_step = np.full(n, -1, dtype=np.int64)
-    x = np.zeros(m)
-    mark = np.full(m, -1, dtype=np.int64)
-    touched = np.empty(m, dtype=np.int64)  # the rows of x's pattern
+    column_of_step = np.full(n, -1, dtype=np.int64)
+    x = np.zeros(n)
+    mark = np.full(n, -1, dtype=np.int64)
+    touched = np.empty(n, dtype=np.int64)  # the rows of x's pattern
     heap = np.empty(n, dtype=np.int64)  # pivot steps to apply, smallest first
-    stats[STAT_MIN_PIVOT_RATIO] = 1.0
     stats[STAT_MAX_ABS_U] = 0.0
-    stats[STAT_MAX_ABS_L] = 1.0
-    stats[STAT_FAILED_COLUMN] = -1.0
+    stats[STAT_LARGEST_SKIPPED] = 0.0
+    stats[STAT_SMALLEST_PIVOT] = np.inf
     l_used = 0
     u_used = 0
-    for k in range(n):
-        # x = remainder of A(:, k): the updates by the columns of L of the pivot steps it
-        # reaches, in increasing order of step (a topological order: column J of L only
-        # reaches rows chosen after step J), the steps to come kept in a binary heap
+    s = 0
+    deferred = np.empty(n_columns, dtype=np.int64)
+    n_deferred = 0
+    stamp = -1
+    for offer in range(2 * n_columns):
+        if s == n:
+            break
+        first_pass = offer < n_columns
+        if first_pass:
+            k = offer
+        elif offer - n_columns < n_deferred:
+            k = deferred[offer - n_columns]
+        else:
+            break
+        stamp += 1
         n_touched = 0
         n_heap = 0
         for p in range(a_indptr[k], a_indptr[k + 1]):
             row = a_rows[p]
-            if mark[row] != k:
-                mark[row] = k
+            if mark[row] != stamp:
+                mark[row] = stamp
                 x[row] = 0.0
                 touched[n_touched] = row
                 n_touched += 1
@@ -142,23 +154,35 @@ def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, toler
                 continue
             for q in range(l_indptr[step] + 1, l_indptr[step + 1]):
                 row = l_rows[q]
-                if mark[row] != k:
-                    mark[row] = k
+                if mark[row] != stamp:
+                    mark[row] = stamp
                     x[row] = 0.0
                     touched[n_touched] = row
                     n_touched += 1
                     if step_of_row[row] >= 0:
                         n_heap = _push(heap, n_heap, step_of_row[row])
                 x[row] -= l_values[q] * value
-        # U's column and the largest candidate
-        largest = 0.0
-        n_entries = n_touched
-        if u_used + n_entries + 1 > u_steps.size:
-            u_steps = _grow(u_steps, u_used + n_entries + 1)
-            u_values = _grow(u_values, u_used + n_entries + 1)
-        if l_used + n_entries + 1 > l_rows.size:
-            l_rows = _grow(l_rows, l_used + n_entries + 1)
-            l_values = _grow(l_values, l_used + n_entries + 1)
+        pivot_row = -1
+        for p in range(n_touched):
+            row = touched[p]
+            if step_of_row[row] < 0 and (pivot_row < 0 or abs(x[row]) > abs(x[pivot_row])):
+                pivot_row = row
+        largest = abs(x[pivot_row]) if pivot_row >= 0 else 0.0
+        if not largest > tolerance:  # a combination of the kept columns (NaN: kept out too)
+            if largest > stats[STAT_LARGEST_SKIPPED]:
+                stats[STAT_LARGEST_SKIPPED] = largest
+            continue
+        if first_pass and not largest > defer:  # nearly a combination: offered again at the end
+            deferred[n_deferred] = k
+            n_deferred += 1
+            continue
+        if u_used + n_touched > u_steps.size:
+            u_steps = _grow(u_steps, u_used + n_touched)
+            u_values = _grow(u_values, u_used + n_touched)
+        if l_used + n_touched > l_rows.size:
+            l_rows = _grow(l_rows, l_used + n_touched)
+            l_values = _grow(l_values, l_used + n_touched)
+        pivot = x[pivot_row]
         for p in range(n_touched):
             row = touched[p]
             step = step_of_row[row]
@@ -168,49 +192,30 @@ def factor_tall(a_indptr, a_rows, a_values, n_rows, preference, threshold, toler
                 u_used += 1
                 if abs(x[row]) > stats[STAT_MAX_ABS_U]:
                     stats[STAT_MAX_ABS_U] = abs(x[row])
-            elif abs(x[row]) > largest:
-                largest = abs(x[row])
-        if not largest > tolerance:  # NaN included
-            stats[STAT_FAILED_COLUMN] = k
-            return l_indptr, l_rows, l_values, u_indptr, u_steps, u_values, step_of_row, row_of_step
-        pivot_row = -1
-        for p in range(n_touched):
-            row = touched[p]
-            if step_of_row[row] >= 0 or abs(x[row]) < threshold * largest:
-                continue
-            if pivot_row < 0 or preference[row] < preference[pivot_row] or (
-                preference[row] == preference[pivot_row] and abs(x[row]) > abs(x[pivot_row])
-            ):
-                pivot_row = row
-        pivot = x[pivot_row]
-        ratio = abs(pivot) / largest
-        if ratio < stats[STAT_MIN_PIVOT_RATIO]:
-            stats[STAT_MIN_PIVOT_RATIO] = ratio
-        if abs(pivot) > stats[STAT_MAX_ABS_U]:
-            stats[STAT_MAX_ABS_U] = abs(pivot)
-        u_steps[u_used] = k
+        u_steps[u_used] = s
         u_values[u_used] = pivot
         u_used += 1
-        u_indptr[k + 1] = u_used
-        step_of_row[pivot_row] = k
-        row_of_step[k] = pivot_row
+        u_indptr[s + 1] = u_used
+        stats[STAT_MAX_ABS_U] = max(stats[STAT_MAX_ABS_U], largest)
+        stats[STAT_SMALLEST_PIVOT] = min(stats[STAT_SMALLEST_PIVOT], largest)
+        step_of_row[pivot_row] = s
+        row_of_step[s] = pivot_row
+        column_of_step[s] = k
         l_rows[l_used] = pivot_row
         l_values[l_used] = 1.0
         l_used += 1
         for p in range(n_touched):
             row = touched[p]
-            if step_of_row[row] >= 0:
-                continue
-            if abs(x[row]) <= drop:
-                continue
-            value = x[row] / pivot
-            l_rows[l_used] = row
-            l_values[l_used] = value
-            l_used += 1
-            if abs(value) > stats[STAT_MAX_ABS_L]:
-                stats[STAT_MAX_ABS_L] = abs(value)
-        l_indptr[k + 1] = l_used
-    return l_indptr, l_rows, l_values, u_indptr, u_steps, u_values, step_of_row, row_of_step
+            if step_of_row[row] < 0:
+                l_rows[l_used] = row
+                l_values[l_used] = x[row] / pivot
+                l_used += 1
+        l_indptr[s + 1] = l_used
+        s += 1
+    for rest in range(s, n):  # steps not reached: empty columns
+        l_indptr[rest + 1] = l_used
+        u_indptr[rest + 1] = u_used
+    return l_indptr, l_rows, l_values, u_indptr, u_steps, u_values, step_of_row, row_of_step, column_of_step
 
 
 @njit(**_JIT)
@@ -263,53 +268,18 @@ def solve_lower(k_indptr, k_steps, k_values, rhs):
 
 
 @njit(**_JIT)
-def split_lower(l_indptr, l_rows, l_values, step_of_row, n_redundant):
-    """L's rows split: ``L_K``'s strict part (by columns, rows as pivot steps) and the rows of
-    the redundant equations as a CSR matrix (``r_indptr``, ``r_steps``, ``r_values``; one
-    row per redundant equation in ascending order of its row, columns by pivot step).
-
-    Returns
-    -------
-    k_indptr, k_steps, k_values, r_indptr, r_steps, r_values
-    """
+def split_lower(l_indptr, l_rows, l_values, step_of_row):
+    """``L``'s strict part with pivot-step row indices: ``k_indptr, k_steps, k_values``."""
     n = l_indptr.size - 1
-    m = step_of_row.size
-    position = np.full(m, -1, dtype=np.int64)
-    count = 0
-    for row in range(m):
-        if step_of_row[row] < 0:
-            position[row] = count
-            count += 1
     k_indptr = np.zeros(n + 1, dtype=np.int64)
-    r_indptr = np.zeros(n_redundant + 1, dtype=np.int64)
     for k in range(n):
-        kept = 0
-        for q in range(l_indptr[k] + 1, l_indptr[k + 1]):
-            row = l_rows[q]
-            if step_of_row[row] >= 0:
-                kept += 1
-            else:
-                r_indptr[position[row] + 1] += 1
-        k_indptr[k + 1] = k_indptr[k] + kept
-    for r in range(n_redundant):
-        r_indptr[r + 1] += r_indptr[r]
+        k_indptr[k + 1] = k_indptr[k] + max(l_indptr[k + 1] - l_indptr[k] - 1, 0)
     k_steps = np.empty(k_indptr[n], dtype=np.int64)
     k_values = np.empty(k_indptr[n])
-    r_steps = np.empty(r_indptr[n_redundant], dtype=np.int64)
-    r_values = np.empty(r_indptr[n_redundant])
-    filled = r_indptr[:-1].copy()
     used = 0
     for k in range(n):
         for q in range(l_indptr[k] + 1, l_indptr[k + 1]):
-            row = l_rows[q]
-            step = step_of_row[row]
-            if step >= 0:
-                k_steps[used] = step
-                k_values[used] = l_values[q]
-                used += 1
-            else:
-                at = filled[position[row]]
-                r_steps[at] = k
-                r_values[at] = l_values[q]
-                filled[position[row]] = at + 1
-    return k_indptr, k_steps, k_values, r_indptr, r_steps, r_values
+            k_steps[used] = step_of_row[l_rows[q]]
+            k_values[used] = l_values[q]
+            used += 1
+    return k_indptr, k_steps, k_values

@@ -262,7 +262,9 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         assembler.fill_residual_jacobian(coordinates)
         moved = float(np.max(np.abs(coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
         if assembled and moved > ASSEMBLY_TOLERANCE:  # else the drawing's analysis holds (twice the cost saved)
-            analysis = analyse_jacobian(assembler.jacobian, row_preference=preference)
+            left_out = preference.copy()
+            left_out[first.redundant_rows] += 2.0  # the equations the assembly left out: named first
+            analysis = analyse_jacobian(assembler.jacobian, row_preference=left_out)
         else:
             analysis = first
         raw_residual = assembler.residual

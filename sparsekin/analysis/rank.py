@@ -321,10 +321,10 @@ def analyse_jacobian(
 
 
 def _analysis_by_tall_lu(scaled, preference, absolute_tolerance, sigma_max, rng, common):
-    """The analysis of a tall Jacobian of full column rank by `TallLU`, or None if its
-    factorization stops at a column or its certificate fails."""
+    """The analysis of a tall Jacobian of full column rank by `TallLU`, or None if a
+    coordinate is left without a pivot or its certificate fails."""
     m, n = scaled.shape
-    factor = TallLU(scaled, preference, absolute_tolerance)
+    factor = TallLU(scaled, preference)
     if not factor.complete:
         return None
     values, right = factor.smallest_singular_triplets(rng)

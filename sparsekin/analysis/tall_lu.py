@@ -1,27 +1,26 @@
-"""Redundant equations of a tall Jacobian by a sparse LU with threshold row pivoting.
+"""Redundant equations of a tall Jacobian: a sparse LU that keeps independent rows.
 
-The common overconstrained mechanism has a Jacobian of full column rank with many more
-rows than columns (rotating squares: 3n² coordinates, (n − 2)² redundant equations).
-Its rank is then the number of columns, and naming the redundant equations is choosing
-n independent rows.  `TallLU` factors the tall (scaled) Jacobian ``A`` column by column
-(left-looking, Gilbert–Peierls; `sparsekin.analysis._tall_lu_kernels`), the columns in a
-fill-reducing order (`column_order`), the pivot of each column chosen among the rows not
-yet chosen whose remainder is within `PIVOT_THRESHOLD` of the largest, by the analysis's
-row preference (drivers first, later joints last).  The rows never chosen are the
-redundant ones; the cost follows the fill of the factors, near-linear on chains and
-meshes, instead of (equations × redundant²) for a dense basis of the left null space.
+The common overconstrained mechanism has a Jacobian A of full column rank with many more
+rows than columns (rotating squares: 3n² coordinates, (n − 2)² redundant equations).  Its
+rank is then the number of columns n, and naming the redundant equations is choosing n
+independent rows.  `TallLU` offers the rows of A in turn — the drivers first, then the
+joints in a fill-reducing order (`row_order`) — to a left-looking sparse LU of ``A^T``
+(`sparsekin.analysis._tall_lu_kernels.factor_rows`): a row whose remainder, after the rows
+kept so far, is at most `REMAINDER_TOLERANCE` is a combination of them and is named
+redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  A
+redundant row is eliminated once and dropped, so the fill is that of the square system
+that remains: near-linear on chains and meshes.
 
 Such an LU is not rank-revealing in theory, so a *certificate* decides whether its answer
-stands: the smallest singular value of the square block ``B`` of the chosen rows,
-estimated by inverse subspace iteration with its factors, must exceed the rank tolerance
-by `CERTIFICATE_MARGIN`.  Every row of ``A`` is a row of ``B`` or a combination of them,
-so ``sigma_min(A) >= sigma_min(B)`` and the rank is n.  A column without a candidate
-above the tolerance (a free coordinate) or a failed certificate sends the analysis back to
-the dense one of `sparsekin.analysis.rank`.
+stands: the smallest singular value of the square block ``B`` of the kept rows, estimated
+by inverse subspace iteration with its factors, must exceed the rank tolerance by
+`CERTIFICATE_MARGIN`.  Every row of A is a row of B or a combination of them, so
+``sigma_min(A) >= sigma_min(B)`` and the rank is n.  A coordinate left without a pivot (a
+free coordinate) or a failed certificate sends the analysis back to the dense one of
+`sparsekin.analysis.rank`.
 
-The dependency of a redundant row r on the chosen ones is computed only when a message
-needs it: row r of ``A`` equals its row ``l_r`` of ``L`` times ``U``, so the weights y of
-the chosen rows in ``y^T B = -a_r^T`` solve ``L_K^T y = -l_r``: one triangular solve.
+The dependency of a redundant row r on the kept ones is computed only when a message
+needs it: the weights y of the kept rows in ``y^T B = -a_r^T``, one solve with ``B^T``.
 """
 
 from __future__ import annotations
@@ -31,15 +30,18 @@ from scipy import sparse
 
 from . import _tall_lu_kernels as _kernels
 
-__all__ = ["TallLU", "column_order"]
+__all__ = ["TallLU", "row_order"]
 
-#: A pivot is chosen among the rows whose remainder is at least this fraction of the
-#: column's largest: the row preference decides among them.  0.1, the classic threshold of
-#: sparse LU codes, chose on 60×60 rotating squares a block of smallest singular value
-#: 1e-10 (the certificate fails); 0.5 gave 2.5e-5, as did 0.9 and 0.999, at 1.4× the fill
-#: of 0.1 (docs/design-notes.md, "Redundant equations at scale").  It bounds L by 2.
-PIVOT_THRESHOLD = 0.5
-#: The LU's answer stands if the smallest singular value of the chosen rows' block is at
+#: A row whose remainder after the rows kept before it is at most this (the scaled
+#: Jacobian has entries up to 1) is a combination of them.  Measured gap (design notes):
+#: skipped remainders up to 1.0e-10 (rotating squares, rounding accumulated over the
+#: updates) and 2.2e-16 (parallel-bar chains); kept pivots from 1.2e-2 (squares) and
+#: 2.0e-4 (the 10^4-cell chain) up.  At 1e-11 a dependent row of 30×30 squares was kept.
+REMAINDER_TOLERANCE = 1e-8
+#: A row whose remainder is at most this is offered again after all the others: kept
+#: only if still needed.  ...
+DEFER = 0.3
+#: The LU's answer stands if the smallest singular value of the kept rows' block is at
 #: least this many times the rank tolerance: an estimate from a few sweeps is accurate to
 #: a small factor (it comes from above).  Not more: long chains are ill-conditioned in
 #: absolute coordinates (the parallel-bar chain's block has sigma_min 4.5e-5, 4.4e-7,
@@ -47,15 +49,10 @@ PIVOT_THRESHOLD = 0.5
 #: failed certificate sends the analysis to the dense one, whose memory grows as
 #: equations × redundant.
 CERTIFICATE_MARGIN = 10.0
-#: Remainders of rows not chosen at most this fraction of the rank tolerance are rounding:
-#: they are left out of L, so that a redundant row, once a combination of the chosen rows,
-#: stops spreading fill (without this, its rounding residue reaches every later column:
-#: 4 % fewer entries on 100×100 rotating squares, docs/design-notes.md).
-DROP = 1e-2
 #: Sweeps and width of the inverse subspace iteration of the certificate.
 CERTIFICATE_SWEEPS = 4
 CERTIFICATE_BLOCK = 4
-#: Dependencies: a chosen row takes part in a redundant row's dependency if its weight,
+#: Dependencies: a kept row takes part in a redundant row's dependency if its weight,
 #: relative to the redundant row's own (1), is at least this (shares of 1e-12, squared).
 INVOLVEMENT = 1e-6
 #: Width of the random sketch that finds the dependencies a few rows take part in, and
@@ -65,113 +62,105 @@ SKETCH_WIDTH = 4
 SKETCH_SLACK = 100.0
 
 
-def column_order(matrix: sparse.csr_array) -> np.ndarray:
-    """A fill-reducing order of the columns of a (tall) sparse matrix.
+def row_order(matrix: sparse.csr_array, preference: np.ndarray) -> np.ndarray:
+    """The order in which the rows of a tall sparse matrix are offered to `TallLU`.
 
-    Multiple minimum degree on the graph of ``A^T A`` (columns sharing a row), taken from
-    SuperLU: it factors ``A^T A + c I`` (symmetric mode, diagonal pivots; a fraction of
-    the tall LU's time) and hands out its column permutation.  On 60×60 rotating squares
-    the tall LU's factors hold 2.3·10^6 entries in this order, 1.9·10^7 in reverse
-    Cuthill–McKee's and 1.7·10^7 in the natural one (docs/design-notes.md).  One function,
-    so that a nested dissection is a one-line change.
+    The rows of preference below 1 (the drivers) first, those of 2 or more (rows a caller
+    wants named redundant if they are) last, and in between, and within each group, a
+    fill-reducing order: multiple minimum degree on the graph of ``A A^T`` (rows sharing a coordinate),
+    taken from SuperLU, which factors ``A A^T + c I`` (symmetric mode, diagonal pivots) and
+    hands out its permutation.  Rows offered later are named redundant first.  One
+    function, so that a nested dissection is a one-line change.
     """
     from scipy.sparse.linalg import splu
 
     pattern = sparse.csr_array((np.ones(matrix.nnz), matrix.indices, matrix.indptr), shape=matrix.shape)
-    graph = sparse.csc_array(pattern.T @ pattern)
-    shifted = graph + sparse.diags_array(np.full(matrix.shape[1], 1.0 + float(np.max(graph.sum(axis=0), initial=0.0))))
+    graph = sparse.csc_array(pattern @ pattern.T)
+    shifted = graph + sparse.diags_array(np.full(matrix.shape[0], 1.0 + float(np.max(graph.sum(axis=0), initial=0.0))))
     factor = splu(sparse.csc_array(shifted), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                   options={"SymmetricMode": True})  # fmt: skip
-    return np.argsort(factor.perm_c).astype(np.int64)
+    order = np.argsort(factor.perm_c)
+    group = np.digitize(preference[order], (1.0, 2.0))  # drivers, joints, rows to name first
+    return order[np.argsort(group, kind="stable")].astype(np.int64)
 
 
 class TallLU:
-    """``A(chosen rows, order) = L_K U`` and the other rows as combinations of them.
+    """The rows of a tall Jacobian split into a square block B of independent rows, factored,
+    and the others.
 
     Parameters
     ----------
     scaled : csr_array, shape (m, n), m >= n
         The (equilibrated) Jacobian.
     preference : ndarray, shape (m,)
-        Larger values are left out (named redundant) first.
-    tolerance : float
-        Absolute rank tolerance: a column whose largest remainder is at most this fails.
+        Rows below 1 (drivers) are offered first, hence kept if independent; rows of 2
+        or more last, hence named redundant if they are (`row_order`).
 
     Attributes
     ----------
     complete : bool
-        Every column found a pivot; otherwise `failed_column` is the coordinate where the
-        factorization stopped.
-    order : ndarray of int, shape (n,)
-        Column order of the factorization.
-    chosen_rows : ndarray of int, shape (n,)
-        The row chosen at each pivot step.
+        Every coordinate found a pivot (else some are free: the dense analysis decides).
+    kept_rows : ndarray of int, shape (n,)
+        The rows of B, in pivot-step order.
     redundant_rows : ndarray of int, shape (m - n,)
-        The rows never chosen, ascending.
-    min_pivot_ratio, max_abs_u, max_abs_l : float
-        Pivoting statistics.
+        The other rows, ascending.
+    max_abs_u, largest_skipped, smallest_pivot : float
+        Growth, the largest remainder of a redundant row, the smallest pivot.
     n_entries : int
         Entries of L and U (the fill).
     """
 
-    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray, tolerance: float) -> None:
+    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray) -> None:
         m, n = scaled.shape
         self.shape = (m, n)
         self.scaled = scaled
-        self.order = column_order(scaled)
-        columns = sparse.csc_array(scaled[:, self.order])
-        columns.sort_indices()
+        self.order = row_order(scaled, np.asarray(preference, dtype=float))
+        offered = sparse.csr_array(scaled[self.order])
+        offered.sort_indices()
         stats = np.zeros(_kernels.N_STATS)
-        capacity = 4 * columns.nnz + 16
-        (l_indptr, l_rows, l_values, self.u_indptr, self.u_steps, self.u_values, self.step_of_row,
-         self.row_of_step) = _kernels.factor_tall(
-            columns.indptr.astype(np.int64), columns.indices.astype(np.int64), columns.data, m,
-            np.ascontiguousarray(preference, dtype=float), PIVOT_THRESHOLD, tolerance, DROP * tolerance, capacity, stats,
+        (l_indptr, l_rows, l_values, self.u_indptr, self.u_steps, self.u_values, self.step_of_coordinate,
+         self.coordinate_of_step, column_of_step) = _kernels.factor_rows(
+            offered.indptr.astype(np.int64), offered.indices.astype(np.int64), offered.data, n,
+            REMAINDER_TOLERANCE, DEFER, 4 * offered.nnz + 16, stats,
         )  # fmt: skip
-        self.min_pivot_ratio = float(stats[_kernels.STAT_MIN_PIVOT_RATIO])
         self.max_abs_u = float(stats[_kernels.STAT_MAX_ABS_U])
-        self.max_abs_l = float(stats[_kernels.STAT_MAX_ABS_L])
-        failed = int(stats[_kernels.STAT_FAILED_COLUMN])
-        self.complete = failed < 0
-        self.failed_column = int(self.order[failed]) if failed >= 0 else -1
-        self.chosen_rows = self.row_of_step
-        self.redundant_rows = np.flatnonzero(self.step_of_row < 0).astype(np.int64)
+        self.largest_skipped = float(stats[_kernels.STAT_LARGEST_SKIPPED])
+        self.smallest_pivot = float(stats[_kernels.STAT_SMALLEST_PIVOT])
+        self.complete = bool(np.all(column_of_step >= 0))
         self.n_entries = int(l_indptr[-1] + self.u_indptr[-1])
-        if self.complete:
-            self._split_lower(l_indptr, l_rows, l_values)
-
-    def _split_lower(self, l_indptr, l_rows, l_values) -> None:
-        """L's rows split: the chosen ones (L_K, by pivot step, for the solves) and the
-        redundant ones (a CSR array, a row per redundant equation, for the dependencies)."""
-        n_redundant, n = self.redundant_rows.size, self.shape[1]
-        self.k_indptr, self.k_steps, self.k_values, *redundant = _kernels.split_lower(
-            l_indptr, l_rows, l_values, self.step_of_row, n_redundant
+        if not self.complete:
+            return
+        self.kept_rows = self.order[column_of_step]
+        self.step_of_row = np.full(m, -1, dtype=np.int64)
+        self.step_of_row[self.kept_rows] = np.arange(n)
+        self.redundant_rows = np.flatnonzero(self.step_of_row < 0).astype(np.int64)
+        self.k_indptr, self.k_steps, self.k_values = _kernels.split_lower(
+            l_indptr, l_rows, l_values, self.step_of_coordinate
         )
-        self.redundant_lower = sparse.csr_array((redundant[2], redundant[1], redundant[0]), shape=(n_redundant, n))
+        self.redundant_jacobian = sparse.csr_array(scaled[self.redundant_rows])
 
     # ------------------------------------------------------------------ solves with B
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """``B^-1 rhs``: `rhs` by pivot step, the result by column of the factorization."""
-        out = np.array(rhs, dtype=float)
-        _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, out)
-        _kernels.solve_upper(self.u_indptr, self.u_steps, self.u_values, out)
+        """``x`` with ``B x = rhs``: `rhs` (n,) by pivot step, `x` by coordinate."""
+        work = np.array(rhs, dtype=float)
+        _kernels.solve_upper_transposed(self.u_indptr, self.u_steps, self.u_values, work)
+        _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, work)
+        out = np.empty_like(work)
+        out[self.coordinate_of_step] = work
         return out
 
     def solve_transposed(self, rhs: np.ndarray) -> np.ndarray:
-        """``B^-T rhs``: `rhs` by column of the factorization, the result by pivot step."""
-        out = np.array(rhs, dtype=float)
-        _kernels.solve_upper_transposed(self.u_indptr, self.u_steps, self.u_values, out)
-        _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, out)
-        return out
+        """``y`` with ``B^T y = rhs``: `rhs` (n,) by coordinate, `y` by pivot step."""
+        work = np.asarray(rhs, dtype=float)[self.coordinate_of_step]
+        _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, work)
+        _kernels.solve_upper(self.u_indptr, self.u_steps, self.u_values, work)
+        return work
 
     def pivot_order(self, kept: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(perm_r, perm_c)`` of this factorization for the square system of the rows
-        `kept` (the chosen rows, ascending), as `RefactorSolver.suggest` takes them for
-        ``A = jacobian.T``: coordinate ``order[k]`` and the equation chosen at step k are the
-        k-th pivot."""
-        perm_r = np.empty(self.shape[1], dtype=np.int64)
-        perm_r[self.order] = np.arange(self.shape[1])
-        return perm_r, self.step_of_row[np.asarray(kept, dtype=np.int64)]
+        `kept` (the kept rows, ascending), as `RefactorSolver.suggest` takes them for
+        ``A = jacobian.T``: the coordinate and the equation of step k are its k-th pivot."""
+        return self.step_of_coordinate.copy(), self.step_of_row[np.asarray(kept, dtype=np.int64)]
 
     # ------------------------------------------------------------------ certificate
     def smallest_singular_triplets(self, rng):
@@ -183,24 +172,19 @@ class TallLU:
         for _ in range(CERTIFICATE_SWEEPS):
             block = np.column_stack([self.solve(self.solve_transposed(column)) for column in block.T])
             block = np.linalg.qr(block)[0]
-        square = self.scaled[self.row_of_step][:, self.order]
-        image = np.linalg.qr(np.asarray(square @ block), mode="r")
+        image = np.linalg.qr(np.asarray(self.scaled[self.kept_rows] @ block), mode="r")
         _, values, right = np.linalg.svd(image)
-        vectors = np.empty_like(block)
-        vectors[self.order] = block @ right.T
-        return values[::-1], vectors[:, ::-1]
+        return values[::-1], (block @ right.T)[:, ::-1]
 
     # ------------------------------------------------------------------ dependencies
     def dependency(self, k: int) -> np.ndarray:
         """Weights y (m,) with ``y^T A = 0``, 1 on redundant row k, 0 on the others."""
-        m, n = self.shape
-        lower = self.redundant_lower
+        lower = self.redundant_jacobian
+        row = np.zeros(self.shape[1])
         start, end = lower.indptr[k], lower.indptr[k + 1]
-        weights = np.zeros(n)
-        weights[lower.indices[start:end]] = -lower.data[start:end]
-        _kernels.solve_lower_transposed(self.k_indptr, self.k_steps, self.k_values, weights)
-        dependency = np.zeros(m)
-        dependency[self.row_of_step] = weights
+        row[lower.indices[start:end]] = -lower.data[start:end]
+        dependency = np.zeros(self.shape[0])
+        dependency[self.kept_rows] = self.solve_transposed(row)
         dependency[self.redundant_rows[k]] = 1.0
         return dependency
 
@@ -209,24 +193,21 @@ class TallLU:
         sparse, exact in the dependencies that involve them.
 
         A sketch finds those dependencies without a solve per row: with a Gaussian block
-        W (len(rows), `SKETCH_WIDTH`), ``V = L_R L_K^-1 E W`` (E the unit vectors of the
-        rows' pivot steps) has in row r the combinations ``y_r(rows) W`` of dependency r's
-        weights, whose norm is below ``INVOLVEMENT / SKETCH_SLACK`` with probability
+        W (len(rows), `SKETCH_WIDTH`), ``V = A_R B^-1 E W`` (E the unit vectors of the
+        rows' pivot steps) has in row r the combinations ``-y_r(rows) W`` of dependency
+        r's weights, whose norm is below ``INVOLVEMENT / SKETCH_SLACK`` with probability
         < 1e-8 unless those weights are all below `INVOLVEMENT`.  The dependencies so
         flagged are then computed exactly (one solve each; few in a sound model).
         """
-        m, n = self.shape
         rows = np.asarray(rows, dtype=np.int64)
         steps = self.step_of_row[rows]
-        chosen = steps >= 0
+        kept = steps >= 0
         sketch = np.random.default_rng(0).standard_normal((rows.size, SKETCH_WIDTH))
-        block = np.zeros((n, SKETCH_WIDTH))
-        np.add.at(block, steps[chosen], sketch[chosen])
-        for column in block.T:
-            _kernels.solve_lower(self.k_indptr, self.k_steps, self.k_values, column)
-        image = self.redundant_lower @ block
+        block = np.zeros((self.shape[1], SKETCH_WIDTH))
+        np.add.at(block, steps[kept], sketch[kept])
+        image = self.redundant_jacobian @ np.column_stack([self.solve(column) for column in block.T])
         flagged = np.linalg.norm(image, axis=1) >= INVOLVEMENT / SKETCH_SLACK
-        flagged[np.searchsorted(self.redundant_rows, rows[~chosen])] = True  # a redundant row: its own 1
+        flagged[np.searchsorted(self.redundant_rows, rows[~kept])] = True  # a redundant row: its own 1
         columns = np.flatnonzero(flagged)
         weights = np.zeros((rows.size, columns.size))
         for index, k in enumerate(columns.tolist()):
