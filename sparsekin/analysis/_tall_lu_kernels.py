@@ -81,7 +81,7 @@ def _pop(heap, size):
 
 
 @njit(**_JIT)
-def factor_rows(a_indptr, a_rows, a_values, n_rows, tolerance, defer, capacity, stats):
+def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, capacity, stats):
     """Left-looking (Gilbert–Peierls) LU of ``M = A^T`` that keeps the independent columns.
 
     For column k: the sparse triangular solve with the columns of L already made (their
@@ -90,7 +90,8 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, tolerance, defer, capacity, 
     If its largest entry is at most `tolerance` the column is skipped; if it is at most
     `defer`, the column is offered again after all the others (a nearly dependent row kept
     early makes the kept block ill-conditioned); otherwise the largest entry is the pivot.
-    Stops when every coordinate has a pivot.
+    The columns from `n_early` on are offered only after the deferred ones.  Stops when
+    every coordinate has a pivot.
 
     Returns
     -------
@@ -127,6 +128,10 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, tolerance, defer, capacity, 
         if s == n:
             break
         first_pass = offer < n_columns
+        if first_pass and offer >= n_early:  # a late column: offered only after the deferred ones
+            deferred[n_deferred] = offer
+            n_deferred += 1
+            continue
         if first_pass:
             k = offer
         elif offer - n_columns < n_deferred:
