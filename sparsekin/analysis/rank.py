@@ -31,6 +31,14 @@ residual ``||A v||`` of unit vectors v:
   within the tolerance; with those deflated, a second block finds the smallest nonzero
   singular values (the condition number).
 
+**Tall** (more equations than coordinates, at least `SMALLEST_TALL_LU` coordinates: an
+overconstrained mechanism), `sparsekin.analysis.tall_lu.TallLU` first: a sparse LU that
+offers the rows in turn and names redundant those that are combinations of the rows kept
+before them, its kept block certified by its smallest singular value; near-linear in the
+size, where the augmented matrix's blocks grow with the nullity.  If a coordinate is left
+without a pivot or the certificate fails, the augmented matrix decides.  Its dependencies
+are computed one at a time when a message needs them (`JacobianAnalysis.dependency`).
+
 The rank tolerance is NumPy's ``matrix_rank`` convention on the scaled matrix,
 ``max(m, n) · eps · sigma_max`` (at least ``100 · eps · sigma_max``).  Column-pivoted QR of
 the null bases then chooses one coordinate per free motion and one equation per

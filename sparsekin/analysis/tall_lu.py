@@ -49,8 +49,8 @@ DEFER = 0.3
 #: The LU's answer stands if the smallest singular value of the kept rows' block is at
 #: least this many times the rank tolerance: an estimate from a few sweeps is accurate to
 #: a small factor (it comes from above).  Not more: long chains are ill-conditioned in
-#: absolute coordinates (the parallel-bar chain's block has sigma_min 4.5e-5, 4.4e-7,
-#: about 4e-9 at 10^2, 10^3, 10^4 cells, against a tolerance of 5e-11 at 10^4), and a
+#: absolute coordinates (the parallel-bar chain's block has sigma_min 5.5e-5, 5.6e-7,
+#: 5.6e-9 at 10^2, 10^3, 10^4 cells, against a tolerance of 5e-11 at 10^4), and a
 #: failed certificate sends the analysis to the dense one, whose memory grows as
 #: equations × redundant.
 CERTIFICATE_MARGIN = 10.0
