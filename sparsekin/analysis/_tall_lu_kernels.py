@@ -81,6 +81,20 @@ def _pop(heap, size):
 
 
 @njit(**_JIT)
+def _touch(row, stamp, mark, x, touched, n_touched, step_of_row, heap, n_heap):
+    """Bring `row` into the pattern of column `stamp` (x zeroed, listed, its pivot step
+    queued) unless it is already there; returns the new ``n_touched, n_heap``."""
+    if mark[row] != stamp:
+        mark[row] = stamp
+        x[row] = 0.0
+        touched[n_touched] = row
+        n_touched += 1
+        if step_of_row[row] >= 0:
+            n_heap = _push(heap, n_heap, step_of_row[row])
+    return n_touched, n_heap
+
+
+@njit(**_JIT)
 def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, capacity, stats):
     """Left-looking (Gilbert–Peierls) LU of ``M = A^T`` that keeps the independent columns.
 
@@ -143,13 +157,7 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, c
         n_heap = 0
         for p in range(a_indptr[k], a_indptr[k + 1]):
             row = a_rows[p]
-            if mark[row] != stamp:
-                mark[row] = stamp
-                x[row] = 0.0
-                touched[n_touched] = row
-                n_touched += 1
-                if step_of_row[row] >= 0:
-                    n_heap = _push(heap, n_heap, step_of_row[row])
+            n_touched, n_heap = _touch(row, stamp, mark, x, touched, n_touched, step_of_row, heap, n_heap)
             x[row] += a_values[p]
         while n_heap > 0:
             step = heap[0]
@@ -159,13 +167,7 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, c
                 continue
             for q in range(l_indptr[step] + 1, l_indptr[step + 1]):
                 row = l_rows[q]
-                if mark[row] != stamp:
-                    mark[row] = stamp
-                    x[row] = 0.0
-                    touched[n_touched] = row
-                    n_touched += 1
-                    if step_of_row[row] >= 0:
-                        n_heap = _push(heap, n_heap, step_of_row[row])
+                n_touched, n_heap = _touch(row, stamp, mark, x, touched, n_touched, step_of_row, heap, n_heap)
                 x[row] -= l_values[q] * value
         pivot_row = -1
         for p in range(n_touched):
