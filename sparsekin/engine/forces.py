@@ -33,7 +33,8 @@ solve; the answer given is the one of minimum norm, λ − W (WᵀW)⁻¹ Wᵀ �
 dependencies of the equations at the sample (one more transposed solve per redundant
 equation), up to `MAX_MIN_NORM_EQUATIONS` of them; beyond, the same λ by conjugate
 gradients on the redundant equations' multipliers, two solves with the factorization
-already held per iteration (`minimum_norm_multipliers`).  That norm adds squares of newtons
+already held per iteration (`minimum_norm_multipliers`), or, if they converge too slowly,
+one sparse LU per sample of the augmented system (`augmented_minimum_norm`).  That norm adds squares of newtons
 (the multipliers of position equations) to squares of newton-metres (those of angle
 equations, e.g. a rigid or translational joint's angle row), unweighted: when a
 redundant set mixes both kinds, how the load is shared among them depends on the unit
@@ -48,7 +49,6 @@ Python time loop (the compiled loop of `sparsekin.solve._compiled` runs the same
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -71,6 +71,7 @@ __all__ = [
     "no_forces",
     "MAX_MIN_NORM_EQUATIONS",
     "minimum_norm_multipliers",
+    "augmented_minimum_norm",
 ]
 
 #: The minimum-norm multipliers of a redundant model cost, through the dependencies, one
@@ -80,11 +81,14 @@ __all__ = [
 MAX_MIN_NORM_EQUATIONS = 64
 #: Conjugate gradients of `minimum_norm_multipliers`: relative residual and most
 #: iterations.  The system's eigenvalues are 1 + the squared singular values of the
-#: redundant rows written in the kept ones (C); 10^4-cell parallel-bar chain: 3 iterations
-#: per sample, 100×100 rotating squares: about 155 (docs/design-notes.md, "Redundant
-#: equations at scale").
+#: redundant rows written in the kept ones (C); 10^4-cell parallel-bar chain: 3 to 7
+#: iterations per sample (docs/design-notes.md, "Redundant equations at scale").
 MIN_NORM_TOLERANCE = 1e-12
-MIN_NORM_ITERATIONS = 500
+MIN_NORM_ITERATIONS = 60
+#: Iterative refinements of `augmented_minimum_norm`, the fallback when conjugate
+#: gradients do not converge (100×100 rotating squares: not within 500 iterations; the
+#: augmented LU then costs about 0.6 s per sample).
+AUGMENTED_REFINEMENTS = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -384,10 +388,11 @@ class ForceSolver:
         multipliers[kept] = solver.solve(rhs, transposed=True)
         redundant = stepper.redundant_rows
         if redundant.size > MAX_MIN_NORM_EQUATIONS:
-            kept_part, redundant_part = minimum_norm_multipliers(
-                solver, stepper.assembler.jacobian[redundant], multipliers[kept].copy()
-            )
-            multipliers[kept], multipliers[redundant] = kept_part, redundant_part
+            parts = minimum_norm_multipliers(solver, stepper.assembler.jacobian[redundant], multipliers[kept].copy())
+            if parts is None:  # conjugate gradients too slow: one sparse LU of the augmented system
+                multipliers[:] = augmented_minimum_norm(stepper.assembler.jacobian, rhs)
+            else:
+                multipliers[kept], multipliers[redundant] = parts
             return
         # the dependencies w (W's columns): row r of Φq = Σ c_k · kept row k, c from Φ_keptᵀ c = Φ_rᵀ
         jacobian = stepper.assembler.jacobian
@@ -409,10 +414,7 @@ def minimum_norm_multipliers(solver, redundant_jacobian, particular: np.ndarray)
     eigenvalues ≥ 1, solved by conjugate gradients, two solves with the factorization
     already held per iteration (`MIN_NORM_TOLERANCE`, at most `MIN_NORM_ITERATIONS`).
 
-    Raises
-    ------
-    ConvergenceError
-        If the iteration does not converge (the count and the limit in the message).
+    Returns None if the iteration has not converged after `MIN_NORM_ITERATIONS`.
     """
     def operator(vector: np.ndarray) -> np.ndarray:
         image = solver.solve(redundant_jacobian.T @ vector, transposed=True)  # C v
@@ -435,14 +437,26 @@ def minimum_norm_multipliers(solver, redundant_jacobian, particular: np.ndarray)
         direction = residual + (squared / previous) * direction
     else:
         if squared > target:
-            from ..errors import ConvergenceError
-
-            raise ConvergenceError(
-                f"the minimum-norm multipliers of {rhs.size} redundant equations did not converge in "
-                f"{MIN_NORM_ITERATIONS} iterations (relative residual {math.sqrt(squared / target) * MIN_NORM_TOLERANCE:.2g})"
-            )
+            return None
     kept = particular - solver.solve(redundant_jacobian.T @ solution, transposed=True)
     return kept, solution
+
+
+def augmented_minimum_norm(jacobian, rhs: np.ndarray) -> np.ndarray:
+    """The λ of minimum norm with ``Φqᵀ λ = rhs`` (Φq of full column rank) from one sparse LU
+    of ``[[I, Φq], [Φqᵀ, 0]]`` (its solution ``(λ, −μ)`` has λ = Φq μ, in the range of Φq),
+    refined `AUGMENTED_REFINEMENTS` times: its condition is that of Φq squared."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    m = jacobian.shape[0]
+    augmented = sparse.block_array([[sparse.identity(m, format="csr"), jacobian], [jacobian.T, None]], format="csc")
+    factor = splu(augmented, permc_spec="COLAMD")
+    target = np.concatenate([np.zeros(m), rhs])
+    solution = factor.solve(target)
+    for _ in range(AUGMENTED_REFINEMENTS):
+        solution += factor.solve(target - augmented @ solution)
+    return solution[:m]
 
 
 def no_forces() -> tuple[LoadArrays, LawTable, ForceOutputArrays]:
