@@ -65,8 +65,8 @@ __all__ = ["JacobianAnalysis", "analyse_jacobian", "SMALLEST_TALL_LU"]
 
 #: Tall Jacobians with at least this many coordinates are analysed by `TallLU` first (its
 #: answer certified, the dense analysis otherwise); smaller ones by the dense analysis,
-#: which also gives the smallest nonzero singular values exactly.  Below this size both
-#: take milliseconds (docs/design-notes.md, "Redundant equations at scale").
+#: which also gives the smallest nonzero singular values exactly and takes a fraction of a
+#: second there (0.24 s at 432 coordinates, 12×12 rotating squares; one run).
 SMALLEST_TALL_LU = 300
 
 #: Regularization delta of the augmented matrix: a tenth of the rank tolerance, so that
