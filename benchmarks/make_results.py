@@ -48,7 +48,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
-    others, large, sweeps, forces, startup = [], [], [], [], []
+    others, large, sweeps, forces, startup, overconstrained = [], [], [], [], [], []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -64,10 +64,13 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             forces.append(dict(info, median=record["stats"]["median"]))
         elif record["name"].startswith("test_startup"):
             startup.append(info)
+        elif record["name"].startswith("test_overconstrained"):
+            overconstrained.append(info)
         else:
             others.append(record)
     document["others"], document["large"], document["sweeps"] = others, large, sweeps
     document["forces"], document["startup"] = forces, startup
+    document["overconstrained"] = overconstrained
     return steps, setups, document
 
 
@@ -183,6 +186,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_sweeps(document["sweeps"])]
     if document["startup"]:
         lines += ["", *_startup(document["startup"][0])]
+    if document.get("overconstrained"):
+        lines += ["", *_overconstrained(document["overconstrained"])]
     if document["others"]:
         lines += [
             "",
@@ -214,6 +219,34 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _overconstrained(records: list[dict]) -> list[str]:
+    """The table of `test_overconstrained.py`, and the exponent of the squares' setup time."""
+    lines = [
+        "## Overconstrained mechanisms (`test_overconstrained.py`)",
+        "",
+        "Each row is one fresh process (`benchmarks/measure_redundancy.py`): `check_model`, the first sample",
+        "(`KinematicStepper.start`: redundant equations found, named and left out, first factorization), the",
+        "median of 10 steps of 0.01 s, the peak resident memory (everything included), the positions against",
+        "the closed form. `lattice_like_squares` and `parallel_bar_chain_2` are the non-redundant references.",
+        "",
+        "| family | bodies | redundant | check | first sample | per step | peak memory | closed-form error |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for info in records:
+        error = info["closed_form_error"]
+        cells = [info["family"], f"{info['bodies']:,}", f"{info['redundant']:,}", _seconds(info["check_seconds"]),
+                 _seconds(info["first_sample_seconds"]), _seconds(info["step_seconds"]),
+                 f"{info['peak_rss_bytes'] / 2**30:.2f} GB", "—" if error != error else f"{error:.1e} m"]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    squares = [(info["bodies"], info["check_seconds"] + info["first_sample_seconds"])
+               for info in records if info["family"] == "rotating_squares" and info["bodies"] >= 900]  # fmt: skip
+    if len(squares) >= 2:
+        x, y = np.log([b for b, _ in squares]), np.log([t for _, t in squares])
+        lines += ["", f"Exponent of the rotating squares' setup time (check + first sample) against bodies, "
+                      f"{squares[0][0]:,} to {squares[-1][0]:,}: {float(np.polyfit(x, y, 1)[0]):.2f}."]  # fmt: skip
+    return lines
 
 
 def _large_files(records: list[dict]) -> list[str]:

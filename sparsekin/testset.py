@@ -11,9 +11,15 @@ known independently of the solver:
 * `lattice` — a grid of parallelogram cells, one actuator per row along the left edge;
   its Jacobian graph is a mesh.  Every vertical bar of row r turns with the row's driver;
   the horizontal bars translate.
+* `rotating_squares`, `rotating_rectangles` — Grima and Evans's auxetic metamaterials:
+  squares (rectangles) hinged at their corners, one driver, (n − 2)² redundant equations;
+  the lattice scales with the opening angle (Poisson's ratio −1 for squares).
+* `parallel_bar_chain` — a tower of parallelogram cells with three parallel bars each (one
+  redundant equation per cell), or two (``bars=2``, the non-redundant twin).
 
-The two chains are a unit repeated (`sparsekin.model.units.Repeat`), as their model files
-``examples/task5_chain.toml`` and ``examples/four_bar_chain.toml`` write them: a million
+The chains and the grids are a unit repeated (`sparsekin.model.units.Repeat`), as their
+model files ``examples/task5_chain.toml``, ``examples/four_bar_chain.toml``,
+``examples/lattice.toml`` and ``examples/rotating_squares.toml`` write them: a million
 bodies are a few arrays, not a million objects.
 """
 
@@ -25,13 +31,13 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .model.elements import PinInSlot, Revolute, RotationalDriver, Translational, TranslationalDriver
+from .model.elements import PinInSlot, Revolute, Rigid, RotationalDriver, Translational, TranslationalDriver
 from .model.laws import Harmonic, Linear
 from .model.mechanism import Body, Mechanism
 from .model.units import Cycle, OnCopies, Repeat, Unit
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "lattice_unit",
-           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "task5_unit_phases"]
+           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "parallel_bar_chain", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -365,3 +371,62 @@ def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.
     pitch = (width * math.cos(angle) + height * math.sin(angle), width * math.sin(angle) + height * math.cos(angle))
     return _rotating_lattice(unit, vary, "rect", "r", (ni, nj), pitch, amplitude, omega,
                              f"rotating_rectangles_{ni}x{nj}")  # fmt: skip
+
+
+def _whole(value, label: str, smallest: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < smallest:
+        raise ValueError(f"`{label}` must be a whole number >= {smallest}, got {value!r}.")
+    return int(value)
+
+
+#: Amplitude (rad) and angular frequency (rad/s) of the drivers of `parallel_bar_chain`,
+#: and how many distinct phases the cells cycle through.
+BAR_CHAIN_AMPLITUDE = 0.3
+BAR_CHAIN_OMEGA = 2.0
+BAR_CHAIN_PHASES = 7
+
+
+@_collection_paused()
+def parallel_bar_chain(n: int, bars: int = 3) -> Mechanism:
+    """A tower of n parallelogram cells: 4n bodies, one driver per cell.
+
+    Cell k (0 … n−1) joins plate k−1 (the ground for k = 0) at height k to plate k at
+    height k + 1 by vertical bars of length 1 at x = 0, 0.5 and 1 (``a{k}``, ``b{k}``,
+    ``c{k}``), pinned at both ends.  With ``bars=3`` the middle bar is a third parallel
+    bar: one redundant equation per cell.  With ``bars=2`` it is welded to plate k
+    instead (a `Rigid` joint, 3 equations for its 3 coordinates): the non-redundant twin,
+    with the same bodies and nearly the same equations.  A rotational driver turns bar
+    ``a{k}`` relative to plate k−1 to π/2 + 0.3·(sin(2t + φ_k) − sin φ_k), φ_k = 2π·(k mod
+    7)/7.
+
+    Closed form: the plates translate; with θ_k(t) the driven angle, plate k's frame
+    origin (its left node) is plate k−1's plus (cos θ_k, sin θ_k), and bars a, c (and b
+    with ``bars=3``) turn to θ_k, their origins at their lower nodes.
+    """
+    n = _whole(n, "n", 1)
+    if bars not in (2, 3):
+        raise ValueError(f"`bars` must be 2 or 3, got {bars!r}.")
+    points = {f"{name}{k}": (x, float(k)) for k in range(n + 1) for name, x in (("L", 0.0), ("M", 0.5), ("R", 1.0))}
+    bodies, joints, drivers = [], [], []
+    for k in range(n):
+        below, top = ("ground" if k == 0 else f"p{k - 1}"), f"p{k}"
+        for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
+            bodies.append(Body(f"{name}{k}", origin=f"{node}{k}", angle=math.pi / 2,
+                               points=(f"{node}{k}", f"{node}{k + 1}")))  # fmt: skip
+        bodies.append(Body(top, origin=f"L{k + 1}", points=(f"L{k + 1}", f"M{k + 1}", f"R{k + 1}")))
+        for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
+            if name == "b" and bars == 2:
+                joints.append(Rigid((top, f"b{k}")))
+                continue
+            joints.append(Revolute((f"{name}{k}", below), at=f"{node}{k}"))
+            joints.append(Revolute((top, f"{name}{k}"), at=f"{node}{k + 1}"))
+        phase = 2 * math.pi * (k % BAR_CHAIN_PHASES) / BAR_CHAIN_PHASES
+        drivers.append(
+            RotationalDriver(
+                (f"a{k}", below),
+                law=Harmonic(amplitude=BAR_CHAIN_AMPLITUDE, omega=BAR_CHAIN_OMEGA, phase=phase,
+                             offset=math.pi / 2 - BAR_CHAIN_AMPLITUDE * math.sin(phase)),
+            )
+        )  # fmt: skip
+    return Mechanism(points=points, bodies=bodies, joints=joints, drivers=drivers,
+                     name=f"parallel_bar_chain_{n}_{bars}")  # fmt: skip

@@ -25,13 +25,12 @@ from .describe import (
     coordinate_label,
     describe_motion,
     equation_label,
-    equations_summary,
     motion_summary,
     row_preference,
-    shares,
 )
 from .notices import actuator_directions, law_offsets, notice_lines, unjoined_point_lines
 from .rank import JacobianAnalysis, analyse_jacobian
+from .rigidity import counts_line, describe_redundant, listed_redundant
 
 __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "format_report"]
 
@@ -180,13 +179,7 @@ class ModelReport:
         where d is the number of independent dependencies that involve drivers.
         """
         n_free = self.n_coordinates - self.rank
-        dependencies = self.analysis.dependencies
-        involved = dependencies[self.n_joint_equations :]
-        if involved.size:
-            scale = float(np.abs(dependencies).max())
-            driver_dependencies = int(np.linalg.matrix_rank(involved, tol=1e-8 * scale))
-        else:
-            driver_dependencies = 0
+        driver_dependencies = self.analysis.dependency_rank(np.arange(self.n_joint_equations, self.n_equations))
         return n_free + self.n_drivers - driver_dependencies, n_free
 
     @property
@@ -280,21 +273,29 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         first = analyse_jacobian(assembler.jacobian, row_preference=preference)
         assembled, coordinates, assembly = _assemble(mechanism, pattern, assembler, float(time), drawn, first)
         assembler.fill_residual_jacobian(coordinates)
-        analysis = analyse_jacobian(assembler.jacobian, row_preference=preference) if assembled else first
+        moved = float(np.max(np.abs(coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
+        if assembled and moved > ASSEMBLY_TOLERANCE:  # else the drawing's analysis holds (twice the cost saved)
+            left_out = preference.copy()
+            left_out[first.redundant_rows] += 2.0  # the equations the assembly left out: named first
+            analysis = analyse_jacobian(assembler.jacobian, row_preference=left_out)
+        else:
+            analysis = first
         raw_residual = assembler.residual
         residual = raw_residual * weights
     n_joint_equations = int(pattern.element_first_row[len(mechanism.joints)])
+    consistent = np.abs(residual[analysis.redundant_rows]) <= CONSISTENCY_TOLERANCE
+    depends_on, involves_drivers = describe_redundant(mechanism, pattern, analysis, consistent)
     redundant = tuple(
         RedundantEquation(
             row=int(row),
             label=equation_label(mechanism, pattern, int(row)),
             residual=float(abs(raw_residual[row])),
             unit="rad" if pattern.row_is_angle[row] else "m",
-            consistent=bool(abs(residual[row]) <= CONSISTENCY_TOLERANCE),
-            depends_on=equations_summary(mechanism, pattern, analysis.dependencies[:, k], exclude=int(row)),
-            involves_drivers=bool(np.any(shares(analysis.dependencies[:, k])[n_joint_equations:] >= 1e-12)),
+            consistent=bool(consistent[k]),
+            depends_on=depends_on[k],
+            involves_drivers=bool(involves_drivers[k]),
         )
-        for k, row in enumerate(analysis.redundant_rows)
+        for k, row in enumerate(analysis.redundant_rows.tolist())
     )
     free_motions = tuple(
         FreeMotion(
@@ -418,12 +419,19 @@ def format_report(report: ModelReport) -> str:
         f"condition number of the scaled Jacobian (on its rank): {_number(analysis.condition)}",
     ]
     lines[1:1] = report.left_out
+    lines.append(counts_line(report.n_coordinates, report.n_equations, report.rank))
     if report.redundant:
         lines.append(f"redundant equations ({len(report.redundant)}):")
-        for equation in report.redundant:
+        listed = listed_redundant([equation.consistent for equation in report.redundant])
+        for equation in (report.redundant[k] for k in listed.tolist()):
             state = "consistent" if equation.consistent else "NOT satisfied"
             lines.append(f"  {equation.label}: residual {equation.residual:.3g} {equation.unit}, {state}")
             lines.append(f"      depends on {equation.depends_on or 'nothing else (a zero equation)'}")
+        if len(report.redundant) > listed.size:
+            unlisted_bad = sum(not equation.consistent for equation in report.redundant) - sum(
+                not report.redundant[k].consistent for k in listed.tolist())
+            lines.append(f"  … ({len(report.redundant) - listed.size} more, "
+                         + (f"{unlisted_bad} of them NOT satisfied)" if unlisted_bad else "all consistent)"))
     else:
         lines.append("redundant equations: none")
     if report.free_motions:

@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..engine.forces import MAX_MIN_NORM_EQUATIONS
 from ..engine.pattern import ConstraintPattern
 from ..engine.reduced import CONSISTENCY_TOLERANCE
 from ..errors import (
@@ -39,7 +38,6 @@ from .describe import (
     equations_summary,
     motion_summary,
     row_preference,
-    shares,
 )
 
 if TYPE_CHECKING:
@@ -77,6 +75,7 @@ class Diagnosis:
     def __init__(self, mechanism: Mechanism, pattern: ConstraintPattern) -> None:
         self.mechanism, self.pattern = mechanism, pattern
         self._driven_labels: list[str] | None = None
+        self.redundancy_analysis: JacobianAnalysis | None = None
 
     # ------------------------------------------------------------------ labels
     def label(self, row: int) -> str:
@@ -122,6 +121,7 @@ class Diagnosis:
         assembler.set_time(t)
         assembler.fill_residual_jacobian(coordinates)
         analysis = _analyse(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
+        self.redundancy_analysis = analysis  # its factors give the reduced system a pivot order
         n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
         if analysis.n_free:
             raise ModelError(self._free_motions_message(analysis, coordinates))
@@ -145,10 +145,7 @@ class Diagnosis:
             listed += f"; … ({rows.size} equations)"
         reactions = ""
         if forces:
-            reactions = ("; the reactions of the joints involved are not unique: the minimum-norm ones are given"
-                         if rows.size <= MAX_MIN_NORM_EQUATIONS else
-                         f"; the reactions of the joints involved are not unique, and with more than "
-                         f"{MAX_MIN_NORM_EQUATIONS} redundant equations the ones given leave these out")  # fmt: skip
+            reactions = "; the reactions of the joints involved are not unique: the minimum-norm ones are given"
         warn_caller(
             f"{n_equations} equations for {n_coordinates} coordinates: {rows.size} redundant "
             f"equation{'s' * (rows.size != 1)} left out (each depends on the others at t = {t:g} s): {listed}"
@@ -161,7 +158,7 @@ class Diagnosis:
         """The error for a square model whose equations are dependent at the first sample."""
         redundancy = self._driver_redundancy(analysis) or "; ".join(
             f"{self.label(row)} depends on "
-            f"{equations_summary(self.mechanism, self.pattern, analysis.dependencies[:, k], exclude=int(row))}"
+            f"{equations_summary(self.mechanism, self.pattern, analysis.dependency(k), exclude=int(row))}"
             for k, row in enumerate(analysis.redundant_rows[:LISTED])
         )
         motions = self._motions(analysis, coordinates)
@@ -175,12 +172,13 @@ class Diagnosis:
     def _driver_redundancy(self, analysis: JacobianAnalysis) -> str:
         """The first redundancy that a driver takes part in, in words, or ``""``."""
         n_joint_rows = int(self.pattern.element_first_row[len(self.mechanism.joints)])
-        for k, row in enumerate(analysis.redundant_rows):
-            dependency = analysis.dependencies[:, k]
-            if np.any(shares(dependency)[n_joint_rows:] >= 1e-12):
-                others = equations_summary(self.mechanism, self.pattern, dependency, exclude=int(row))
-                return f"{self.label(row)} depends on {others}"
-        return ""
+        involved = np.flatnonzero(analysis.involve(np.arange(n_joint_rows, self.pattern.n_equations)))
+        if not involved.size:
+            return ""
+        k = int(involved[0])
+        row = int(analysis.redundant_rows[k])
+        others = equations_summary(self.mechanism, self.pattern, analysis.dependency(k), exclude=row)
+        return f"{self.label(row)} depends on {others}"
 
     def _motions(self, analysis: JacobianAnalysis, coordinates: np.ndarray) -> str:
         motions = "; ".join(

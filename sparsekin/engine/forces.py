@@ -31,7 +31,10 @@ configuration (a slow hydraulic machine).
 A model with redundant equations has many λ: the equations left out carry none in the
 solve; the answer given is the one of minimum norm, λ − W (WᵀW)⁻¹ Wᵀ λ with W the
 dependencies of the equations at the sample (one more transposed solve per redundant
-equation), up to `MAX_MIN_NORM_EQUATIONS` of them.  That norm adds squares of newtons
+equation), up to `MAX_MIN_NORM_EQUATIONS` of them; beyond, the same λ by conjugate
+gradients on the redundant equations' multipliers, two solves with the factorization
+already held per iteration (`minimum_norm_multipliers`), or, if they converge too slowly,
+one sparse LU per sample of the augmented system (`augmented_minimum_norm`).  That norm adds squares of newtons
 (the multipliers of position equations) to squares of newton-metres (those of angle
 equations, e.g. a rigid or translational joint's angle row), unweighted: when a
 redundant set mixes both kinds, how the load is shared among them depends on the unit
@@ -68,12 +71,25 @@ __all__ = [
     "build_load_pattern",
     "no_forces",
     "MAX_MIN_NORM_EQUATIONS",
+    "minimum_norm_multipliers",
+    "augmented_minimum_norm",
 ]
 
-#: The minimum-norm multipliers of a redundant model cost one transposed solve per
-#: redundant equation and a dense (n_equations × n_redundant) matrix per sample; above this
-#: many redundant equations the equations left out carry no force (and the warning says so).
+#: The minimum-norm multipliers of a redundant model cost, through the dependencies, one
+#: transposed solve per redundant equation and a dense (n_equations × n_redundant) matrix
+#: per sample; above this many redundant equations a sparse LU of the augmented system
+#: per sample costs less (its cost does not grow with the number of redundant equations).
 MAX_MIN_NORM_EQUATIONS = 64
+#: Conjugate gradients of `minimum_norm_multipliers`: relative residual and most
+#: iterations.  The system's eigenvalues are 1 + the squared singular values of the
+#: redundant rows written in the kept ones (C); 10^4-cell parallel-bar chain: 3 to 7
+#: iterations per sample (docs/design-notes.md, "Redundant equations at scale").
+MIN_NORM_TOLERANCE = 1e-12
+MIN_NORM_ITERATIONS = 60
+#: Iterative refinements of `augmented_minimum_norm`, the fallback when conjugate
+#: gradients do not converge (100×100 rotating squares: not within 500 iterations; the
+#: augmented LU then costs about 0.6 s per sample).
+AUGMENTED_REFINEMENTS = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -352,6 +368,11 @@ class ForceSolver:
         multipliers[kept] = solver.solve(rhs, transposed=True)
         redundant = stepper.redundant_rows
         if redundant.size > MAX_MIN_NORM_EQUATIONS:
+            parts = minimum_norm_multipliers(solver, stepper.assembler.jacobian[redundant], multipliers[kept].copy())
+            if parts is None:  # conjugate gradients too slow: one sparse LU of the augmented system
+                multipliers[:] = augmented_minimum_norm(stepper.assembler.jacobian, rhs)
+            else:
+                multipliers[kept], multipliers[redundant] = parts
             return
         # the dependencies w (W's columns): row r of Φq = Σ c_k · kept row k, c from Φ_keptᵀ c = Φ_rᵀ
         jacobian = stepper.assembler.jacobian
@@ -361,6 +382,61 @@ class ForceSolver:
             dependencies[r, c] = 1.0
         gram = dependencies.T @ dependencies
         multipliers -= dependencies @ np.linalg.solve(gram, dependencies.T @ multipliers)
+
+
+def minimum_norm_multipliers(solver, redundant_jacobian, particular: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The multipliers of minimum norm, ``(λ_K, λ_R)``, from a particular solution.
+
+    With B the kept rows of Φq (square, factored in `solver`) and A_R the redundant rows
+    (`redundant_jacobian`), every solution of ``Bᵀ λ_K + A_Rᵀ λ_R = rhs`` is
+    ``λ_K = particular − C λ_R`` with ``particular = B⁻ᵀ rhs`` and ``C = B⁻ᵀ A_Rᵀ``.  The
+    one of minimum norm has ``(I + CᵀC) λ_R = Cᵀ particular``: a symmetric system with
+    eigenvalues ≥ 1, solved by conjugate gradients, two solves with the factorization
+    already held per iteration (`MIN_NORM_TOLERANCE`, at most `MIN_NORM_ITERATIONS`).
+
+    Returns None if the iteration has not converged after `MIN_NORM_ITERATIONS`.
+    """
+    def operator(vector: np.ndarray) -> np.ndarray:
+        image = solver.solve(redundant_jacobian.T @ vector, transposed=True)  # C v
+        return vector + redundant_jacobian @ solver.solve(image)  # v + Cᵀ C v
+
+    rhs = redundant_jacobian @ solver.solve(particular)  # Cᵀ particular
+    solution = np.zeros_like(rhs)
+    residual = rhs.copy()
+    direction = residual.copy()
+    squared = float(residual @ residual)
+    target = MIN_NORM_TOLERANCE**2 * max(squared, np.finfo(float).tiny)
+    for _ in range(MIN_NORM_ITERATIONS):
+        if squared <= target:
+            break
+        image = operator(direction)
+        step = squared / float(direction @ image)
+        solution += step * direction
+        residual -= step * image
+        squared, previous = float(residual @ residual), squared
+        direction = residual + (squared / previous) * direction
+    else:
+        if squared > target:
+            return None
+    kept = particular - solver.solve(redundant_jacobian.T @ solution, transposed=True)
+    return kept, solution
+
+
+def augmented_minimum_norm(jacobian, rhs: np.ndarray) -> np.ndarray:
+    """The λ of minimum norm with ``Φqᵀ λ = rhs`` (Φq of full column rank) from one sparse LU
+    of ``[[I, Φq], [Φqᵀ, 0]]`` (its solution ``(λ, −μ)`` has λ = Φq μ, in the range of Φq),
+    refined `AUGMENTED_REFINEMENTS` times: its condition is that of Φq squared."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    m = jacobian.shape[0]
+    augmented = sparse.block_array([[sparse.identity(m, format="csr"), jacobian], [jacobian.T, None]], format="csc")
+    factor = splu(augmented, permc_spec="COLAMD")
+    target = np.concatenate([np.zeros(m), rhs])
+    solution = factor.solve(target)
+    for _ in range(AUGMENTED_REFINEMENTS):
+        solution += factor.solve(target - augmented @ solution)
+    return solution[:m]
 
 
 def no_forces() -> tuple[LoadArrays, LawTable, ForceOutputArrays]:

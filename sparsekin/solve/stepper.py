@@ -415,6 +415,10 @@ class KinematicStepper:
         kept = np.setdiff1d(np.arange(self.pattern.n_equations), self.redundant_rows)
         self.system = ReducedSystem(self.assembler, kept)
         self.factorizer = Factorizer(self.system, self.linear_solver)
+        factors = getattr(self.diagnosis.redundancy_analysis, "dependency_source", None)
+        suggest = getattr(self.linear_solver, "suggest", None)
+        if suggest is not None and hasattr(factors, "pivot_order"):  # the tall LU's pivots: no SuperLU
+            suggest(*factors.pivot_order(kept))
 
     def _check_left_out(self, t: float, first: bool = False) -> None:
         """The redundant equations left out must still hold at the solved sample."""
