@@ -117,7 +117,8 @@ class Factorizer:
 
     def __init__(self, system, linear_solver) -> None:
         self.system, self.linear_solver = system, linear_solver
-        self._may_order = hasattr(linear_solver, "factor_ordered") and hasattr(system, "fill_in_order")
+        self._may_order = (hasattr(linear_solver, "factor_ordered") and hasattr(system, "fill_in_order")
+                           and getattr(system, "orderable", True))  # fmt: skip
         self._layout = None  # the solver's layout the system fills in, once ordered
 
     def __call__(self) -> None:

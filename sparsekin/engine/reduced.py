@@ -6,7 +6,10 @@ held at its drawn value.  `ReducedSystem` presents either as a system of its own
 ``fill_residual_jacobian``, ``residual``, ``jacobian``, ``velocity_rhs``,
 ``acceleration_rhs`` — that `sparsekin.engine.newton` and the linear solvers take like an
 `Assembler`.  The CSR pattern of its rows and the positions of their values in the
-assembler's Jacobian are computed once; each refill is one gather, not a new matrix.
+assembler's Jacobian are computed once; each refill is one gather, not a new matrix —
+or no gather at all once a refactorization fixes its value order (`fill_in_order`): the
+assembler then writes the kept rows' values straight in the factor's order, the left-out
+rows' values after them.
 """
 
 from __future__ import annotations
@@ -40,7 +43,8 @@ class ReducedSystem:
     residual, velocity_rhs, acceleration_rhs : ndarray, shape (n_rows,)
     jacobian : csr_array, shape (n_rows, n_coordinates)
     values : ndarray
-        ``jacobian.data``.
+        The Jacobian's values: ``jacobian.data``, or after `fill_in_order` the same values
+        in the order given there (then a view of the assembler's values).
     weights : ndarray, shape (n_rows,)
         The assembler's weights of the kept rows; those of the held rows weigh
         coordinates like `ConstraintPattern.coordinate_weights`.
@@ -66,13 +70,56 @@ class ReducedSystem:
         indices = np.concatenate([full.indices[self._entries], self.held])
         values = np.zeros(n_kept_values + n_held)
         values[n_kept_values:] = 1.0
-        self.jacobian = csr_array((values, indices, indptr), shape=(n_kept + n_held, full.shape[1]))
-        self.values = self.jacobian.data
+        self._csr = csr_array((values, indices, indptr), shape=(n_kept + n_held, full.shape[1]))
+        self.values = self._csr.data
+        self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
+        #: Whether the assembler can fill this system's values in a solver's order: not with
+        #: held coordinates, whose rows the assembler does not have.
+        self.orderable = n_held == 0
         n_rows = n_kept + n_held
         self.residual = np.zeros(n_rows)
         self.velocity_rhs = np.zeros(n_rows)
         self.acceleration_rhs = np.zeros(n_rows)
         self.weights = np.concatenate([assembler.weights[self.rows], assembler.pattern.coordinate_weights[self.held]])
+
+    @property
+    def jacobian(self):
+        """The reduced Jacobian as a CSR array (after `fill_in_order`, a copy in CSR order)."""
+        if self._csr_position is None:
+            return self._csr
+        from scipy.sparse import csr_array
+
+        return csr_array((self.values[self._csr_position], self._csr.indices, self._csr.indptr), shape=self._csr.shape)
+
+    def fill_in_order(self, positions: np.ndarray | None) -> None:
+        """Have the assembler write the k-th CSR value of this Jacobian to
+        ``values[positions[k]]`` (``None``: back to the CSR order), as `Assembler.fill_in_order`.
+
+        The kept rows' values take the first places of the assembler's values, in the given
+        order, and `values` becomes a view of them: a refill needs no gather.
+        """
+        if not self.orderable:
+            raise ValueError("a reduced system with held coordinates fills in CSR order only")
+        assembler, n = self.assembler, self._entries.size
+        current = self.jacobian.data.copy()
+        if positions is None:
+            assembler.fill_in_order(None)
+            self.values = self._csr.data
+            self._csr_position = None
+            self.values[:] = current
+            return
+        positions = np.asarray(positions, dtype=np.int64)
+        if positions.shape != (n,):
+            raise ValueError(f"`positions` must be a permutation of range({n}).")
+        full = np.empty(assembler.pattern.nnz, dtype=np.int64)
+        left_out = np.ones(full.size, dtype=bool)
+        left_out[self._entries] = False
+        full[self._entries] = positions
+        full[left_out] = n + np.arange(full.size - n)
+        assembler.fill_in_order(full)  # checks that `positions` is a permutation
+        self.values = assembler.values[:n]
+        self._csr_position = positions
+        self.values[positions] = current
 
     def set_time(self, t: float) -> None:
         self.assembler.set_time(t)
@@ -84,7 +131,8 @@ class ReducedSystem:
         n_kept = self.rows.size
         np.take(self.assembler.residual, self.rows, out=self.residual[:n_kept])
         np.subtract(coordinates[self.held], self.held_values, out=self.residual[n_kept:])
-        np.take(self.assembler.values, self._entries, out=self.values[: self._entries.size])
+        if self._csr_position is None:
+            np.take(self.assembler.values, self._entries, out=self.values[: self._entries.size])
         weighted = np.abs(self.residual) * self.weights
         return float(np.max(weighted, initial=0.0)) if np.all(np.isfinite(weighted)) else float("nan")
 
