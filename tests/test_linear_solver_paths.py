@@ -140,16 +140,25 @@ def test_auto_reuses_a_factorization_with_heavy_fill(monkeypatch):
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
-@pytest.mark.parametrize("name", ["task5_chain", "four_bar_chain", "lattice"])
+#: Overconstrained families: solved without their redundant equations (a reduced system).
+REDUNDANT_FAMILIES = {
+    "parallel_bar_chain": (lambda: testset.parallel_bar_chain(40), np.linspace(0.0, 2.0, 41)),
+    "rotating_squares": (lambda: testset.rotating_squares(8), np.linspace(0.0, 2.0, 41)),
+}
+
+
+@pytest.mark.filterwarnings("ignore::sparsekin.RedundantConstraintWarning")
+@pytest.mark.parametrize("name", ["task5_chain", "four_bar_chain", "lattice", *REDUNDANT_FAMILIES])
 def test_reuse_agrees_with_superlu_on_every_family(monkeypatch, name):
     """The reusing path on the families whose paths are compared above (velocities and
-    accelerations included), over their whole motions."""
+    accelerations included), over their whole motions; on the overconstrained ones too,
+    whose reduced system first filled in the refactorization's order."""
     from sparsekin.solve import kinematics, stepper
 
     monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 0.0)  # every model reuses
     monkeypatch.setattr(stepper, "COMPILED_MAX_COORDINATES", 0)  # none runs the compiled loop
     monkeypatch.setattr(kinematics, "COMPILED_MAX_COORDINATES", 0)
-    build, times = FAMILIES[name]
+    build, times = {**FAMILIES, **REDUNDANT_FAMILIES}[name]
     mechanism = build()
     result = solve_kinematics(mechanism, times)
     assert result.linear_solver == "reuse"

@@ -443,7 +443,7 @@ class KinematicStepper:
         left = self.linear_solver
         self._retired += (left.n_factorizations, left.n_refactorizations, left.n_solves)
         self.linear_solver = linear_solver
-        self.assembler.fill_in_order(None)
+        self.system.fill_in_order(None)  # the assembler's (through a reduced system's) CSR order
         self.factorizer = Factorizer(self.system, linear_solver)
         self._factored = False
         self.path = path or getattr(linear_solver, "name", type(linear_solver).__name__)
