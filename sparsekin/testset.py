@@ -411,8 +411,9 @@ def parallel_bar_chain(n: int, bars: int = 3) -> Mechanism:
     for k in range(n):
         below, top = ("ground" if k == 0 else f"p{k - 1}"), f"p{k}"
         for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
-            bodies.append(Body(f"{name}{k}", origin=f"{node}{k}", angle=math.pi / 2,
-                               points=(f"{node}{k}", f"{node}{k + 1}")))  # fmt: skip
+            welded = name == "b" and bars == 2  # carries only its upper end: it is not pinned below
+            ends = (f"{node}{k + 1}",) if welded else (f"{node}{k}", f"{node}{k + 1}")
+            bodies.append(Body(f"{name}{k}", origin=f"{node}{k}", angle=math.pi / 2, points=ends))
         bodies.append(Body(top, origin=f"L{k + 1}", points=(f"L{k + 1}", f"M{k + 1}", f"R{k + 1}")))
         for name, node in (("a", "L"), ("b", "M"), ("c", "R")):
             if name == "b" and bars == 2:

@@ -148,3 +148,17 @@ def test_test_set_models_round_trip_through_files(build, tmp_path):
     mechanism = build()
     save_model(mechanism, tmp_path / "model.toml")
     assert load_model(tmp_path / "model.toml") == mechanism
+
+
+@pytest.mark.parametrize(
+    "build",
+    [lambda: testset.task5(), lambda: testset.task5_chain(2), lambda: testset.four_bar_chain(3),
+     lambda: testset.lattice(2, 3), lambda: testset.rotating_squares(4), lambda: testset.rotating_rectangles(3, 4),
+     lambda: testset.parallel_bar_chain(4, bars=3), lambda: testset.parallel_bar_chain(4, bars=2)],
+)  # fmt: skip
+def test_test_set_models_join_every_shared_point(build):
+    """No point of the test set is carried by bodies that no joint connects there (the
+    two-bar chain's welded middle bar carries only its upper end)."""
+    from sparsekin.model.shared_points import unjoined_points
+
+    assert unjoined_points(build()) == []

@@ -80,11 +80,18 @@ def _unjoined(bodies, joints, where: str) -> list[UnjoinedPoint]:
     shared = {point: names for point, names in carriers.items() if len(names) > 1}
     if not shared:
         return []
+    shared_on: dict[str, list[str]] = {}  # body -> the shared points it carries
+    for point, names in shared.items():
+        for name in names:
+            shared_on.setdefault(name, []).append(point)
     parent: dict[tuple[str, str], tuple[str, str]] = {}
 
     def root(node):
         while node in parent:
-            node = parent[node]
+            above = parent[node]
+            if above in parent:  # path halving: the trees stay shallow
+                parent[node] = above = parent[above]
+            node = above
         return node
 
     for joint in joints:
@@ -93,7 +100,7 @@ def _unjoined(bodies, joints, where: str) -> list[UnjoinedPoint]:
             continue
         first, second = joint.bodies
         if declaration.n_equations == 3 and not declaration.point_fields:  # welded: joined everywhere
-            points = [point for point, names in shared.items() if first in names or second in names]
+            points = list(dict.fromkeys([*shared_on.get(first, ()), *shared_on.get(second, ())]))
         else:
             points = []
             for field_name in declaration.point_fields:
