@@ -272,6 +272,7 @@ def test_task5_loads():
     assert mechanism.analysis == Analysis(t_end=10.0, steps=1001, points=("A", "J", "K"))
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # a file of every key, not a linkage
 def test_every_element_loads_as_built_in_python(every_element_file: Path):
     assert load_model(every_element_file) == every_element_mechanism()
 
@@ -294,6 +295,7 @@ def test_byte_order_mark_is_accepted(tmp_path: Path):
 # ------------------------------------------------------------------ writing
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # a file of every key, not a linkage
 @pytest.mark.parametrize("source", ["every-element", "task5"])
 def test_save_then_load_gives_an_equal_mechanism(source: str, every_element_file: Path, tmp_path: Path):
     mechanism = load_model(every_element_file if source == "every-element" else TASK5)
@@ -304,6 +306,7 @@ def test_save_then_load_gives_an_equal_mechanism(source: str, every_element_file
     assert load_model(path) == mechanism
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # a file of every key, not a linkage
 def test_saved_spline_is_written_inline(every_element_file: Path, tmp_path: Path):
     path = tmp_path / "saved.toml"
     save_model(load_model(every_element_file), path)
