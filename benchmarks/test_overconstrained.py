@@ -18,7 +18,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
 
 #: (family, size) per ``--sizes``: squares per side, or cells.
 CASES = {
