@@ -227,6 +227,7 @@ def _assert_handled(path: Path, tmp: Path, capsys: pytest.CaptureFixture) -> Non
             assert len(errors) == {0: 0, 1: 0, 2: 1, 3: 2}[status], captured.err
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # a damaged file may share a point
 @settings(
     max_examples=80, deadline=EXAMPLE_DEADLINE_MS,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
@@ -239,6 +240,7 @@ def test_a_damaged_document_gives_one_clear_error(damaged, tmp_path: Path, capsy
     _assert_handled(path, tmp_path, capsys)
 
 
+@pytest.mark.filterwarnings("ignore::sparsekin.UnjoinedPointWarning")  # a damaged file may share a point
 @settings(
     max_examples=60, deadline=EXAMPLE_DEADLINE_MS,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
