@@ -73,14 +73,17 @@ class ReducedSystem:
         self._csr = csr_array((values, indices, indptr), shape=(n_kept + n_held, full.shape[1]))
         self.values = self._csr.data
         self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
-        #: Whether the assembler can fill this system's values in a solver's order: not with
-        #: held coordinates, whose rows the assembler does not have.
-        self.orderable = n_held == 0
         n_rows = n_kept + n_held
         self.residual = np.zeros(n_rows)
         self.velocity_rhs = np.zeros(n_rows)
         self.acceleration_rhs = np.zeros(n_rows)
         self.weights = np.concatenate([assembler.weights[self.rows], assembler.pattern.coordinate_weights[self.held]])
+
+    @property
+    def orderable(self) -> bool:
+        """Whether the assembler can fill this system's values in a solver's order: not with
+        held coordinates, whose rows the assembler does not have."""
+        return not self.held.size
 
     @property
     def jacobian(self):
