@@ -138,9 +138,21 @@ class Selection:
     def n_force_columns(self) -> int:
         return 0 if self.forces is None else self.forces.n_columns
 
+    def sample_shapes(self) -> dict[str, tuple[int, ...]]:
+        """The shape of one sample of each recorded variable (the time ``t`` aside)."""
+        shapes = {}
+        if self.coordinates:
+            shapes |= dict.fromkeys(("q", "qd", "qdd"), (self.mechanism.n_coordinates,))
+        if self.point_names:
+            shapes["points"] = (len(self.point_names), 6)
+        if self.joint_indices:
+            shapes["joints"] = (len(self.joint_indices), 3)
+        if self.forces is not None:
+            shapes["forces"] = (self.n_force_columns,)
+        return shapes
+
     def bytes_per_sample(self) -> int:
-        n = self.mechanism.n_coordinates if self.coordinates else 0
-        return 8 * (1 + 3 * n + 6 * len(self.point_names) + 3 * len(self.joint_indices) + self.n_force_columns)
+        return 8 * (1 + sum(int(np.prod(shape)) for shape in self.sample_shapes().values()))
 
     def chunk_samples(self) -> int:
         """Samples per chunk: `CHUNK_BYTES` at most, one at least."""
@@ -212,14 +224,9 @@ class Recorder:
         self._first = 0  # the index of the chunk's first sample
         # A memory sink's arrays hold the chunk's rows themselves (filled in place, not copied
         # again: `_chunk_rows`); for a store, the rows of one chunk.
-        self._held = getattr(sink, "arrays", None) or {}
-        self._shapes = {"t": ()}
-        if selection.coordinates:
-            self._shapes |= dict.fromkeys(("q", "qd", "qdd"), (mechanism.n_coordinates,))
-        if selection.joint_indices:
-            self._shapes["joints"] = (len(selection.joint_indices), 3)
-        if selection.forces is not None:
-            self._shapes["forces"] = (selection.n_force_columns,)
+        self._held = sink.arrays if getattr(sink, "in_place", False) else {}
+        # the rows filled sample by sample; the points are computed per chunk
+        self._shapes = {"t": ()} | {key: shape for key, shape in selection.sample_shapes().items() if key != "points"}
         self._chunk_rows()
         # points: the frames of the bodies that carry them, and where they sit on them
         point_map = build_point_map(mechanism)
@@ -427,18 +434,13 @@ class MemorySink:
     """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (the
     rows it hands to `write` that are views of them are not copied again)."""
 
+    #: A `Recorder` fills the rows of `arrays` in place.
+    in_place = True
+
     def __init__(self, selection: Selection, n_times: int) -> None:
-        n = selection.mechanism.n_coordinates
-        self.arrays = {"t": np.empty(n_times)}
-        if selection.coordinates:
-            for key in ("q", "qd", "qdd"):
-                self.arrays[key] = np.empty((n_times, n))
-        if selection.point_names:
-            self.arrays["points"] = np.empty((n_times, len(selection.point_names), 6))
-        if selection.joint_indices:
-            self.arrays["joints"] = np.empty((n_times, len(selection.joint_indices), 3))
-        if selection.forces is not None:
-            self.arrays["forces"] = np.empty((n_times, selection.n_force_columns))
+        self.arrays = {"t": np.empty(n_times)} | {
+            key: np.empty((n_times, *shape)) for key, shape in selection.sample_shapes().items()
+        }
 
     def write(self, first: int, data: dict) -> None:
         for key, values in data.items():

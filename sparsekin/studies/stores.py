@@ -29,21 +29,6 @@ _DIMENSIONS = {"q": ("coordinate",), "qd": ("coordinate",), "qdd": ("coordinate"
                "points": ("point", "component"), "joints": ("joint", "derivative"), "forces": ("force",)}  # fmt: skip
 
 
-def _variable_shapes(selection) -> dict[str, tuple[int, ...]]:
-    """The shape of one sample of each recorded variable."""
-    shapes = {}
-    if selection.coordinates:
-        n = selection.mechanism.n_coordinates
-        shapes |= {"q": (n,), "qd": (n,), "qdd": (n,)}
-    if selection.point_names:
-        shapes["points"] = (len(selection.point_names), 6)
-    if selection.joint_indices:
-        shapes["joints"] = (len(selection.joint_indices), 3)
-    if selection.forces is not None:
-        shapes["forces"] = (selection.n_force_columns,)
-    return shapes
-
-
 @dataclass(frozen=True, eq=False)
 class SweepResult:
     """What a sweep computed: each variant's values, status and recorded motion.
@@ -259,4 +244,4 @@ def _layout(design: VariantDesign, times: np.ndarray, selection) -> _Layout:
     forces = selection.forces
     labels = dataset_labels(selection.mechanism, selection.coordinates, selection.point_names, selection.joint_indices,
                             () if forces is None else forces.labels, () if forces is None else forces.units)  # fmt: skip
-    return _Layout(design.n_variants, times, columns, parameters, _variable_shapes(selection), labels)
+    return _Layout(design.n_variants, times, columns, parameters, selection.sample_shapes(), labels)

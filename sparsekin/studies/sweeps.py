@@ -63,7 +63,6 @@ from .stores import (
     SweepResult,
     _layout,
     _MemoryOutput,
-    _variable_shapes,
     _ZarrOutput,
     write_variants_csv,
 )
@@ -129,7 +128,7 @@ def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarr
     n, n_times = stop - first, times.size
     mechanism = design.mechanism
     selection = Selection(mechanism, options["coordinates"], options["points"], options["joints"], options["forces"])
-    shapes = _variable_shapes(selection)
+    shapes = selection.sample_shapes()
     arrays = {key: np.full((n, n_times, *shape), np.nan) for key, shape in shapes.items()}
     status = np.full(n, "", dtype=STATUS_DTYPE)
     t_stop, t_failure = np.full(n, np.nan), np.full(n, np.nan)
