@@ -180,6 +180,20 @@ def test_neighbours_open_and_attached_boundaries_and_copies_restrictions():
         mechanism.body_index("r2_1.tab")  # that copy has no tab
 
 
+def test_a_one_column_grid_leaves_its_left_hinges_out_of_every_copy():
+    """A unit part that no copy has (the left hinge of a one-column grid) adds no equation:
+    the pattern is that of the grid written out."""
+    from sparsekin.engine.pattern import build_pattern
+
+    grid = Repeat(bar_unit(), count=(1, 3), prefix="g", offset=((1.0, 0.0), (0.0, 1.0)),
+                  boundary={"below.post": "ground"})  # fmt: skip
+    mechanism = Mechanism(points={}, bodies=[], repeats=[grid])
+    pattern, by_hand = build_pattern(mechanism), build_pattern(mechanism.expanded())
+    assert (pattern.n_equations, pattern.n_coordinates) == (by_hand.n_equations, by_hand.n_coordinates) == (12, 18)
+    np.testing.assert_array_equal(pattern.indptr, by_hand.indptr)
+    np.testing.assert_array_equal(pattern.indices, by_hand.indices)
+
+
 def test_grid_variations_step_along_i_and_j_and_cycle_on_a_checkerboard():
     unit = Unit("cell", points={"A": (0.0, 0.0)}, bodies=[Body("bar", origin="A", angle=0.1)])
     repeat = Repeat(unit, count=(3, 2), prefix="v", offset=((2.0, 0.0), (0.0, 3.0)),

@@ -153,6 +153,8 @@ def element_columns(mechanism: Mechanism, kind: str, first_rows: np.ndarray, res
             # elements in the same copies are tiled together; a grid's boundary parts apart
             groups: dict[bytes, list[int]] = {}
             for e in indices:
+                if not len(placed[e][0]):  # in no copy (an open boundary along a grid's one column)
+                    continue
                 groups.setdefault(placed[e][0].tobytes() if len(placed[e][0]) < copies.count else b"", []).append(e)
             for group in groups.values():
                 ks = placed[group[0]][0]
