@@ -194,6 +194,17 @@ def test_a_one_column_grid_leaves_its_left_hinges_out_of_every_copy():
     np.testing.assert_array_equal(pattern.indices, by_hand.indices)
 
 
+@pytest.mark.parametrize("count, copy", [(10, "copy 5"), ((7, 7), "copy (5, 0)")])
+def test_a_part_on_some_copies_only_is_checked_in_the_first_copy_that_has_it(count, copy):
+    """A part restricted to copies in the middle of a repeat, away from those checked for the
+    drawing (the first, the last, a period), is checked too: its mistake is named."""
+    unit = Unit("cell", points={"A": (0.0, 0.0), "B": (1.0, 0.0)}, bodies=[Body("bar", origin="A", points=("A", "B"))],
+                joints=[Revolute(("bar", "ground"), at="A"), OnCopies(Revolute(("bar", "nosuch"), at="B"), i=5)])
+    offset = (2.0, 0.0) if isinstance(count, int) else ((2.0, 0.0), (0.0, 2.0))
+    with pytest.raises(ModelError, match=rf'repeat\[0\] {re.escape(copy)}: units.cell.joints\[1\].bodies\[1\]: unknown body "nosuch"'):
+        Mechanism(points={}, bodies=[], repeats=[Repeat(unit, count=count, prefix="u", offset=offset)])
+
+
 def test_grid_variations_step_along_i_and_j_and_cycle_on_a_checkerboard():
     unit = Unit("cell", points={"A": (0.0, 0.0)}, bodies=[Body("bar", origin="A", angle=0.1)])
     repeat = Repeat(unit, count=(3, 2), prefix="v", offset=((2.0, 0.0), (0.0, 3.0)),

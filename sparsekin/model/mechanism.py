@@ -450,11 +450,15 @@ class Mechanism:
 
 def _copies_to_check(copies: Copies) -> list[int]:
     """The copies whose elements are checked as objects: the first, those whose drawing a
-    cycle changes (up to 64), and the last."""
+    cycle changes (up to 64), the last, and the first copy of each part that only some
+    copies have."""
     cycles = [len(v.values) for v in copies.repeat.vary.values() if isinstance(v, Cycle)]
     stepped = any(isinstance(v, Step) for v in copies.repeat.vary.values())
     period = min(int(np.lcm.reduce(cycles)) if cycles else 1, 64)
-    return copies.tiling.corners_and_period(period + stepped + copies.is_grid)
+    checked = set(copies.tiling.corners_and_period(period + stepped + copies.is_grid))
+    for kind in ("bodies", "joints", "drivers", "loads"):
+        checked.update(copies.first_having(kind))
+    return sorted(checked)
 
 
 class _BodyNames(Sequence):

@@ -408,6 +408,15 @@ class Copies:
         mask = self._present[kind]
         return np.full(len(getattr(self.unit, kind)), self.count) if mask is None else mask.sum(axis=0)
 
+    def first_having(self, kind: str) -> list[int]:
+        """For each of the unit's parts of `kind` that some copies have and others not: the
+        first copy that has it."""
+        mask = self._present[kind]
+        if mask is None:
+            return []
+        some = mask.any(axis=0) & ~mask.all(axis=0)
+        return np.argmax(mask[:, some], axis=0).tolist()
+
     def present(self, kind: str, k: int, e: int) -> bool:
         mask = self._present[kind]
         return True if mask is None else bool(mask[k, e])
