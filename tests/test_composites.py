@@ -197,6 +197,8 @@ offset = [2.0, 0.0]
         (("rod_mass = 12.0", "rod_mass = -1.0"), r"composites\[0\]\.rod_mass: expected"),
         (('points = ["C", "B"]', 'points = ["C", "X"]'), r'composites\[0\]: unknown point "X"'),
         (('type = "cylinder"', 'type = "cylindre"'), r"composites\[0\]\.type: .*cylinder"),
+        (('points = ["C", "B"]', 'points = ["C", [0.7, 1.1]]'),
+         r"composites\[0\]\.barrel_com: the two pins are drawn at the same place"),
     ],
 )  # fmt: skip
 def test_a_wrong_cylinder_is_named_in_one_line(tmp_path, change, message):

@@ -2,7 +2,7 @@
 
 A composite kind is a frozen dataclass whose fields are its keys in the model file (as the
 joints and drivers of `sparsekin.model.elements`), registered with `composite_kind` in
-`COMPOSITE_KINDS`.  It is written in ``[[joints]]`` with its ``type`` and declares
+`COMPOSITE_KINDS`.  It is written in ``[[composites]]`` with its ``type`` and declares
 
 =====================  ==============================================================
 ``type_name``          its ``type`` in the model file
@@ -32,7 +32,7 @@ from . import _validate
 from ._validate import FileKeys
 from .bodies import Body
 from .elements import PointRef, Revolute, Translational, TranslationalDriver, shown_point
-from .elements.base import _two_points
+from .elements.base import _set, _two_points
 from .laws import Law
 
 __all__ = ["COMPOSITE_KINDS", "composite_kind", "Parts", "Cylinder"]
@@ -136,6 +136,10 @@ class Cylinder:
             of mass given as distances along the axis.
         """
         name, (base, tip), (pin, rod_pin) = self.name, self.bodies, self.points
+        if (self.barrel_com is not None or self.rod_com is not None) and position(pin) == position(rod_pin):
+            field_name = "barrel_com" if self.barrel_com is not None else "rod_com"
+            raise ModelError(f"the two pins are drawn at the same place {position(pin)}; a centre of mass along "
+                             "the axis needs two distinct pins", element=field_name)  # fmt: skip
         barrel, rod = f"{name}_barrel", f"{name}_rod"
         bodies = (
             self._body(barrel, pin, rod_pin, self.barrel_mass, self.barrel_inertia, self.barrel_com, position),
@@ -160,7 +164,3 @@ class Cylinder:
             length = math.hypot(end[0] - start[0], end[1] - start[1])
             at = (start[0] + com * (end[0] - start[0]) / length, start[1] + com * (end[1] - start[1]) / length)
         return Body(body_name, origin=own_pin, points=carried, mass=mass, inertia=inertia, com=at)
-
-
-def _set(instance: object, field_name: str, value: object) -> None:
-    object.__setattr__(instance, field_name, value)
