@@ -413,3 +413,14 @@ def test_which_parts_each_copy_has_follows_the_contract_word_for_word(bodies, jo
     assert [joint.bodies for joint in mechanism.joints] == expected_joints
     assert mechanism.frames().shape == (len(expected_bodies), 3)
     assert build_pattern(mechanism).n_equations == 2 * len(expected_joints)
+
+
+@pytest.mark.parametrize(("count", "bound", "message"), [
+    (1, 3, r"3 is beyond the repeat's 1 copy \(0 … 0"),
+    (3, (2, 1), r"the range \[2, 1\] keeps no copy$"),
+])  # fmt: skip
+def test_a_chain_restriction_beyond_its_copies_is_named_in_words(count, bound, message):
+    unit = Unit("cell", points={"A": (0.0, 0.0)}, bodies=[Body("bar", origin="A", points=("A",))],
+                joints=[OnCopies(Revolute(("bar", "ground"), at="A"), i=bound)])
+    with pytest.raises(ModelError, match=message):
+        Mechanism(points={}, bodies=[], repeats=[Repeat(unit, count=count, prefix="u")])

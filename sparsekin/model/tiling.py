@@ -153,16 +153,16 @@ class Tiling:
         for axis, bound, size in zip("ij", restriction, (self.ni, self.nj)):
             if bound is None:
                 continue
-            what = "copies" if not self.is_grid else ("columns" if axis == "i" else "rows")
+            one, many = ("copy", "copies") if not self.is_grid else (("column", "columns") if axis == "i" else ("row", "rows"))
             if axis == "j" and not self.is_grid:
                 raise ModelError("a chain's copies are counted by i alone; j applies to grids", element=f"{element}.copies.j")
             first, last = (b + size if b < 0 else b for b in bound)
             if not (0 <= first < size and 0 <= last < size):
                 raise ModelError(f"{list(bound) if bound[0] != bound[1] else bound[0]} is beyond the repeat's {size} "
-                                 f"{what if size > 1 else what[:-1]} (0 … {size - 1}, or -{size} … -1 from the end)",
+                                 f"{many if size > 1 else one} (0 … {size - 1}, or -{size} … -1 from the end)",
                                  element=f"{element}.copies.{axis}")  # fmt: skip
             if first > last:
-                raise ModelError(f"the range {list(bound)} keeps no {what[:-1]}", element=f"{element}.copies.{axis}")
+                raise ModelError(f"the range {list(bound)} keeps no {one}", element=f"{element}.copies.{axis}")
 
     def corners_and_period(self, period: int) -> list[int]:
         """The copies a check builds as objects: the first `period` copies and the last
