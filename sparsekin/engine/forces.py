@@ -77,8 +77,9 @@ __all__ = [
 
 #: The minimum-norm multipliers of a redundant model cost, through the dependencies, one
 #: transposed solve per redundant equation and a dense (n_equations × n_redundant) matrix
-#: per sample; above this many redundant equations a sparse LU of the augmented system
-#: per sample costs less (its cost does not grow with the number of redundant equations).
+#: per sample; above this many redundant equations conjugate gradients with the held
+#: factorization (`minimum_norm_multipliers`) cost less, with a sparse LU of the augmented
+#: system per sample (`augmented_minimum_norm`) where they do not converge.
 MAX_MIN_NORM_EQUATIONS = 64
 #: Conjugate gradients of `minimum_norm_multipliers`: relative residual and most
 #: iterations.  The system's eigenvalues are 1 + the squared singular values of the
@@ -338,6 +339,8 @@ class ForceSolver:
         self.multipliers = np.zeros(pattern.n_equations)
         self._work = np.zeros((len(outputs.joint_indices), 3))
         self.row = np.zeros(outputs.n_columns)
+        # conjugate gradients on the redundant multipliers failed once: the augmented LU from then on
+        self._augmented = False
 
     def evaluate(self, stepper) -> np.ndarray:
         """The force columns at the stepper's current sample (`row`, reused), right after its
@@ -368,9 +371,11 @@ class ForceSolver:
         multipliers[kept] = solver.solve(rhs, transposed=True)
         redundant = stepper.redundant_rows
         if redundant.size > MAX_MIN_NORM_EQUATIONS:
-            parts = minimum_norm_multipliers(solver, stepper.assembler.jacobian[redundant], multipliers[kept].copy())
-            if parts is None:  # conjugate gradients too slow: one sparse LU of the augmented system
-                multipliers[:] = augmented_minimum_norm(stepper.assembler.jacobian, rhs)
+            jacobian = stepper.assembler.jacobian
+            parts = None if self._augmented else minimum_norm_multipliers(solver, jacobian[redundant], multipliers[kept].copy())
+            if parts is None:  # conjugate gradients too slow (then at every sample): one sparse LU of the augmented system
+                self._augmented = True
+                multipliers[:] = augmented_minimum_norm(jacobian, rhs)
             else:
                 multipliers[kept], multipliers[redundant] = parts
             return

@@ -212,6 +212,7 @@ class ReusingSolver:
             np.copyto(matrix.data, jacobian.data)
             self._exact = False
         self._factored = False
+        self._transposed_fresh = False  # the transposed operator's values are the last factor's
         matrix = self._matrix
         magnitudes = np.abs(matrix.data)
         columns = np.bincount(matrix.indices, weights=magnitudes, minlength=matrix.shape[1])
@@ -268,7 +269,9 @@ class ReusingSolver:
                 self._transposed = matrix.T.tocsr()  # its pattern, once; values refreshed below
                 self._transposed_map = _transpose_map(matrix)
             operator = self._transposed
-            operator.data[:] = matrix.data[self._transposed_map]
+            if not self._transposed_fresh:  # once per `factor`, not once per solve
+                np.take(matrix.data, self._transposed_map, out=operator.data)
+                self._transposed_fresh = True
         else:
             operator = matrix
         inner = self.inner

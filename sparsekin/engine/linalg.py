@@ -62,12 +62,13 @@ ORDERINGS = ("colamd", "metis")
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
 
-def _splu(matrix: csc_array):
-    """SuperLU of a CSC matrix with `_ORDERING`.  scipy.sparse.linalg is imported here, on the
-    first factorization: a small model's run, all in the compiled loop, never loads it."""
+def _splu(matrix: csc_array, ordering: str = _ORDERING):
+    """SuperLU of a CSC matrix with `ordering` (`_ORDERING` unless the columns come ordered
+    already).  scipy.sparse.linalg is imported here, on the first factorization: a small
+    model's run, all in the compiled loop, never loads it."""
     from scipy.sparse.linalg import splu
 
-    return splu(matrix, permc_spec=_ORDERING)
+    return splu(matrix, permc_spec=ordering)
 
 
 class SingularMatrix(RuntimeError):
@@ -490,14 +491,12 @@ class RefactorSolver:
     def _splu_in_column_order(self, matrix: csc_array):
         """SuperLU of ``matrix[:, order]`` with METIS's column order (computed once per
         pattern) and the ordering it takes as given; ``(lu, perm_c)`` for `matrix`."""
-        from scipy.sparse.linalg import splu
-
         from .ordering import fill_reducing_column_order
 
         if self._column_order is None:
             self._column_order = fill_reducing_column_order(matrix, method="metis")
         order = self._column_order
-        lu = splu(matrix[:, order], permc_spec="NATURAL")
+        lu = _splu(matrix[:, order], "NATURAL")
         perm_c = np.empty(order.size, dtype=np.int64)
         perm_c[order] = lu.perm_c  # column order[j] of `matrix` is column j of the ordered one
         return lu, perm_c

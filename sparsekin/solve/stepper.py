@@ -270,7 +270,7 @@ class KinematicStepper:
     def _suggest_ordering(self, t: float) -> None:
         """A chain of many repeated units: the refactorization's first pivot order tiled from
         a short chain (`sparsekin.engine.ordering`), not from SuperLU on the whole chain."""
-        suggest = getattr(self.linear_solver, "suggest", None)  # a RefactorSolver's (also under a wrapper)
+        suggest = getattr(self.linear_solver, "suggest", None)  # a RefactorSolver's
         if (suggest is not None and self.mechanism.copies and self.system is self.assembler
                 and self.pattern.n_coordinates >= MIN_TILED_COORDINATES):  # fmt: skip
             ordering = tiled_ordering(self.mechanism, self.pattern, t)
