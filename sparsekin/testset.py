@@ -83,6 +83,12 @@ def _collection_paused():
             gc.enable()
 
 
+def _whole(value, label: str, smallest: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < smallest:
+        raise ValueError(f"`{label}` must be a whole number >= {smallest}, got {value!r}.")
+    return int(value)
+
+
 def _stroke_lengths() -> tuple[float, float]:
     return tuple(
         math.dist(TASK5_POINTS[start], TASK5_POINTS[end]) for _, _, _, start, end in _TASK5_ACTUATORS
@@ -153,8 +159,7 @@ def task5_chain(n_units: int, amplitude: float = 0.03) -> Mechanism:
     phases spread evenly, the rotations of the bases cancel over every 11 units, so the
     chain wiggles but does not curl up.
     """
-    if isinstance(n_units, bool) or not isinstance(n_units, (int, np.integer)) or n_units < 1:
-        raise ValueError(f"`n_units` must be a whole number >= 1, got {n_units!r}.")
+    n_units = _whole(n_units, "n_units", 1)
     assembled = _task5_points_at_phases(amplitude)  # (phases, points, 2)
     phases = task5_unit_phases(TASK5_CHAIN_PHASES).tolist()
     vary = {f"points.{name}": Cycle([tuple(xy) for xy in assembled[:, p].tolist()]) for p, name in enumerate(TASK5_POINTS)}
@@ -173,8 +178,7 @@ def four_bar_chain(n_loops: int, initial_angle: float = math.pi / 4, rate: float
     Cranks and couplers are 1 m long; every crank turns with crank0 and the couplers
     translate.  Keep the crank angle away from 0 and π, where the parallelograms can fold.
     """
-    if isinstance(n_loops, bool) or not isinstance(n_loops, (int, np.integer)) or n_loops < 1:
-        raise ValueError(f"`n_loops` must be a whole number >= 1, got {n_loops!r}.")
+    n_loops = _whole(n_loops, "n_loops", 1)
     tip = (math.cos(initial_angle), math.sin(initial_angle))
     loop = Unit(
         "loop",
@@ -244,9 +248,7 @@ def lattice(rows: int, cols: int) -> Mechanism:
     columns and `rows` rows: the bars of row r, column c are ``c{c}_{r-1}.V`` and
     ``c{c}_{r-1}.H``, node (r, c) is point ``c{c}_{r-1}.T`` (r >= 1) or ``c{c}_0.B`` (r = 0).
     """
-    for value, label in ((rows, "rows"), (cols, "cols")):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"`{label}` must be a whole number >= 1, got {value!r}.")
+    rows, cols = _whole(rows, "rows", 1), _whole(cols, "cols", 1)
     cell, vary = lattice_unit(int(rows))
     repeat = Repeat(cell, count=(int(cols) + 1, int(rows)), prefix=LATTICE_PREFIX,
                     offset=((1.0, 0.0), (0.0, 1.0)), vary=vary, boundary={"below.V": "ground", "below.H": "ground"})  # fmt: skip
@@ -322,13 +324,6 @@ def _rotating_lattice(unit: Unit, vary: dict, body: str, prefix: str, n: tuple[i
     )  # fmt: skip
 
 
-def _check_side(n, label: str) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise ValueError(f"`{label}` must be a whole number >= 2, got {n!r}.")
-    return int(n)
-
-
-@_collection_paused()
 def rotating_squares(n: int, angle: float = 0.3, amplitude: float = SQUARES_AMPLITUDE,
                      omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
     """Grima and Evans' rotating squares: n × n unit squares hinged at their corners.
@@ -345,7 +340,7 @@ def rotating_squares(n: int, angle: float = 0.3, amplitude: float = SQUARES_AMPL
     (i, j) is centred at (i·p(θ), j·p(θ)) with p(θ) = cos θ + sin θ and turned by
     (−1)^(i+j)·θ — the lattice's width and height scale alike, Poisson's ratio −1.
     """
-    n = _check_side(n, "n")
+    n = _whole(n, "n", 2)
     unit, vary = rotating_squares_unit(angle)
     pitch = math.cos(angle) + math.sin(angle)
     return _rotating_lattice(unit, vary, "sq", SQUARES_PREFIX, (n, n), (pitch, pitch), amplitude, omega,
@@ -363,7 +358,7 @@ def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.
     ν = −(d ln b / d ln a) = −(a/b)·(width·cos θ − height·sin θ)/(height·cos θ − width·sin θ),
     −1 only for squares.
     """
-    ni, nj = _check_side(ni, "ni"), _check_side(nj, "nj")
+    ni, nj = _whole(ni, "ni", 2), _whole(nj, "nj", 2)
     for value, label in ((width, "width"), (height, "height")):
         if not (isinstance(value, (int, float)) and value > 0):
             raise ValueError(f"`{label}` must be a positive length, got {value!r}.")
@@ -371,12 +366,6 @@ def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.
     pitch = (width * math.cos(angle) + height * math.sin(angle), width * math.sin(angle) + height * math.cos(angle))
     return _rotating_lattice(unit, vary, "rect", "r", (ni, nj), pitch, amplitude, omega,
                              f"rotating_rectangles_{ni}x{nj}")  # fmt: skip
-
-
-def _whole(value, label: str, smallest: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < smallest:
-        raise ValueError(f"`{label}` must be a whole number >= {smallest}, got {value!r}.")
-    return int(value)
 
 
 #: Amplitude (rad) and angular frequency (rad/s) of the drivers of `parallel_bar_chain`,

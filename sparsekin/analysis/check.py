@@ -327,8 +327,8 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         n_loads=mechanism.n_loads,
         gravity=mechanism.gravity,
         has_forces=mechanism.has_forces,
-        left_out=tuple(f"{c.label}: {c.n_left_out()} element{'s' * (c.n_left_out() != 1)} on the open boundary or "
-                       "restricted to some copies" for c in mechanism.copies if c.n_left_out()),
+        left_out=tuple(f"{c.label}: {n} element{'s' * (n != 1)} on the open boundary or restricted to some copies"
+                       for c in mechanism.copies if (n := c.n_left_out())),
         name=mechanism.name,
         time=float(time),
         n_bodies=mechanism.n_bodies,
@@ -352,7 +352,7 @@ def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
     count = len(names)
     for copies in mechanism.copies:
         massless = [e for e, body in enumerate(copies.unit.bodies) if not body.mass]
-        count += int(sum(copies.having("bodies")[e] for e in massless))
+        count += int(copies.having("bodies")[massless].sum())
         names += [copies.name(k, copies.unit.bodies[e].name) for k in range(min(copies.count, LISTED_MASSLESS))
                   for e in massless if copies.present("bodies", k, e)]  # fmt: skip
     return tuple(names[:LISTED_MASSLESS]), count

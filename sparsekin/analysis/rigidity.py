@@ -9,7 +9,8 @@ modes are the mechanism's degrees of freedom (a rigid motion of the whole counts
 the ground fixes it).
 
 `describe_redundant` says, for each redundant equation, whether the drivers take part in
-its dependency (all at once: one triangular solve per driver equation) and, for the
+its dependency (all at once: a random sketch of a few solves, then one solve per
+dependency it flags) and, for the
 `LISTED_REDUNDANT` equations a report lists, which equations it depends on (one solve
 each): a report of 10^4 redundant equations stays within the budget of the analysis.
 """
