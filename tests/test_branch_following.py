@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import four_bar
+from helpers import RTOL, four_bar
 
 from sparsekin import Linear, Mechanism, solve_kinematics
 from sparsekin.solve import stepper
@@ -26,8 +26,6 @@ from sparsekin.testset import task5
 
 CRANK, COUPLER, ROCKER, GROUND = 0.1, 0.3, 0.202, 0.4  # m
 START, RATE = 0.3, 2.0 * math.pi  # crank angle at t = 0 (rad) and its rate (rad/s)
-#: Relative tolerance against the closed form (see tests/test_closed_forms.py).
-RTOL = 1e-10
 
 
 def four_bar_positions(theta: np.ndarray, branch: int):

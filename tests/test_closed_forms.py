@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from helpers import four_bar, slider_crank
+from helpers import RTOL, four_bar, slider_crank
 from scipy.interpolate import CubicSpline
 
 from sparsekin import (
@@ -49,8 +49,6 @@ from sparsekin import (
     solve_kinematics,
 )
 
-#: Relative tolerance of every closed-form comparison (see the module docstring).
-RTOL = 1e-10
 
 
 # ---------------------------------------------------------------------- helpers

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import assert_same_motion
+from helpers import RTOL, assert_same_motion
 from scipy.interpolate import CubicSpline
 
 from sparsekin import (
@@ -42,8 +42,6 @@ from sparsekin.solve._compiled import (
 )
 from sparsekin.testset import four_bar_chain, lattice, task5, task5_chain
 
-#: Agreement of chord Newton with the Python path (see the module docstring).
-RTOL = 1e-10
 
 
 def run_compiled(mechanism, times, *, chord=True, tolerance=1e-12, max_iterations=12):

@@ -90,7 +90,6 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         report(f"note: {note}")
-    announce_compilation(settings.quiet)
     try:
         with _Progress(settings, timeline) as progress:
             result = solve_for_command(mechanism, settings, arguments.model, progress)
@@ -137,8 +136,10 @@ def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: P
     """`solve_kinematics` recording what `settings` asks for, with its argument and model
     errors reported against the file.
 
-    Warnings (redundant equations left out, limits left) are printed as one line each.
+    Warnings (redundant equations left out, limits left) are printed as one line each.  On
+    the first run after an install, says that the kernels compile (`announce_compilation`).
     """
+    announce_compilation(settings.quiet)
     store = settings.directory / "results.zarr" if settings.format == "zarr" else None
     # With the coordinates in memory, points and joints are derived after the run; a store,
     # or a run without the coordinates, records them while it goes on.

@@ -18,7 +18,8 @@ The modules: `~sparsekin.plots.canvas` (the canvas the elements draw on),
 `~sparsekin.plots.labels` (label placement), `~sparsekin.plots.configuration` (one
 configuration), `~sparsekin.plots.figures` (the figures of a run),
 `~sparsekin.plots.animation` (animations and frames), `~sparsekin.plots.studies` (sweeps and
-workspaces) and `~sparsekin.plots.common` (the figure, its file, the optional dependencies).
+workspaces), `~sparsekin.plots.metamaterials` (a lattice's size against its opening angle) and
+`~sparsekin.plots.common` (the figure, its file, the optional dependencies).
 
 >>> import numpy as np
 >>> import sparsekin as sk
@@ -37,6 +38,7 @@ from .canvas import Canvas
 from .configuration import draw_configuration
 from .figures import draw_mechanism, plot_actuators, plot_driver_forces, plot_point_motion, plot_point_paths
 from .labels import Label, place_labels
+from .metamaterials import LatticeSize, lattice_size, plot_lattice_size
 from .studies import plot_stop_times, plot_sweep_paths, plot_workspace
 
 __all__ = [
@@ -57,4 +59,7 @@ __all__ = [
     "plot_sweep_paths",
     "plot_stop_times",
     "plot_workspace",
+    "LatticeSize",
+    "lattice_size",
+    "plot_lattice_size",
 ]

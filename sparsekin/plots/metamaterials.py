@@ -45,7 +45,7 @@ class LatticeSize(NamedTuple):
     opening : ndarray
         The opening angle, |angle| of the chosen body, rad.
     width, height : ndarray
-        The x distance and the y distance between the chosen pairs of points, m.
+        The x distance and the y distance between the frame origins of the chosen pairs of bodies, m.
     poisson_ratio : ndarray
         −dε_y / dε_x from the samples (central differences in time); NaN where the lattice
         is (nearly) still, `STILL_SHARE`.
@@ -71,6 +71,9 @@ def lattice_size(result: KinematicsResult, across: tuple[str, str], up: tuple[st
     body : str
         The body whose |angle| is the opening angle.
     """
+    if result.coordinates is None:
+        raise ValueError("`result` must keep the coordinates (solve_kinematics(..., coordinates=True)).")
+
     def coordinate(name: str, k: int) -> np.ndarray:
         return result.coordinates[:, 3 * result.mechanism.body_index(name) + k]
 

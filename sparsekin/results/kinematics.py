@@ -186,8 +186,9 @@ class KinematicsResult:
             lines.append(f"    points       {tuple(self.point_tracks.shape)}  {_listed(self.recorded_points)} "
                          f"× (x, y, vx, vy, ax, ay)")  # fmt: skip
         if self.recorded_joints:
-            joints = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints]
-            lines.append(f"    joints       {tuple(self.joint_tracks.shape)}  {_listed(joints)} × (value, rate, accel)")
+            shown = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints[:LISTED_NAMES]]
+            joints = _listed(shown, total=len(self.recorded_joints))  # a copy's joint is built on demand
+            lines.append(f"    joints       {tuple(self.joint_tracks.shape)}  {joints} × (value, rate, accel)")
         if self.force_labels:
             forces = "quasi-static " * self.quasi_static
             lines.append(f"    forces       {tuple(self.force_tracks.shape)}  {forces}{_listed(self.force_labels)}")
@@ -437,11 +438,13 @@ def _count(number: int, word: str, plural: str | None = None) -> str:
     return f"{number} {word if number == 1 else plural or word + 's'}"
 
 
-def _listed(names) -> str:
-    """``A, B, C, D … (12)``: the first `LISTED_NAMES` names, and how many there are."""
+def _listed(names, total: int | None = None) -> str:
+    """``A, B, C, D … (12)``: the first `LISTED_NAMES` names, and how many there are
+    (`total`, when `names` holds the first ones only)."""
     names = list(names)
+    total = len(names) if total is None else total
     shown = ", ".join(names[:LISTED_NAMES])
-    return shown if len(names) <= LISTED_NAMES else f"{shown} … ({len(names)})"
+    return shown if total <= LISTED_NAMES else f"{shown} … ({total})"
 
 
 def _sorted_columns(pd, labels):
