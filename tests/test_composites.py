@@ -155,6 +155,22 @@ def test_a_cylinder_extends_with_a_positive_stroke():
     assert [joint.bodies for joint in parts.joints[:2]] == [("jack_barrel", "boom"), ("jack_rod", "ground")]
 
 
+
+def test_a_cylinder_written_the_other_way_round_also_extends_with_its_stroke(tmp_path):
+    """The boom's cylinder with its bodies and pins listed in the other order: along the
+    solved motion the stroke and the distance between the pins still grow together."""
+    path = tmp_path / "swapped.toml"
+    path.write_text(COMPOSITE.replace('bodies = ["ground", "boom"]\npoints = ["C", "B"]',
+                                      'bodies = ["boom", "ground"]\npoints = ["B", "C"]'))  # fmt: skip
+    mechanism = load_model(path)
+    assert mechanism.joints[mechanism.index_of("joints", "lift")].axis == ("B", "C")
+    result = solve_kinematics(mechanism, np.linspace(0.0, 3.0, 31), joints=["lift"])
+    stroke = result.joint("lift").value
+    pins = np.linalg.norm(result.point("B").position - result.point("C").position, axis=1)
+    np.testing.assert_allclose(np.diff(stroke), np.diff(pins), rtol=0, atol=1e-12)
+    assert np.ptp(stroke) > 0.1
+
+
 def test_a_cylinder_in_a_repeated_unit_is_expanded_in_every_copy(tmp_path):
     unit = """
 name = "jacks"
