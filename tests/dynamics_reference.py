@@ -257,7 +257,8 @@ def _integrate_n_four_bar(constants: FourBarChainConstants, t_end: float):
 def n_four_bar_motion(times, n_loops: int = 40, initial_speed: float = 1.0, length: float = 1.0,
                       mass: float = 1.0, gravity: float = GRAVITY) -> FourBarChainMotion:
     """Crank angle, rate and acceleration of the N-four-bar at `times` (s, >= 0), from the
-    reduced ODE (*) integrated by DOP853 at rtol = atol = 1e-13 (error ~1e-12 rad over 20 s)."""
+    reduced ODE (*) integrated by DOP853 at rtol = atol = 1e-13 (against the closed-form time of
+    each angle, ``FourBarChainConstants.time_at_angle``: within 2e-11 s, ~1e-10 rad, over 20 s)."""
     times = np.asarray(times, dtype=float)
     constants = n_four_bar_constants(n_loops, initial_speed, length, mass, gravity)
     t_end = float(times.max(initial=0.0))
