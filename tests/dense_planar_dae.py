@@ -148,7 +148,9 @@ def integrate_planar_dae(system: PlanarSystem, q0, v0, times, rtol: float = 1e-1
         return np.concatenate([state[n:], a])
 
     state0 = np.concatenate([np.asarray(q0, dtype=float), np.asarray(v0, dtype=float)])
-    solution = solve_ivp(rhs, (times[0], times[-1]), state0, method="DOP853", rtol=rtol, atol=atol, t_eval=times)
+    solution = solve_ivp(
+        rhs, (times[0], times[-1]), state0, method="DOP853", rtol=rtol, atol=atol, t_eval=times
+    )
     if not solution.success:
         raise RuntimeError(f"reference DAE integration failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T

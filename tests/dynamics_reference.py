@@ -33,10 +33,9 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from dense_planar_dae import PlanarSystem, rotation
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk, ellipkinc
-
-from dense_planar_dae import PlanarSystem, rotation
 
 #: Standard gravity of the IFToMM benchmarks, m/s^2 (acting along -y).
 GRAVITY = 9.81
@@ -204,7 +203,11 @@ class FourBarChainConstants:
 
 
 def n_four_bar_constants(
-    n_loops: int = 40, initial_speed: float = 1.0, length: float = 1.0, mass: float = 1.0, gravity: float = GRAVITY
+    n_loops: int = 40,
+    initial_speed: float = 1.0,
+    length: float = 1.0,
+    mass: float = 1.0,
+    gravity: float = GRAVITY,
 ) -> FourBarChainConstants:
     """Constants of the reduced model for N windows of bars of `length` (m) and `mass` (kg),
     B0 starting at `initial_speed` m/s along +x from the vertical position."""
@@ -257,8 +260,14 @@ def _integrate_n_four_bar(constants: FourBarChainConstants, t_end: float):
     return solution.sol
 
 
-def n_four_bar_motion(times, n_loops: int = 40, initial_speed: float = 1.0, length: float = 1.0,
-                      mass: float = 1.0, gravity: float = GRAVITY) -> FourBarChainMotion:
+def n_four_bar_motion(
+    times,
+    n_loops: int = 40,
+    initial_speed: float = 1.0,
+    length: float = 1.0,
+    mass: float = 1.0,
+    gravity: float = GRAVITY,
+) -> FourBarChainMotion:
     """Crank angle, rate and acceleration of the N-four-bar at `times` (s, >= 0), from the
     reduced ODE (*) integrated by DOP853 at rtol = atol = 1e-13 (against the closed-form time of
     each angle, ``FourBarChainConstants.time_at_angle``: within 2e-11 s, ~1e-10 rad, over 20 s)."""
@@ -276,8 +285,15 @@ def n_four_bar_motion(times, n_loops: int = 40, initial_speed: float = 1.0, leng
     return FourBarChainMotion(constants, times, angle, rate, acceleration)
 
 
-def n_four_bar_point(times, tip: int = 0, n_loops: int = 40, initial_speed: float = 1.0, length: float = 1.0,
-                     mass: float = 1.0, gravity: float = GRAVITY):
+def n_four_bar_point(
+    times,
+    tip: int = 0,
+    n_loops: int = 40,
+    initial_speed: float = 1.0,
+    length: float = 1.0,
+    mass: float = 1.0,
+    gravity: float = GRAVITY,
+):
     """Exact position and velocity of B_tip (the free end of crank `tip`, pivot (tip L, 0)).
 
     Returns ``(position, velocity)``, each an ndarray of shape (n, 2), m and m/s.
@@ -288,8 +304,14 @@ def n_four_bar_point(times, tip: int = 0, n_loops: int = 40, initial_speed: floa
     return position, velocity
 
 
-def n_four_bar_b0(times, n_loops: int = 40, initial_speed: float = 1.0, length: float = 1.0, mass: float = 1.0,
-                  gravity: float = GRAVITY):
+def n_four_bar_b0(
+    times,
+    n_loops: int = 40,
+    initial_speed: float = 1.0,
+    length: float = 1.0,
+    mass: float = 1.0,
+    gravity: float = GRAVITY,
+):
     """The benchmark's output: position and velocity of B0, shape (n, 2) each.
 
     >>> position, velocity = n_four_bar_b0([0.0])
@@ -299,8 +321,9 @@ def n_four_bar_b0(times, n_loops: int = 40, initial_speed: float = 1.0, length: 
     return n_four_bar_point(times, 0, n_loops, initial_speed, length, mass, gravity)
 
 
-def n_four_bar_energy(angle, rate, n_loops: int = 40, length: float = 1.0, mass: float = 1.0,
-                      gravity: float = GRAVITY):
+def n_four_bar_energy(
+    angle, rate, n_loops: int = 40, length: float = 1.0, mass: float = 1.0, gravity: float = GRAVITY
+):
     """Kinetic and gravitational energy (J, zero at the pivots' height) of the whole chain with
     every crank at `angle` turning at `rate`: ``(kinetic, potential)``."""
     constants = n_four_bar_constants(n_loops, 1.0, length, mass, gravity)
@@ -370,60 +393,101 @@ def n_four_bar_system(n_loops: int = 1, length: float = 1.0, mass: float = 1.0, 
 
 #: Parameters of the Test Set / Hairer-Wanner model (SI units: m, kg, kg m^2, N/m, N m).
 ANDREWS = {
-    "m1": 0.04325, "m2": 0.00365, "m3": 0.02373, "m4": 0.00706, "m5": 0.07050, "m6": 0.00706, "m7": 0.05498,
-    "i1": 2.194e-6, "i2": 4.410e-7, "i3": 5.255e-6, "i4": 5.667e-7, "i5": 1.169e-5, "i6": 5.667e-7,
+    "m1": 0.04325,
+    "m2": 0.00365,
+    "m3": 0.02373,
+    "m4": 0.00706,
+    "m5": 0.07050,
+    "m6": 0.00706,
+    "m7": 0.05498,
+    "i1": 2.194e-6,
+    "i2": 4.410e-7,
+    "i3": 5.255e-6,
+    "i4": 5.667e-7,
+    "i5": 1.169e-5,
+    "i6": 5.667e-7,
     "i7": 1.912e-5,
-    "xa": -0.06934, "ya": -0.00227, "xb": -0.03635, "yb": 0.03273, "xc": 0.014, "yc": 0.072,
-    "d": 28e-3, "da": 115e-4, "e": 2e-2, "ea": 1421e-5, "rr": 7e-3, "ra": 92e-5,
-    "ss": 35e-3, "sa": 1874e-5, "sb": 1043e-5, "sc": 18e-3, "sd": 2e-2,
-    "ta": 2308e-5, "tb": 916e-5, "u": 4e-2, "ua": 1228e-5, "ub": 449e-5,
-    "zf": 2e-2, "zt": 4e-2, "fa": 1421e-5,
-    "mom": 0.033, "c0": 4530.0, "l0": 0.07785,
+    "xa": -0.06934,
+    "ya": -0.00227,
+    "xb": -0.03635,
+    "yb": 0.03273,
+    "xc": 0.014,
+    "yc": 0.072,
+    "d": 28e-3,
+    "da": 115e-4,
+    "e": 2e-2,
+    "ea": 1421e-5,
+    "rr": 7e-3,
+    "ra": 92e-5,
+    "ss": 35e-3,
+    "sa": 1874e-5,
+    "sb": 1043e-5,
+    "sc": 18e-3,
+    "sd": 2e-2,
+    "ta": 2308e-5,
+    "tb": 916e-5,
+    "u": 4e-2,
+    "ua": 1228e-5,
+    "ub": 449e-5,
+    "zf": 2e-2,
+    "zt": 4e-2,
+    "fa": 1421e-5,
+    "mom": 0.033,
+    "c0": 4530.0,
+    "l0": 0.07785,
 }
 
 #: Names of the seven angles, in the order of the published vectors.
 ANDREWS_ANGLE_NAMES = ("beta", "Theta", "gamma", "Phi", "delta", "Omega", "epsilon")
 
 #: Consistent initial angles (rad), published with the problem; the start is at rest.
-ANDREWS_INITIAL_ANGLES = np.array([
-    -0.0617138900142764496358948458001,
-    0.0,
-    0.455279819163070380255912382449,
-    0.222668390165885884674473185609,
-    0.487364979543842550225598953530,
-    -0.222668390165885884674473185609,
-    1.23054744454982119249735015568,
-])
+ANDREWS_INITIAL_ANGLES = np.array(
+    [
+        -0.0617138900142764496358948458001,
+        0.0,
+        0.455279819163070380255912382449,
+        0.222668390165885884674473185609,
+        0.487364979543842550225598953530,
+        -0.222668390165885884674473185609,
+        1.23054744454982119249735015568,
+    ]
+)
 
 #: Published consistent initial accelerations (rad/s^2) and multipliers (N) at t = 0
 #: (convention M a + G^T lambda = f): all others are zero.
-ANDREWS_INITIAL_ACCELERATIONS = np.array([14222.4439199541138705911625887, -10666.8329399655854029433719415,
-                                          0.0, 0.0, 0.0, 0.0, 0.0])
-ANDREWS_INITIAL_MULTIPLIERS = np.array([98.5668703962410896057654982170, -6.12268834425566265503114393122,
-                                        0.0, 0.0, 0.0, 0.0])
+ANDREWS_INITIAL_ACCELERATIONS = np.array(
+    [14222.4439199541138705911625887, -10666.8329399655854029433719415, 0.0, 0.0, 0.0, 0.0, 0.0]
+)
+ANDREWS_INITIAL_MULTIPLIERS = np.array(
+    [98.5668703962410896057654982170, -6.12268834425566265503114393122, 0.0, 0.0, 0.0, 0.0]
+)
 
 #: The Test Set's reference solution at t = 0.03 s: the seven angles (rad).
 ANDREWS_REFERENCE_TIME = 0.03
-ANDREWS_REFERENCE_ANGLES = np.array([
-    0.1581077119629904e2,
-    -0.1575637105984298e2,
-    0.4082224013073101e-1,
-    -0.5347301163226948,
-    0.5244099658805304,
-    0.5347301163226948,
-    0.1048080741042263e1,
-])
+ANDREWS_REFERENCE_ANGLES = np.array(
+    [
+        0.1581077119629904e2,
+        -0.1575637105984298e2,
+        0.4082224013073101e-1,
+        -0.5347301163226948,
+        0.5244099658805304,
+        0.5347301163226948,
+        0.1048080741042263e1,
+    ]
+)
 
 #: ... and the angular velocities there (rad/s), from the same reference.
-ANDREWS_REFERENCE_RATES = np.array([
-    0.1139920302151208e4,
-    -0.1424379294994111e4,
-    0.1103291221937134e2,
-    0.1929337464421385e2,
-    0.5735699284790808,
-    -0.1929337464421385e2,
-    0.3231791658026955,
-])
+ANDREWS_REFERENCE_RATES = np.array(
+    [
+        0.1139920302151208e4,
+        -0.1424379294994111e4,
+        0.1103291221937134e2,
+        0.1929337464421385e2,
+        0.5735699284790808,
+        -0.1929337464421385e2,
+        0.3231791658026955,
+    ]
+)
 
 # The loop terms of E: (sign, length key, angle coefficients on the seven angles, phase).
 _LOOP_TERMS = (
@@ -486,7 +550,9 @@ def andrews_mass_matrix(angles) -> np.ndarray:
     p = ANDREWS
     _, th, _, ph, _, om, _ = angles
     m = np.zeros((7, 7))
-    m[0, 0] = p["m1"] * p["ra"] ** 2 + p["m2"] * (p["rr"] ** 2 - 2 * p["da"] * p["rr"] * np.cos(th) + p["da"] ** 2)
+    m[0, 0] = p["m1"] * p["ra"] ** 2 + p["m2"] * (
+        p["rr"] ** 2 - 2 * p["da"] * p["rr"] * np.cos(th) + p["da"] ** 2
+    )
     m[0, 0] += p["i1"] + p["i2"]
     m[1, 0] = p["m2"] * (p["da"] ** 2 - p["da"] * p["rr"] * np.cos(th)) + p["i2"]
     m[1, 1] = p["m2"] * p["da"] ** 2 + p["i2"]
@@ -513,22 +579,24 @@ def andrews_spring_point(gamma: float) -> np.ndarray:
 def andrews_forces(angles, rates) -> np.ndarray:
     """f(angles, rates), shape (7,): torque, velocity-product terms and the spring, as published."""
     p = ANDREWS
-    be, th, ga, ph, de, om, ep = angles
+    _, th, ga, ph, _, om, _ = angles
     bep, thp, _, php, dep, omp, epp = rates
     spring_end = andrews_spring_point(ga)
     stretch = spring_end - np.array([p["xc"], p["yc"]])
     length = np.hypot(*stretch)
     force = -p["c0"] * (length - p["l0"]) / length * stretch
     lever4, lever6 = p["e"] - p["ea"], p["zf"] - p["fa"]
-    return np.array([
-        p["mom"] - p["m2"] * p["da"] * p["rr"] * thp * (thp + 2 * bep) * np.sin(th),
-        p["m2"] * p["da"] * p["rr"] * bep**2 * np.sin(th),
-        force @ (p["sd"] * unit(ga + np.pi / 2) + p["sc"] * unit(ga)),  # F . dD/dgamma
-        p["m4"] * p["zt"] * lever4 * dep**2 * np.cos(ph),
-        -p["m4"] * p["zt"] * lever4 * php * (php + 2 * dep) * np.cos(ph),
-        -p["m6"] * p["u"] * lever6 * epp**2 * np.cos(om),
-        p["m6"] * p["u"] * lever6 * omp * (omp + 2 * epp) * np.cos(om),
-    ])
+    return np.array(
+        [
+            p["mom"] - p["m2"] * p["da"] * p["rr"] * thp * (thp + 2 * bep) * np.sin(th),
+            p["m2"] * p["da"] * p["rr"] * bep**2 * np.sin(th),
+            force @ (p["sd"] * unit(ga + np.pi / 2) + p["sc"] * unit(ga)),  # F . dD/dgamma
+            p["m4"] * p["zt"] * lever4 * dep**2 * np.cos(ph),
+            -p["m4"] * p["zt"] * lever4 * php * (php + 2 * dep) * np.cos(ph),
+            -p["m6"] * p["u"] * lever6 * epp**2 * np.cos(om),
+            p["m6"] * p["u"] * lever6 * omp * (omp + 2 * epp) * np.cos(om),
+        ]
+    )
 
 
 def andrews_gamma(angles, rates) -> np.ndarray:
@@ -545,7 +613,9 @@ def andrews_relative_accelerations(angles, rates):
     matrix[:7, :7] = andrews_mass_matrix(angles)
     matrix[:7, 7:] = jacobian.T
     matrix[7:, :7] = jacobian
-    solution = np.linalg.solve(matrix, np.concatenate([andrews_forces(angles, rates), andrews_gamma(angles, rates)]))
+    solution = np.linalg.solve(
+        matrix, np.concatenate([andrews_forces(angles, rates), andrews_gamma(angles, rates)])
+    )
     return solution[:7], solution[7:]
 
 
@@ -620,8 +690,15 @@ def andrews_geometry(angles=ANDREWS_INITIAL_ANGLES) -> dict:
     point_g = pivot_a + p["zt"] * unit(frame[4])
     point_h = pivot_a + p["u"] * unit(frame[6] - np.pi / 2)
     points = {
-        "O": origin, "F": point_f, "E": point_e, "B": pivot_b, "D": andrews_spring_point(frame[2]),
-        "A": pivot_a, "G": point_g, "H": point_h, "C": np.array([p["xc"], p["yc"]]),
+        "O": origin,
+        "F": point_f,
+        "E": point_e,
+        "B": pivot_b,
+        "D": andrews_spring_point(frame[2]),
+        "A": pivot_a,
+        "G": point_g,
+        "H": point_h,
+        "C": np.array([p["xc"], p["yc"]]),
     }
     coms = (
         origin + p["ra"] * unit(frame[0]),
@@ -632,21 +709,48 @@ def andrews_geometry(angles=ANDREWS_INITIAL_ANGLES) -> dict:
         point_h + (p["zf"] - p["fa"]) * unit(frame[5]),
         pivot_a + p["ua"] * unit(frame[6]) + p["ub"] * unit(frame[6] + np.pi / 2),
     )
-    layout = (("O", ("O", "F")), ("F", ("F", "E")), ("B", ("B", "D", "E")), ("G", ("G", "E")),
-              ("A", ("A", "G")), ("H", ("H", "E")), ("A", ("A", "H")))
+    layout = (
+        ("O", ("O", "F")),
+        ("F", ("F", "E")),
+        ("B", ("B", "D", "E")),
+        ("G", ("G", "E")),
+        ("A", ("A", "G")),
+        ("H", ("H", "E")),
+        ("A", ("A", "H")),
+    )
     bodies = {
         f"b{k + 1}": {
-            "origin": body_origin, "angle": float(frame[k]), "points": body_points,
-            "mass": p[f"m{k + 1}"], "inertia": p[f"i{k + 1}"], "com": coms[k],
+            "origin": body_origin,
+            "angle": float(frame[k]),
+            "points": body_points,
+            "mass": p[f"m{k + 1}"],
+            "inertia": p[f"i{k + 1}"],
+            "com": coms[k],
         }
         for k, (body_origin, body_points) in enumerate(layout)
     }
-    joints = [("b1", "ground", "O"), ("b1", "b2", "F"), ("b3", "ground", "B"), ("b5", "ground", "A"),
-              ("b7", "ground", "A"), ("b4", "b5", "G"), ("b6", "b7", "H"), ("b2", "b3", "E"),
-              ("b2", "b4", "E"), ("b2", "b6", "E")]
+    joints = [
+        ("b1", "ground", "O"),
+        ("b1", "b2", "F"),
+        ("b3", "ground", "B"),
+        ("b5", "ground", "A"),
+        ("b7", "ground", "A"),
+        ("b4", "b5", "G"),
+        ("b6", "b7", "H"),
+        ("b2", "b3", "E"),
+        ("b2", "b4", "E"),
+        ("b2", "b6", "E"),
+    ]
     return {
-        "points": points, "bodies": bodies, "joints": joints,
-        "spring": {"bodies": ("b3", "ground"), "points": ("D", "C"), "stiffness": p["c0"], "free_length": p["l0"]},
+        "points": points,
+        "bodies": bodies,
+        "joints": joints,
+        "spring": {
+            "bodies": ("b3", "ground"),
+            "points": ("D", "C"),
+            "stiffness": p["c0"],
+            "free_length": p["l0"],
+        },
         "torque": {"body": "b1", "value": p["mom"]},
     }
 
@@ -654,8 +758,18 @@ def andrews_geometry(angles=ANDREWS_INITIAL_ANGLES) -> dict:
 def andrews_angles_from_bodies(body_angles) -> np.ndarray:
     """The seven published angles from the seven absolute body angles a1 ... a7 (last axis)."""
     a = np.asarray(body_angles, dtype=float)
-    return np.stack([a[..., 0], a[..., 1] - a[..., 0], a[..., 2], a[..., 3] - a[..., 4], a[..., 4],
-                     a[..., 5] - a[..., 6], a[..., 6]], axis=-1)
+    return np.stack(
+        [
+            a[..., 0],
+            a[..., 1] - a[..., 0],
+            a[..., 2],
+            a[..., 3] - a[..., 4],
+            a[..., 4],
+            a[..., 5] - a[..., 6],
+            a[..., 6],
+        ],
+        axis=-1,
+    )
 
 
 def andrews_system(geometry: dict | None = None):
@@ -679,7 +793,9 @@ def andrews_system(geometry: dict | None = None):
     revolutes = []
     for body_i, body_j, point in geometry["joints"]:
         k_i, s_i = offset(body_i, point)
-        k_j, s_j = (-1, np.asarray(geometry["points"][point])) if body_j == "ground" else offset(body_j, point)
+        k_j, s_j = (
+            (-1, np.asarray(geometry["points"][point])) if body_j == "ground" else offset(body_j, point)
+        )
         revolutes.append((k_i, s_i, k_j, s_j))
     spring = geometry["spring"]
     k_spring, s_spring = offset(spring["bodies"][0], spring["points"][0])
@@ -687,8 +803,15 @@ def andrews_system(geometry: dict | None = None):
         masses=np.array([geometry["bodies"][n]["mass"] for n in names]),
         inertias=np.array([geometry["bodies"][n]["inertia"] for n in names]),
         revolutes=tuple(revolutes),
-        springs=((k_spring, s_spring, geometry["points"][spring["points"][1]], spring["stiffness"],
-                  spring["free_length"]),),
+        springs=(
+            (
+                k_spring,
+                s_spring,
+                geometry["points"][spring["points"][1]],
+                spring["stiffness"],
+                spring["free_length"],
+            ),
+        ),
         torques=((names.index(geometry["torque"]["body"]), geometry["torque"]["value"]),),
     )
     return system, q0

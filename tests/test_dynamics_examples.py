@@ -10,11 +10,11 @@ which runs every examples/*.toml as a kinematic analysis, leaves them alone unti
 
 import tomllib
 
+import dynamics_reference as ref
 import numpy as np
 import pytest
 from examples_loader import EXAMPLES
 
-import dynamics_reference as ref
 from sparsekin import check_model, load_model
 
 DYNAMICS_EXAMPLES = EXAMPLES / "dynamics"
@@ -88,7 +88,9 @@ def test_n_four_bar_file_is_the_a02_benchmark_and_starts_on_the_reference_veloci
     _, b0_velocity = ref.n_four_bar_b0([0.0])
     for crank in bars[:2]:  # the pivot (frame origin) is fixed; the crank turns at theta'(0)
         assert crank["velocity"] == [0.0, 0.0, motion.rate[0]]
-    np.testing.assert_allclose(bars[2]["velocity"], [*b0_velocity[0], 0.0], atol=1e-15)  # translates with the tips
+    np.testing.assert_allclose(
+        bars[2]["velocity"], [*b0_velocity[0], 0.0], atol=1e-15
+    )  # translates with the tips
 
 
 def test_andrews_file_states_the_reference_geometry_masses_and_loads():
@@ -103,7 +105,11 @@ def test_andrews_file_states_the_reference_geometry_masses_and_loads():
     for name, body in geometry["bodies"].items():
         stated = document["bodies"][name]
         assert (stated["origin"], tuple(stated["points"]), stated["mass"], stated["inertia"]) == (
-            body["origin"], tuple(body["points"]), body["mass"], body["inertia"])
+            body["origin"],
+            tuple(body["points"]),
+            body["mass"],
+            body["inertia"],
+        )
         assert stated["angle"] == pytest.approx(body["angle"], abs=1e-15)
         np.testing.assert_allclose(stated["com"], body["com"], rtol=1e-15, atol=1e-18)
         assert stated["velocity"] == [0.0, 0.0, 0.0]
@@ -112,7 +118,10 @@ def test_andrews_file_states_the_reference_geometry_masses_and_loads():
     assert all(joint["type"] == "revolute" for joint in document["joints"])
     spring, torque = document["loads"]
     assert (spring["type"], tuple(spring["bodies"]), tuple(spring["points"])) == (
-        "spring", geometry["spring"]["bodies"], geometry["spring"]["points"])
+        "spring",
+        geometry["spring"]["bodies"],
+        geometry["spring"]["points"],
+    )
     assert (spring["stiffness"], spring["free_length"]) == (ref.ANDREWS["c0"], ref.ANDREWS["l0"])
     assert (torque["type"], torque["body"], torque["value"]) == ("torque", "b1", ref.ANDREWS["mom"])
     assert "gravity" not in document

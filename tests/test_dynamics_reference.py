@@ -5,12 +5,11 @@ Lagrange-multiplier equations, published equations against the geometry, energy 
 None of this touches sparsekin; the integrator's tests compare sparsekin against these.
 """
 
+import dense_planar_dae as dae
+import dynamics_reference as ref
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-
-import dense_planar_dae as dae
-import dynamics_reference as ref
 
 # --- A01: simple pendulum ---------------------------------------------------------------------
 
@@ -43,8 +42,15 @@ def test_pendulum_angle_turns_at_the_period_marks_and_conserves_energy():
 def test_pendulum_path_matches_an_integration_of_the_equation_of_motion_over_the_benchmark_10_s():
     times = np.linspace(0.0, 10.0, 1001)
     position, velocity = ref.pendulum_point(times)
-    solution = solve_ivp(lambda _t, y: [y[1], -ref.GRAVITY * np.sin(y[0])], (0, 10), [np.pi / 2, 0.0],
-                         method="DOP853", rtol=1e-13, atol=1e-13, t_eval=times)
+    solution = solve_ivp(
+        lambda _t, y: [y[1], -ref.GRAVITY * np.sin(y[0])],
+        (0, 10),
+        [np.pi / 2, 0.0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-13,
+        t_eval=times,
+    )
     integrated = np.stack([np.sin(solution.y[0]), -np.cos(solution.y[0])], axis=1)
     assert np.abs(position - integrated).max() < 1e-9  # the benchmark's bound is 1e-3 m
     np.testing.assert_allclose(position[0], [1.0, 0.0], atol=1e-15)
@@ -109,11 +115,18 @@ def test_dense_constraint_jacobian_and_gamma_match_finite_differences(rng):
     q, v = q + 0.01 * rng.standard_normal(q.size), rng.standard_normal(v.size)  # off the manifold
     residual, jacobian, gamma = dae.planar_constraints(system, q, v)
     h = 1e-6
-    columns = [(dae.planar_constraints(system, q + h * e)[0] - dae.planar_constraints(system, q - h * e)[0]) / (2 * h)
-               for e in np.eye(q.size)]
+    columns = [
+        (dae.planar_constraints(system, q + h * e)[0] - dae.planar_constraints(system, q - h * e)[0])
+        / (2 * h)
+        for e in np.eye(q.size)
+    ]
     np.testing.assert_allclose(np.array(columns).T, jacobian, atol=1e-9)
     h = 1e-4  # d^2/ds^2 Phi(q + s v) = -gamma (no acceleration)
-    second = (dae.planar_constraints(system, q + h * v)[0] - 2 * residual + dae.planar_constraints(system, q - h * v)[0])
+    second = (
+        dae.planar_constraints(system, q + h * v)[0]
+        - 2 * residual
+        + dae.planar_constraints(system, q - h * v)[0]
+    )
     np.testing.assert_allclose(second / h**2, -gamma, atol=1e-6)
 
 
@@ -131,13 +144,18 @@ def test_andrews_jacobian_and_gamma_match_finite_differences_of_the_loop_equatio
     angles = ref.ANDREWS_REFERENCE_ANGLES + 0.05 * rng.standard_normal(7)
     rates = 100 * rng.standard_normal(7)
     h = 1e-7
-    columns = [(ref.andrews_constraints(angles + h * e) - ref.andrews_constraints(angles - h * e)) / (2 * h)
-               for e in np.eye(7)]
+    columns = [
+        (ref.andrews_constraints(angles + h * e) - ref.andrews_constraints(angles - h * e)) / (2 * h)
+        for e in np.eye(7)
+    ]
     np.testing.assert_allclose(np.array(columns).T, ref.andrews_constraint_jacobian(angles), atol=1e-9)
 
     def second_difference(s):  # d^2/ds^2 g(angles + s rates) = -gamma (no acceleration)
-        return (ref.andrews_constraints(angles + s * rates) - 2 * ref.andrews_constraints(angles)
-                + ref.andrews_constraints(angles - s * rates)) / s**2
+        return (
+            ref.andrews_constraints(angles + s * rates)
+            - 2 * ref.andrews_constraints(angles)
+            + ref.andrews_constraints(angles - s * rates)
+        ) / s**2
 
     s = 1e-3 / np.abs(rates).max()
     richardson = (4 * second_difference(s / 2) - second_difference(s)) / 3
@@ -159,7 +177,9 @@ def test_andrews_geometry_closes_its_loops_and_reproduces_the_published_solution
     geometry = ref.andrews_geometry(ref.ANDREWS_REFERENCE_ANGLES)
     p = ref.ANDREWS
     for name, path in (("b3", ("B", p["ss"])), ("b4", ("G", p["e"])), ("b6", ("H", p["zf"]))):
-        assert np.hypot(*(geometry["points"]["E"] - geometry["points"][path[0]])) == pytest.approx(path[1], rel=1e-12)
+        assert np.hypot(*(geometry["points"]["E"] - geometry["points"][path[0]])) == pytest.approx(
+            path[1], rel=1e-12
+        )
     system, q0 = ref.andrews_system()
     assert np.abs(dae.planar_constraints(system, q0)[0]).max() < 1e-16
     times = [0.0, 0.01, ref.ANDREWS_REFERENCE_TIME]
