@@ -355,16 +355,18 @@ def simulate(
     output_period: float | None = None,
     spectral_radius: float = 0.9,
     adaptive: bool = True,
+    verbose: bool = False,
 ) -> PeerRun:
     """Integrate `model` to `t_end` at the largest step `step` (Exudyn reduces it after a Newton
-    failure and recovers it when `adaptive`), sampling the sensors every `output_period`."""
+    failure and recovers it when `adaptive`), sampling the sensors every `output_period`;
+    `verbose` lets Exudyn print its progress and why a step failed."""
     exudyn, _ = import_exudyn()
     settings = exudyn.SimulationSettings()
     integration = settings.timeIntegration
     n_steps = round(t_end / step)
     integration.numberOfSteps = n_steps
     integration.endTime = t_end
-    integration.verboseMode = 0
+    integration.verboseMode = 1 if verbose else 0  # 1: progress, and why a step failed
     integration.adaptiveStep = adaptive
     integration.generalizedAlpha.spectralRadius = spectral_radius
     integration.newton.useModifiedNewton = True
@@ -401,8 +403,11 @@ def model_maker(benchmark: str, n_bodies: int | None = None):
     return BUILDERS[benchmark]
 
 
-def accuracy(benchmark: str, step: float, spectral_radius: float = 0.9, adaptive: bool = True) -> dict:
-    """Run one benchmark over its whole horizon and compare with the reference."""
+def accuracy(
+    benchmark: str, step: float, spectral_radius: float = 0.9, adaptive: bool = True, verbose: bool = False
+) -> dict:
+    """Run one benchmark over its whole horizon and compare with the reference (`verbose`:
+    Exudyn prints its progress and, on a failure, the step, time and Newton error)."""
     reference = import_reference()
     horizon = {
         "a01": (10.0, 0.01),
@@ -416,7 +421,7 @@ def accuracy(benchmark: str, step: float, spectral_radius: float = 0.9, adaptive
         model = build_task5(kinematics)
     else:
         model = BUILDERS[benchmark]()
-    run = simulate(model, step, t_end, period, spectral_radius, adaptive)
+    run = simulate(model, step, t_end, period, spectral_radius, adaptive, verbose)
     result = {
         "benchmark": benchmark,
         "step": step,
@@ -606,6 +611,7 @@ def main(argv=None) -> None:
     run_accuracy.add_argument("--step", type=float, default=1e-3)
     run_accuracy.add_argument("--spectral-radius", type=float, default=0.9)
     run_accuracy.add_argument("--fixed", action="store_true", help="no step reduction after a Newton failure")
+    run_accuracy.add_argument("--verbose", action="store_true", help="Exudyn's progress and reason to stop")
     run_timing = commands.add_parser("timing", help="time per step and peak memory")
     run_timing.add_argument("benchmark", choices=sorted([*BUILDERS, "chain"]))
     run_timing.add_argument("--bodies", type=int, default=1001, help="chain: 2N + 1 bodies")
@@ -628,7 +634,13 @@ def main(argv=None) -> None:
         print(report(arguments.results))
         return
     if arguments.command == "accuracy":
-        result = accuracy(arguments.benchmark, arguments.step, arguments.spectral_radius, not arguments.fixed)
+        result = accuracy(
+            arguments.benchmark,
+            arguments.step,
+            arguments.spectral_radius,
+            not arguments.fixed,
+            arguments.verbose,
+        )
     elif arguments.command == "timing":
         result = timing(
             arguments.benchmark, arguments.bodies, arguments.steps, arguments.step, arguments.repeat
