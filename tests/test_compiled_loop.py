@@ -17,6 +17,7 @@ import pytest
 from helpers import RTOL, assert_same_motion
 from scipy.interpolate import CubicSpline
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import (
     AbsoluteDriver,
     Body,
@@ -52,7 +53,7 @@ def run_compiled(mechanism, times, *, chord=True, tolerance=1e-12, max_iteration
     coordinates, velocities, accelerations = (np.full(shape, np.nan) for _ in range(3))
     iterations = np.full(times.size, -1, dtype=np.int64)
     outcome = solve_compiled(
-        mechanism, pattern, times, tolerance, max_iterations,
+        Discretization(mechanism, pattern), times, tolerance, max_iterations,
         coordinates, velocities, accelerations, iterations, chord=chord,
     )  # fmt: skip
     return outcome, (coordinates, velocities, accelerations), iterations
@@ -243,10 +244,10 @@ def test_output_arrays_are_checked():
     expected = r"`velocities` must be a float64 array of shape \(5, 30\), got float64 \(5, 29\)"
     with pytest.raises(ValueError, match=expected):
         solve_compiled(
-            mechanism, pattern, times, 1e-12, 12, good[0], np.empty((5, 29)), good[2], counts
+            Discretization(mechanism, pattern), times, 1e-12, 12, good[0], np.empty((5, 29)), good[2], counts
         )
     with pytest.raises(ValueError, match=r"`iterations` must be a int64 array"):
-        solve_compiled(mechanism, pattern, times, 1e-12, 12, *good, np.empty(5))
+        solve_compiled(Discretization(mechanism, pattern), times, 1e-12, 12, *good, np.empty(5))
 
 
 # ---------------------------------------------------------------------- the failure contract
@@ -263,7 +264,7 @@ def failing_run():
 def condition_numbers(mechanism, times, coordinates):
     """2-norm condition number of the Jacobian at each solved sample."""
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     conditions = []
     for t, q in zip(times, coordinates):
         assembler.set_time(t)

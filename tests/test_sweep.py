@@ -408,11 +408,14 @@ def test_external_scheduler_runs_the_same_sweep(task5, capsys, tmp_path):
     assert_store_and_csv_match(tmp_path / "out", runs, BOTH)
 
 
-def test_unreachable_scheduler_is_a_usage_error(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr("sparsekin.cli.sweep.SCHEDULER_TIMEOUT", 1)
-    status, _, err = run_cli(["sweep", TASK5, "--vary", f"{BOTH[0]}=0.03:0.07:3", "--scheduler", "tcp://127.0.0.1:9",
-                              "--out", tmp_path], capsys)  # fmt: skip
-    assert status == 2 and "--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there" in err
+def test_unreachable_scheduler_is_a_usage_error():
+    """A scheduler that does not answer within the timeout: the usage error of ``--scheduler``
+    (a `CommandError`: exit status 2, its message on stderr)."""
+    from sparsekin.cli.common import CommandError
+    from sparsekin.cli.sweep import _connect
+
+    with pytest.raises(CommandError, match="--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there"):
+        _connect("tcp://127.0.0.1:9", timeout=1)
 
 
 def test_import_sparsekin_does_not_import_dask():

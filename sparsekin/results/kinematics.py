@@ -411,23 +411,24 @@ class KinematicsResult:
             raise ImportError('to_xarray needs xarray: pip install "sparsekin[zarr]"') from None
         if self.store is not None:
             return xr.open_zarr(self.store)
-        from .recording import dataset_labels
+        from . import schema
 
-        variables = {}
-        if self.coordinates is not None:
-            for key, array in (("q", self.coordinates), ("qd", self.velocities), ("qdd", self.accelerations)):
-                variables[key] = (("time", "coordinate"), np.asarray(array))
-        if self.recorded_points:
-            variables["points"] = (("time", "point", "component"), np.asarray(self.point_tracks))
-        if self.recorded_joints:
-            variables["joints"] = (("time", "joint", "derivative"), np.asarray(self.joint_tracks))
-        if self.force_labels:
-            variables["forces"] = (("time", "force"), np.asarray(self.force_tracks))
-        coords = {"t": ("time", np.asarray(self.times))} | dataset_labels(
-            self.mechanism, self.coordinates is not None, self.recorded_points, self.recorded_joints,
-            self.force_labels, self.force_units,
-        )  # fmt: skip
-        return xr.Dataset(variables, coords=coords)
+        arrays = {name: np.asarray(array) for name, array in schema.result_arrays(self).items()}
+        layout = _Layout(self.mechanism, self.coordinates is not None, self.recorded_points, self.recorded_joints,
+                         self.force_labels, self.force_units)  # fmt: skip
+        coords = {schema.TIME: ("time", np.asarray(self.times))} | schema.dataset_labels(layout)
+        return xr.Dataset(schema.dataset_variables(arrays), coords=coords)
+
+
+class _Layout(NamedTuple):
+    """What a result recorded, as `sparsekin.results.schema` reads it."""
+
+    mechanism: Mechanism
+    coordinates: bool
+    point_names: tuple
+    joint_indices: tuple
+    force_labels: tuple
+    force_units: tuple
 
 
 #: Most names listed in `KinematicsResult`'s summary per kind of record: a line each, whatever the model's size.
