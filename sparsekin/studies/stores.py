@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..results import schema
+from ..results.motion import Motion
 from .variants import VariantDesign, VariantSet
 
 #: A variant's outcome: every sample solved; stopped at a singular configuration (a lock-up,
@@ -71,6 +72,13 @@ class SweepResult:
     labels : dict
         The labels of the dimensions of `to_xarray`'s Dataset, those of a run's
         (`sparsekin.results.schema.dataset_labels`).
+    motion : Motion or None
+        The same recorded motion with the accessors of a run's result
+        (`sparsekin.results.motion.Motion`: ``motion.point("K").velocity``,
+        ``motion.driver_force("motor").force``, ``motion.joint("boom")``), every array with
+        the variant first, shape (n_variants, n_times, ...), NaN after a variant's last
+        solved sample.  When the sweep varies the geometry it holds the recorded points,
+        joints and forces only (no one drawing to derive others from the coordinates).
     """
 
     variants: VariantSet
@@ -96,6 +104,7 @@ class SweepResult:
     wall_time: float = 0.0
     coordinate_labels: tuple[str, ...] = ()
     labels: dict = field(default_factory=dict, repr=False)
+    motion: Motion | None = field(default=None, repr=False)
 
     @property
     def n_variants(self) -> int:
@@ -113,7 +122,7 @@ class SweepResult:
                 f'point "{name}" was not recorded (recorded: {", ".join(self.recorded_points) or "none"})'
             )
         p = self.recorded_points.index(name)
-        return np.asarray(self.point_tracks[:, :, p, :2])
+        return np.asarray(self.point_tracks[..., p, :2])
 
     def to_xarray(self):
         """The results as an `xarray.Dataset` (the layout of the store: see `sweep`)."""

@@ -57,7 +57,8 @@ import numpy as np
 
 from ..errors import ConvergenceError, ModelError, SingularJacobianError
 from ..model.mechanism import Mechanism
-from ..results.schema import result_arrays, result_fields
+from ..results.motion import Motion
+from ..results.schema import COORDINATE_VARIABLES, result_arrays, result_fields
 from .stores import (
     STATUS_DTYPE,
     STATUSES,
@@ -317,7 +318,19 @@ def sweep(
         force_labels=selection.force_labels, force_units=selection.force_units,
         store=output.path, n_tasks=len(ranges), wall_time=wall_time,
         coordinate_labels=tuple(layout.labels.get("coordinate", ())), labels=layout.labels,
+        motion=_sweep_motion(selection, times, arrays, status, design.geometry_varies),
     )  # fmt: skip
+
+
+def _sweep_motion(selection, times: np.ndarray, arrays: dict, status: np.ndarray, geometry_varies: bool) -> Motion:
+    """The sweep's recorded motion with the variant first (see `SweepResult.motion`)."""
+    fields = result_fields(arrays)
+    if geometry_varies:  # each variant has its own drawing: nothing derived from the coordinates
+        fields |= {v.attribute: None for v in COORDINATE_VARIABLES}
+    return Motion(times=times, complete=bool(np.all(status == "complete")), point_map=selection.discretization.points,
+                  mechanism=selection.mechanism, recorded_points=selection.point_names,
+                  recorded_joints=selection.joint_indices, force_labels=selection.force_labels,
+                  force_units=selection.force_units, **fields)  # fmt: skip
 
 
 def default_worker_count() -> int:
