@@ -88,16 +88,19 @@ def main() -> None:
     trees = {"baseline": arguments.against.resolve(), "this": HERE}
     for case in arguments.cases:
         seconds = {name: [] for name in trees}
+        setups = {name: [] for name in trees}
         info = {}
         for _ in range(arguments.rounds):
             for name, tree in trees.items():
                 outcome = measure(tree, case)
                 seconds[name].append(outcome["seconds"])
+                setups[name].append(outcome.get("setup", float("nan")))
                 info[name] = outcome
         medians = {name: statistics.median(values) for name, values in seconds.items()}
         for name in trees:
             print(f"{case:12s} {name:8s} median {medians[name]:.4g} s per step over {arguments.rounds} rounds "
-                  f"(min {min(seconds[name]):.4g}, max {max(seconds[name]):.4g}); {info[name]}")
+                  f"(min {min(seconds[name]):.4g}, max {max(seconds[name]):.4g}); setup and first sample: median "
+                  f"{statistics.median(setups[name]):.4g} s; path {info[name]['path']}")
         print(f"{case:12s} ratio this/baseline {medians['this'] / medians['baseline']:.3f}", flush=True)
         time.sleep(0)
 

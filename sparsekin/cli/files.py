@@ -158,7 +158,7 @@ def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
     """Write time and the force columns the run recorded, every float by `repr`.
 
     The header is ``t,motor.force,motor.power,pivot.fx,pivot.fy,...``
-    (`sparsekin.engine.forces.ForceOutputs`).  A model with masses or loads but no driver or
+    (`sparsekin.engine.force_columns.ForceOutputs`).  A model with masses or loads but no driver or
     joint has no force column: the column ``t`` alone, as ``joints.csv`` without joints;
     for None, the header alone.
     """

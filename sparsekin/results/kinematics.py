@@ -28,22 +28,15 @@ class KinematicsResult(Motion):
 
     Attributes
     ----------
-    times : ndarray, shape (n_times,)
-        Sample times, s.
-    coordinates, velocities, accelerations : array, shape (n_times, 3 * n_bodies), or None
-        ``(x, y, angle)`` of each body frame, body order as in the model (m, rad), and
-        their first and second time derivatives; None when the run did not keep them
-        (``coordinates=False``).  Zarr arrays, read when sliced, for a run streamed to a
-        store.
+    times, coordinates, velocities, accelerations, complete, mechanism
+        See `Motion`; likewise ``recorded_points``, ``point_tracks``, ``recorded_joints``,
+        ``joint_tracks``, ``force_labels``, ``force_units``, ``force_tracks``,
+        ``quasi_static`` and ``store``.
     newton_iterations : ndarray of int, shape (n_times,)
         Newton corrections at each time (over all its sub-steps when the step to it was
         subdivided).
     n_factorizations, n_solves : int
         Factorizations of the Jacobian and linear solves in the whole run.
-    complete : bool
-        False when the analysis stopped early: then only the samples solved are here.
-    mechanism : Mechanism
-        The mechanism analysed.
     n_subdivisions : int
         How many times a step was halved (a Newton failure, or a suspected jump to
         another assembly branch); 0 on a well-sampled run.
@@ -57,23 +50,6 @@ class KinematicsResult(Motion):
         ``"refactor"``, ``"reuse"`` (``"auto"`` found the refactorization's fill-in
         heavy at the first sample and reused its factorization across samples),
         ``"superlu"``, or ``"none"`` for a model with nothing to solve (no body, no equation).
-    recorded_points : tuple of str
-        Points whose motion the run recorded (`point_tracks`).
-    point_tracks : array, shape (n_times, n_recorded_points, 6), or None
-        x, y, vx, vy, ax, ay of each recorded point.
-    recorded_joints : tuple of int
-        Indices of the joints whose own coordinate the run recorded (`joint_tracks`).
-    joint_tracks : array, shape (n_times, n_recorded_joints, 3), or None
-        Value, rate and acceleration of each recorded joint's own coordinate.
-    force_labels, force_units : tuple of str
-        The force columns the run recorded (``forces.csv``'s names: ``D.force``,
-        ``D.power``, ``J.fx``, …) and their units.
-    force_tracks : array, shape (n_times, n_force_columns), or None
-        Their values.
-    quasi_static : bool
-        Whether the forces leave out the inertial forces.
-    store : str or None
-        The Zarr store the run was streamed to.
     """
 
     newton_iterations: np.ndarray = field(kw_only=True)

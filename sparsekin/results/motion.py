@@ -278,7 +278,7 @@ class Motion:
         states = [np.asarray(array) for array in (self.coordinates, self.velocities, self.accelerations)]
         leading = states[0].shape[:-1]
         rows = own_coordinates(self._outputs_pattern, *(state.reshape(-1, state.shape[-1]) for state in states))
-        return tuple(row.reshape(*leading, -1) for row in rows)
+        return tuple(row.reshape(*leading, row.shape[-1]) for row in rows)
 
     def to_dataframe(self, points=None, joints=None):
         """The motion as a pandas DataFrame: one row per sample, one column per quantity.

@@ -461,7 +461,8 @@ class CompiledKinematicLoop:
     chunk : int
         Most samples per block.
     forces : CompiledForces, optional
-        The force columns to compute at each sample (its ``rows`` are allocated here).
+        The force columns to compute at each sample (``rows`` gives their number; the
+        rows are allocated here).
     """
 
     def __init__(self, discretization: Discretization, options, chunk: int, forces: CompiledForces | None = None):

@@ -17,7 +17,10 @@ Convergence is judged on the residual, lengths relative to the size of the model
 chain 10^4 m long converges as surely as a 1 m linkage) and angles in radians.  The loop
 itself is `sparsekin.solve.stepper.KinematicStepper` (predictor, Newton, branch guard, step
 halving, lock-up diagnosis); for small models `sparsekin.solve._compiled` runs the same loop in
-one numba call first and hands over to the stepper at any sample it cannot solve.
+one numba call first and hands over to the stepper at any sample it cannot solve.  The run
+driver of `sparsekin.solve.run` drives either (`sparsekin.solve.steppers`);
+`run_kinematics` below is the layer under the facade, on arguments checked once
+(`sparsekin.solve.options`), with the linear solver planned once (`sparsekin.solve.policy`).
 
 Linear solvers (the `linear_solver` argument; ``"auto"`` picks the fastest):
 
@@ -85,7 +88,7 @@ def solve_kinematics(
         from the initial configuration of the model.
     tolerance : float
         Largest accepted residual: lengths relative to the size of the model, angles in
-        rad; within `sparsekin.solve.stepper.TOLERANCE_RANGE`.
+        rad; within `sparsekin.solve.options.TOLERANCE_RANGE`.
     max_iterations : int
         Most Newton corrections at one time before it converges, at least 1 (a chord
         Newton's final polishing correction, `sparsekin.engine.newton`, comes on top).
@@ -93,7 +96,7 @@ def solve_kinematics(
         How the linear systems are solved (see the module docstring).  ``"auto"`` takes
         ``"dense"`` (the compiled loop) up to `COMPILED_MAX_COORDINATES` coordinates and
         ``"refactor"`` above, unless the refactorization's fill-in exceeds
-        `~sparsekin.solve.stepper.MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every
+        `~sparsekin.solve.policy.MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every
         choice gives the same results to rounding.
     coordinates : bool
         Keep every body's coordinates, velocities and accelerations (the default); then
@@ -220,7 +223,7 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
             observer = InverseDynamics(discretization, selection.forces, bool(request.quasi_static),
                                        options.thresholds.min_norm_iterations)  # fmt: skip
         if plan.loop == "compiled":
-            compiled_forces = None if observer is None else observer.compiled(recorder.size)
+            compiled_forces = None if observer is None else observer.compiled()
             stepper = FallbackStepper(CompiledKinematicLoop(discretization, options, recorder.size, compiled_forces),
                                       python)  # fmt: skip
         else:

@@ -62,11 +62,12 @@ class InverseDynamics:
         multipliers = self.multipliers.solve(lin, self._b[:-3])
         return self.outputs.fill(lin, multipliers, self._work, self.row)
 
-    def compiled(self, chunk: int):
-        """What the compiled loop takes to make the same columns inline (`CompiledForces`)."""
+    def compiled(self) -> CompiledForces:
+        """What the compiled loop takes to make the same columns inline (`CompiledForces`;
+        its rows, none here, are allocated by the loop)."""
         loads = self.loads
         return CompiledForces(loads.arrays, loads.laws, loads.n_laws, self.outputs.arrays(), self.inertial,
-                              np.zeros((chunk + 1, self.outputs.n_columns)))  # fmt: skip
+                              np.zeros((0, self.outputs.n_columns)))  # fmt: skip
 
 
 class RecordedVariables:
