@@ -201,6 +201,12 @@ class Recorder:
     def add_block(self, times, arrays: dict) -> None:
         """Solved samples at `times` (s): `arrays` holds, by name, one row per sample of
         every variable the selection records."""
+        if len(times) == 1 and self._rows + 1 < self.size:  # one sample of the Python loop, the chunk not full
+            row = self._rows
+            for name, buffer in self._buffers.items():
+                buffer[row] = times[0] if name == TIME else arrays[name][0]
+            self._rows += 1
+            return
         done = 0
         while done < len(times):
             row = self._rows

@@ -231,12 +231,11 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
     variables, limits = RecordedVariables(selection), LimitWatch(discretization)
 
     def record(block: SampleBlock) -> None:
-        recorded = dict(block.recorded)
-        if observer is not None and FORCES not in recorded:
-            recorded[FORCES] = observer(block.linearization)[None]
+        forces = block.recorded.get(FORCES)
+        if observer is not None and forces is None:
+            forces = observer(block.linearization)[None]
         limits.watch(block.times, block.coordinates)
-        states = (block.coordinates, block.velocities, block.accelerations)
-        recorder.add_block(block.times, variables.block(*states, recorded.get(FORCES)))
+        recorder.add_block(block.times, variables.block(block.coordinates, block.velocities, block.accelerations, forces))
 
     def finish(state) -> KinematicsResult:
         return _result(discretization, recorder, stepper.stats(), state.iterations, times.size,

@@ -228,7 +228,7 @@ class _Layout:
         """The sweep's `xarray.Dataset` (see `sweep`)."""
         import xarray as xr
 
-        coords = {"variant": np.arange(self.n_variants), "t": ("time", self.times),
+        coords = {"variant": np.arange(self.n_variants), schema.TIME: ("time", self.times),
                   "parameter": list(self.columns), **self.labels}  # fmt: skip
         variables = schema.dataset_variables(arrays, leading=("variant", "time"))
         variables |= {
