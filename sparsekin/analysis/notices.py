@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..engine.assembly import DriverLaws
+from ..engine.discretization import DriverLaws
 from ..engine.pattern import ConstraintPattern
 from ..model.elements import DistanceDriver, Revolute, Translational, TranslationalDriver, shown_point
 from ..model.mechanism import Mechanism

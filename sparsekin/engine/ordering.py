@@ -27,10 +27,10 @@ import dataclasses
 import numpy as np
 
 from ..errors import ModelError
-from ..model.mechanism import Analysis, Mechanism
+from ..model.mechanism import Analysis
 from ..model.units import Cycle, Step
 from .assembly import Assembler
-from .pattern import ConstraintPattern, build_pattern
+from .discretization import Discretization, discretize
 
 __all__ = [
     "tiled_ordering",
@@ -51,7 +51,7 @@ MAX_MIDDLE_COPIES = 64
 DISSECTION_LEAF_SIZE = 16
 
 
-def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
+def tiled_ordering(discretization: Discretization, t: float = 0.0):
     """``(perm_r, perm_c)`` for the first factorization of ``jacobian.T`` (SuperLU's
     convention: ``Pr A Pc = L U``), tiled from a short chain; None if the mechanism has no
     repeats, names a copy that the short chain lacks (an own driver on ``u4999.crank``,
@@ -59,20 +59,20 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
 
     Parameters
     ----------
-    mechanism : Mechanism
-    pattern : ConstraintPattern
-        ``build_pattern(mechanism)``; square.
+    discretization : Discretization
+        The mechanism's arrays; its constraints square.
     t : float
         The time of the first sample (the short chain's Jacobian is taken there, at its
         drawing).
     """
+    mechanism, pattern = discretization.mechanism, discretization.constraints
     if not mechanism.copies or pattern.n_equations != pattern.n_coordinates:
         return None
     if any(c.is_grid or c.total("bodies") != c.count * c.n_bodies or c.n_left_out() for c in mechanism.copies):
         return None  # a grid, or parts left out of some copies: no short chain to tile from
     middles = [_middle_copies(copies) for copies in mechanism.copies]
     try:
-        short = dataclasses.replace(
+        short_mechanism = dataclasses.replace(
             mechanism,
             analysis=Analysis(),
             repeats=tuple(dataclasses.replace(c.repeat, count=min(c.count, m + 2))
@@ -82,8 +82,9 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
         # The model names a copy beyond the short chain (its own driver on ``u4999.crank``,
         # another repeat's `first`): no short chain, SuperLU orders the long one.
         return None
-    short_pattern = build_pattern(short)
-    assembler = Assembler(short, short_pattern)
+    short = discretize(short_mechanism)
+    short_pattern = short.constraints
+    assembler = Assembler(short)
     assembler.set_time(t)
     assembler.fill_residual_jacobian(short_pattern.initial_coordinates)
     try:
@@ -99,7 +100,7 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     coordinate_at_step[lu.perm_r] = np.arange(steps.size)
     pivot = coordinate_at_step[steps]
 
-    equation_map, equation_shift = _equation_map(mechanism, pattern, short, short_pattern, middles)
+    equation_map, equation_shift = _equation_map(discretization, short, middles)
     # big equation -> its representative in the short chain, shifted by whole copies
     key = steps[equation_map] + equation_shift * steps.size
     order = np.argsort(key, kind="stable")
@@ -108,7 +109,7 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     # its pivot: the representative's pivot coordinate, in the same shifted copy
     short_pivot = pivot[equation_map]
     pivot_body = short_pivot // 3
-    big_body = _unmap(pivot_body, equation_shift, mechanism, short)
+    big_body = _unmap(pivot_body, equation_shift, mechanism, short_mechanism)
     if big_body is None:
         return None
     pivot_coordinate = 3 * big_body + short_pivot % 3
@@ -139,9 +140,11 @@ def _representative(k: np.ndarray, count: int, short_count: int, middles: int) -
     return s
 
 
-def _equation_map(mechanism, pattern, short, short_pattern, middles):
+def _equation_map(long: Discretization, short: Discretization, middles):
     """For every equation of the long chain: its representative in the short one, and the
     copy shift."""
+    mechanism, pattern = long.mechanism, long.constraints
+    short_pattern, short = short.constraints, short.mechanism
     maps, shifts = [], []
     for kind in ("joints", "drivers"):
         first = 0 if kind == "joints" else mechanism.n_joints
