@@ -332,11 +332,16 @@ def _analysis_by_tall_lu(scaled, preference, absolute_tolerance, sigma_max, rng,
     """The analysis of a tall Jacobian of full column rank by `TallLU`, or None if a
     coordinate is left without a pivot or its certificate fails."""
     m, n = scaled.shape
-    factor = TallLU(scaled, preference)
-    if not factor.complete:
-        return None
-    values, right = factor.smallest_singular_triplets(rng)
-    if not values[0] >= CERTIFICATE_MARGIN * absolute_tolerance:
+    for fill_reducing in (False, True):  # the rows' own order, then a minimum-degree one
+        factor = TallLU(scaled, preference, fill_reducing)
+        if not factor.complete:
+            if factor.over_budget:
+                continue
+            return None
+        values, right = factor.smallest_singular_triplets(rng)
+        if values[0] >= CERTIFICATE_MARGIN * absolute_tolerance:
+            break
+    else:
         return None
     # the rows left out are combinations of B's: A's smallest singular value is at least
     # B's, and a Rayleigh–Ritz step with A on B's smallest directions estimates it from above

@@ -4,12 +4,14 @@ The common overconstrained mechanism has a Jacobian A of full column rank with m
 rows than columns (rotating squares: 3n² coordinates, (n − 2)² redundant equations).  Its
 rank is then the number of columns n, and naming the redundant equations is choosing n
 independent rows.  `TallLU` offers the rows of A in turn — the drivers first, then the
-joints in a fill-reducing order (`row_order`) — to a left-looking sparse LU of ``A^T``
+joints in their own order, or in a fill-reducing order if that fills in too much
+(`row_order`) — to a left-looking sparse LU of ``A^T``
 (`sparsekin.analysis._tall_lu_kernels.factor_rows`): a row whose remainder, after the rows
 kept so far, is at most `REMAINDER_TOLERANCE` is a combination of them and is named
-redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  A
-redundant row is eliminated once and dropped, so the fill is that of the square system
-that remains: near-linear on chains and meshes.
+redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  Rows
+offered later are named redundant first: in the model's own order, later joints first,
+as the dense analysis names them.  A redundant row is eliminated once and dropped, so the
+fill is that of the square system that remains: near-linear on chains and meshes.
 
 Such an LU is not rank-revealing in theory, so a *certificate* decides whether its answer
 stands: the smallest singular value of the square block ``B`` of the kept rows, estimated
@@ -30,7 +32,7 @@ from scipy import sparse
 
 from . import _tall_lu_kernels as _kernels
 
-__all__ = ["TallLU", "row_order"]
+__all__ = ["TallLU", "row_order", "NATURAL_FILL_LIMIT"]
 
 #: A row whose remainder after the rows kept before it is at most this (the scaled
 #: Jacobian has entries up to 1) is a combination of them.  Measured gap (design notes):
@@ -54,6 +56,13 @@ DEFER = 0.3
 #: failed certificate sends the analysis to the dense one, whose memory grows as
 #: equations × redundant.
 CERTIFICATE_MARGIN = 10.0
+#: The rows are offered in the model's order unless the LU's entries (L and U) then exceed
+#: this many times the entries of A; then in a minimum-degree order.  Model's order against
+#: minimum degree (design notes, issue 26), entries of L + U at 100×100 rotating squares:
+#: 2.2e5 against 3.8e5 (A: 2.0e5), and the kept block better conditioned (its smallest
+#: singular value 9.1e-7 against 3.4e-7; 2.0e-5 against 1.6e-6 at 60×60 rectangles written
+#: as 2×2 motifs).  A model written in a scattered order (random) filled 8e5 at 29×29.
+NATURAL_FILL_LIMIT = 3.0
 #: Sweeps and width of the inverse subspace iteration of the certificate.
 CERTIFICATE_SWEEPS = 4
 CERTIFICATE_BLOCK = 4
@@ -67,24 +76,27 @@ SKETCH_WIDTH = 4
 SKETCH_SLACK = 100.0
 
 
-def row_order(matrix: sparse.csr_array, preference: np.ndarray) -> np.ndarray:
+def row_order(matrix: sparse.csr_array, preference: np.ndarray, fill_reducing: bool = False) -> np.ndarray:
     """The order in which the rows of a tall sparse matrix are offered to `TallLU`.
 
     The rows of preference below 1 (the drivers) first, those of 2 or more (rows a caller
-    wants named redundant if they are) last, and in between, and within each group, a
-    fill-reducing order: multiple minimum degree on the graph of ``A A^T`` (rows sharing a coordinate),
-    taken from SuperLU, which factors ``A A^T + c I`` (symmetric mode, diagonal pivots) and
-    hands out its permutation.  Rows offered later are named redundant first.  One
-    function, so that a nested dissection is a one-line change.
+    wants named redundant if they are) last, and in between, and within each group, the
+    rows in their own order — or, with `fill_reducing`, a multiple minimum degree order of
+    ``A A^T`` (rows sharing a coordinate), taken from SuperLU, which factors ``A A^T + c I``
+    (symmetric mode, diagonal pivots) and hands out its permutation.  Rows offered later
+    are named redundant first.  One function, so that a nested dissection is a one-line
+    change.
     """
-    from scipy.sparse.linalg import splu
+    order = np.arange(matrix.shape[0])
+    if fill_reducing:
+        from scipy.sparse.linalg import splu
 
-    pattern = sparse.csr_array((np.ones(matrix.nnz), matrix.indices, matrix.indptr), shape=matrix.shape)
-    graph = sparse.csc_array(pattern @ pattern.T)
-    shifted = graph + sparse.diags_array(np.full(matrix.shape[0], 1.0 + float(np.max(graph.sum(axis=0), initial=0.0))))
-    factor = splu(sparse.csc_array(shifted), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                  options={"SymmetricMode": True})  # fmt: skip
-    order = np.argsort(factor.perm_c)
+        pattern = sparse.csr_array((np.ones(matrix.nnz), matrix.indices, matrix.indptr), shape=matrix.shape)
+        graph = sparse.csc_array(pattern @ pattern.T)
+        shifted = graph + sparse.diags_array(np.full(matrix.shape[0], 1.0 + float(np.max(graph.sum(axis=0), initial=0.0))))
+        factor = splu(sparse.csc_array(shifted), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options={"SymmetricMode": True})  # fmt: skip
+        order = np.argsort(factor.perm_c)
     group = np.digitize(preference[order], (1.0, 2.0))  # drivers, joints, rows to name first
     return order[np.argsort(group, kind="stable")].astype(np.int64)
 
@@ -100,11 +112,17 @@ class TallLU:
     preference : ndarray, shape (m,)
         Rows below 1 (drivers) are offered first, hence kept if independent; rows of 2
         or more last, hence named redundant if they are (`row_order`).
+    fill_reducing : bool
+        Offer the rows in a minimum-degree order; otherwise in their own order, and if
+        that fills in more than `NATURAL_FILL_LIMIT` times the entries of A, stop (then
+        `complete` is False and `over_budget` True).
 
     Attributes
     ----------
     complete : bool
         Every coordinate found a pivot (else some are free: the dense analysis decides).
+    over_budget : bool
+        The rows' own order filled in too much: the factorization stopped.
     kept_rows : ndarray of int, shape (n,)
         The rows of B, in pivot-step order.
     redundant_rows : ndarray of int, shape (m - n,)
@@ -115,11 +133,12 @@ class TallLU:
         Entries of L and U (the fill).
     """
 
-    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray) -> None:
+    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray, fill_reducing: bool = False) -> None:
         m, n = scaled.shape
         self.shape = (m, n)
         self.scaled = scaled
-        self.order = row_order(scaled, np.asarray(preference, dtype=float))
+        self.order = row_order(scaled, np.asarray(preference, dtype=float), fill_reducing)
+        budget = np.iinfo(np.int64).max if fill_reducing else int(NATURAL_FILL_LIMIT * scaled.nnz)
         offered = sparse.csr_array(scaled[self.order])
         offered.sort_indices()
         stats = np.zeros(_kernels.N_STATS)
@@ -127,13 +146,14 @@ class TallLU:
          self.coordinate_of_step, column_of_step) = _kernels.factor_rows(
             offered.indptr.astype(np.int64), offered.indices.astype(np.int64), offered.data, n,
             int(np.count_nonzero(np.asarray(preference)[self.order] < 2.0)), REMAINDER_TOLERANCE, DEFER,
-            4 * offered.nnz + 16, stats,
+            4 * offered.nnz + 16, budget, stats,
         )  # fmt: skip
         self.max_abs_u = float(stats[_kernels.STAT_MAX_ABS_U])
         self.largest_skipped = float(stats[_kernels.STAT_LARGEST_SKIPPED])
         self.smallest_pivot = float(stats[_kernels.STAT_SMALLEST_PIVOT])
         self.complete = bool(np.all(column_of_step >= 0))
         self.n_entries = int(l_indptr[-1] + self.u_indptr[-1])
+        self.over_budget = self.n_entries > budget
         if not self.complete:
             return
         self.kept_rows = self.order[column_of_step]
