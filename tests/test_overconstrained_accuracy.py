@@ -103,3 +103,23 @@ def test_the_tall_path_names_the_latest_joint_equation_of_each_dependency(build)
     for k, row in enumerate(analysis.redundant_rows.tolist()):
         dependency = analysis.dependency(k)
         assert np.flatnonzero(joints & (np.abs(dependency) > 1e-12)).max() == row
+
+
+def test_joints_listed_in_a_scattered_order_take_the_fill_reducing_order_and_the_closed_form(monkeypatch):
+    """The model's order fills in too much (`NATURAL_FILL_LIMIT`): the tall LU starts again
+    in a nested-dissection order, and the motion is as accurate."""
+    from dataclasses import replace
+
+    from sparsekin.analysis import tall_lu
+
+    n = 14
+    squares = testset.rotating_squares(n).expanded()
+    order = np.random.default_rng(0).permutation(len(squares.joints))
+    mechanism = replace(squares, joints=tuple(squares.joints[k] for k in order))
+    made = []
+    monkeypatch.setattr(rank_module, "TallLU", lambda *args: made.append(tall_lu.TallLU(*args)) or made[-1])
+    result = solved(mechanism, "auto")
+    assert [(factor.over_budget, factor.complete) for factor in made] == [(True, False), (False, True)]
+    assert len(result.redundant_equations) == (n - 2) ** 2
+    exact = testset.rotating_lattice_motion(n, n, TIMES)
+    assert_closed_form(result, exact, lattice_columns(mechanism, n, n, lambda i, j: f"s{i}_{j}.sq"))

@@ -58,14 +58,16 @@ DEFER = 0.3
 #: equations × redundant.
 CERTIFICATE_MARGIN = 10.0
 #: The rows are offered in the model's order unless the LU's entries (L and U) then exceed
-#: this many times the entries of A; then in a nested-dissection order.  Model's order against
-#: minimum degree (design notes, issue 26), entries of L + U at 100×100 rotating squares:
-#: 2.2e5 against 3.8e5 (A: 2.0e5), and the kept block better conditioned (its smallest
-#: singular value 9.1e-7 against 3.4e-7; 2.0e-5 against 1.6e-6 at 60×60 rectangles written
-#: as 2×2 motifs).  A model written in a scattered order (random) filled 8e5 at 29×29.
+#: this many times the entries of A; then in a nested-dissection order.  Entries of L + U
+#: in the model's order against a minimum-degree one (design notes, issue 26): 1.4× A's
+#: entries against 2.4× on rotating squares (100×100: 2.2e5 and 3.8e5), 2.2× against 2.4×
+#: on rectangles written as 2×2 motifs, 1.4× on the parallel-bar chain; and the kept block
+#: better conditioned (its smallest singular value at 100×100 squares 9.1e-7 against
+#: 3.4e-7; 2.0e-5 against 1.6e-6 at 60×60 motif rectangles).  A model whose joints are
+#: listed in a scattered order fills in far more (8e5 entries, about 60× A's, at 29×29 squares).
 #: Nested dissection against minimum degree on 60×60 squares with their joints shuffled:
 #: 1.60e5 against 1.57e5 entries, smallest singular value 3.8e-6 against 7.0e-7.
-NATURAL_FILL_LIMIT = 3.0
+NATURAL_FILL_LIMIT = 4.0
 #: Sweeps and width of the inverse subspace iteration of the certificate.
 CERTIFICATE_SWEEPS = 4
 CERTIFICATE_BLOCK = 4
