@@ -9,8 +9,9 @@ joints in their own order, or in a fill-reducing order if that fills in too much
 (`sparsekin.analysis._tall_lu_kernels.factor_rows`): a row whose remainder, after the rows
 kept so far, is at most `REMAINDER_TOLERANCE` is a combination of them and is named
 redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  Rows
-offered later are named redundant first: in the model's own order, later joints first,
-as the dense analysis names them.  A redundant row is eliminated once and dropped, so the
+offered later are named redundant first: in the model's own order, each redundant row is
+the latest joint equation of its dependency (later joints first, the rule of the small
+models).  A redundant row is eliminated once and dropped, so the
 fill is that of the square system that remains: near-linear on chains and meshes.
 
 Such an LU is not rank-revealing in theory, so a *certificate* decides whether its answer
