@@ -46,11 +46,9 @@ def _peak_rss_bytes() -> int:
 
 def _squares_error(coordinates: np.ndarray, n: int, t: float) -> float:
     """Largest position error (m) of the rotating squares against the closed form."""
-    theta = 0.3 + testset.SQUARES_AMPLITUDE * np.sin(testset.SQUARES_OMEGA * t)
-    pitch = np.cos(theta) + np.sin(theta)
-    j, i = np.divmod(np.arange(n * n), n)
-    q = coordinates.reshape(-1, 3)
-    return float(max(np.abs(q[:, 0] - i * pitch).max(), np.abs(q[:, 1] - j * pitch).max()))
+    exact = testset.rotating_lattice_motion(n, n, [t])[0][0]  # [i, j] = (x, y, angle)
+    q = coordinates.reshape(n, n, 3).transpose(1, 0, 2)  # bodies row by row: [j, i]
+    return float(np.abs(q[..., :2] - exact[..., :2]).max())
 
 
 def main(family: str, size: int, steps: int = 5) -> dict:

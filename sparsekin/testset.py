@@ -14,6 +14,9 @@ known independently of the solver:
 * `rotating_squares`, `rotating_rectangles` — Grima and Evans's auxetic metamaterials:
   squares (rectangles) hinged at their corners, one driver, (n − 2)² redundant equations;
   the lattice scales with the opening angle (Poisson's ratio −1 for squares).
+* `rotating_rectangles_motif` — the rotating rectangles as a grid of 2 × 2 motifs, as
+  ``examples/rotating_squares.toml`` writes the squares; `rotating_lattice_motion` is the
+  closed form of all three.
 * `parallel_bar_chain` — a tower of parallelogram cells with three parallel bars each (one
   redundant equation per cell), or two (``bars=2``, the non-redundant twin).
 
@@ -37,7 +40,8 @@ from .model.mechanism import Body, Mechanism
 from .model.units import Cycle, OnCopies, Repeat, Unit
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "lattice_unit",
-           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "parallel_bar_chain", "task5_unit_phases"]
+           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "rotating_rectangles_motif", "rotating_lattice_motion",
+           "parallel_bar_chain", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -366,6 +370,86 @@ def rotating_rectangles(ni: int, nj: int, width: float = 1.0, height: float = 0.
     pitch = (width * math.cos(angle) + height * math.sin(angle), width * math.sin(angle) + height * math.cos(angle))
     return _rotating_lattice(unit, vary, "rect", "r", (ni, nj), pitch, amplitude, omega,
                              f"rotating_rectangles_{ni}x{nj}")  # fmt: skip
+
+
+def rotating_rectangles_motif(copies_i: int, copies_j: int, width: float = 1.0, height: float = 0.6,
+                              angle: float = 0.3, amplitude: float = SQUARES_AMPLITUDE,
+                              omega: float = SQUARES_OMEGA) -> Mechanism:  # fmt: skip
+    """`rotating_rectangles` of 2·copies_i × 2·copies_j rectangles written as a grid of 2 × 2
+    motifs: copy (i, j) holds rectangles a, b (bottom left, right) and c, d (top left,
+    right), bodies ``m{i}_{j}.a`` …, hinged to each other and to the copies on their left
+    and below; the same ground joints and driver on rectangle a of copy (0, 0).
+
+    Rectangle (I, J) = (2i + column in the motif, 2j + row) follows the closed form of
+    `rotating_rectangles` (`rotating_lattice_motion`); only the order of the bodies and of
+    the equations differs.
+    """
+    copies_i, copies_j = _whole(copies_i, "copies_i", 1), _whole(copies_j, "copies_j", 1)
+    across = width * math.cos(angle) + height * math.sin(angle)
+    up = width * math.sin(angle) + height * math.cos(angle)
+    half = ((-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5))
+
+    def centre(column: int, row: int) -> tuple[float, float]:
+        return (column * across, row * up)
+
+    def corners(column: int, row: int) -> np.ndarray:
+        turn = angle if (column + row) % 2 == 0 else -angle
+        return np.array(centre(column, row)) + [_turned(turn, x * width, y * height) for x, y in half]
+
+    def shared(first: tuple[int, int], second: tuple[int, int]) -> tuple[float, float]:
+        distance = np.linalg.norm(corners(*first)[:, None] - corners(*second)[None], axis=-1)
+        return tuple(float(x) for x in corners(*first)[np.unravel_index(np.argmin(distance), distance.shape)[0]])
+
+    motif = {"a": (0, 0), "b": (1, 0), "c": (0, 1), "d": (1, 1)}
+    hinges = {"ab": ("a", "b", (1, 0)), "ac": ("a", "c", (0, 1)), "bd": ("b", "d", (1, 1)), "cd": ("c", "d", (1, 1)),
+              "a_left": ("a", "left.b", (-1, 0)), "c_left": ("c", "left.d", (-1, 1)),
+              "a_below": ("a", "below.c", (0, -1)), "b_below": ("b", "below.d", (1, -1))}  # fmt: skip
+    points = {f"C{name}": centre(*place) for name, place in motif.items()}
+    points |= {name: shared(motif[first], neighbour) for name, (first, _, neighbour) in hinges.items()}
+    unit = Unit(
+        "motif",
+        points=points,
+        bodies=[Body(name, origin=f"C{name}", angle=angle if sum(place) % 2 == 0 else -angle)
+                for name, place in motif.items()],
+        joints=[Revolute((first, second), at=name) for name, (first, second, _) in hinges.items()],
+    )  # fmt: skip
+    repeat = Repeat(unit, count=(copies_i, copies_j), prefix="m", offset=((2 * across, 0.0), (0.0, 2 * up)))
+    return Mechanism(
+        points={},
+        bodies=[],
+        joints=[Revolute(("m0_0.a", "ground"), at="m0_0.Ca"),
+                PinInSlot(("ground", "m0_0.b"), at="m0_0.Cb", direction=(1.0, 0.0))],
+        drivers=[RotationalDriver(("m0_0.a", "ground"), law=Harmonic(amplitude=amplitude, omega=omega))],
+        repeats=[repeat],
+        name=f"rotating_rectangles_{2 * copies_i}x{2 * copies_j}_motif",
+    )  # fmt: skip
+
+
+def rotating_lattice_motion(ni: int, nj: int, times, width: float = 1.0, height: float = 1.0, angle: float = 0.3,
+                            amplitude: float = SQUARES_AMPLITUDE, omega: float = SQUARES_OMEGA):  # fmt: skip
+    """The exact motion of `rotating_squares` (width = height = 1), `rotating_rectangles`
+    and `rotating_rectangles_motif`: rectangle (i, j) centred at (i·a(θ), j·b(θ)) and turned
+    by (−1)^(i+j)·θ, a = width·cos θ + height·sin θ, b = width·sin θ + height·cos θ,
+    θ = angle + amplitude·sin(omega·t) (a'' = −a, b'' = −b in θ).
+
+    Returns positions, velocities and accelerations, each of shape (len(times), ni, nj, 3):
+    [t, i, j] = (x, y, angle) of rectangle (i, j) and their time derivatives.
+    """
+    times = np.asarray(times, dtype=float)
+    theta = angle + amplitude * np.sin(omega * times)
+    rate = amplitude * omega * np.cos(omega * times)
+    accel = -amplitude * omega**2 * np.sin(omega * times)
+    across = width * np.cos(theta) + height * np.sin(theta)
+    up = width * np.sin(theta) + height * np.cos(theta)
+    across_d, up_d = height * np.cos(theta) - width * np.sin(theta), width * np.cos(theta) - height * np.sin(theta)
+    i, j = np.meshgrid(np.arange(ni), np.arange(nj), indexing="ij")
+    sign = (-1.0) ** (i + j)
+    out = []
+    for a, b, turn in ((across, up, theta), (across_d * rate, up_d * rate, rate),
+                       (across_d * accel - across * rate**2, up_d * accel - up * rate**2, accel)):  # fmt: skip
+        out.append(np.stack(np.broadcast_arrays(i * a[:, None, None], j * b[:, None, None],
+                                                sign * turn[:, None, None]), axis=-1))  # fmt: skip
+    return tuple(out)
 
 
 #: Amplitude (rad) and angular frequency (rad/s) of the drivers of `parallel_bar_chain`,

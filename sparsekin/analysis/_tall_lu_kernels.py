@@ -95,7 +95,7 @@ def _touch(row, stamp, mark, x, touched, n_touched, step_of_row, heap, n_heap):
 
 
 @njit(**_JIT)
-def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, capacity, stats):
+def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, capacity, budget, stats):
     """Left-looking (Gilbert–Peierls) LU of ``M = A^T`` that keeps the independent columns.
 
     For column k: the sparse triangular solve with the columns of L already made (their
@@ -105,7 +105,8 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, c
     `defer`, the column is offered again after all the others (a nearly dependent row kept
     early makes the kept block ill-conditioned); otherwise the largest entry is the pivot.
     The columns from `n_early` on are offered only after the deferred ones.  Stops when
-    every coordinate has a pivot.
+    every coordinate has a pivot, or when L and U hold more than `budget` entries (the
+    order fills in too much: the steps not reached are left empty).
 
     Returns
     -------
@@ -139,7 +140,7 @@ def factor_rows(a_indptr, a_rows, a_values, n_rows, n_early, tolerance, defer, c
     n_deferred = 0
     stamp = -1
     for offer in range(2 * n_columns):
-        if s == n:
+        if s == n or l_used + u_used > budget:
             break
         first_pass = offer < n_columns
         if first_pass and offer >= n_early:  # a late column: offered only after the deferred ones

@@ -52,7 +52,7 @@ It grows with the nullity, which is expected to be small (blocks of up to `MAX_N
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
@@ -151,6 +151,7 @@ class JacobianAnalysis:
     smallest_equations: np.ndarray
     row_scale: np.ndarray
     column_scale: np.ndarray
+    _involvement: dict = field(default_factory=dict, init=False, repr=False)
 
     @property
     def n_free(self) -> int:
@@ -175,25 +176,43 @@ class JacobianAnalysis:
         involve them (for a tall Jacobian analysed by its LU)."""
         return self.dependency_source.rows_in_dependencies(np.asarray(rows, dtype=np.int64))
 
+    def involvement(self, rows) -> tuple[np.ndarray, int]:
+        """Which dependencies the equations `rows` take part in, and how many independent
+        ones: decided once per set of rows (kept), with one threshold, `INVOLVEMENT`.
+
+        A dependency involves `rows` if one of their weights is at least `INVOLVEMENT`
+        relative to the redundant equation's own 1; the count is the rank of their
+        weights in those dependencies, singular values below `INVOLVEMENT` times the
+        largest weight counting as zero.
+        """
+        rows = np.asarray(rows, dtype=np.int64)
+        key = rows.tobytes()
+        if key not in self._involvement:
+            weights = self.rows_in_dependencies(rows)
+            if not weights.shape[0] or not weights.shape[1]:
+                found = (np.zeros(self.n_redundant, dtype=bool), 0)
+            else:
+                if sparse.issparse(weights):
+                    weights = sparse.csc_array(weights)
+                largest = abs(weights).max(axis=0)
+                involved = np.asarray(largest.toarray() if hasattr(largest, "toarray") else largest).ravel() >= INVOLVEMENT
+                taking_part = weights[:, np.flatnonzero(involved)]
+                taking_part = taking_part.toarray() if sparse.issparse(taking_part) else taking_part
+                scale = max(1.0, float(np.abs(taking_part).max(initial=0.0)))  # each dependency has 1 at its own row
+                count = int(np.linalg.matrix_rank(taking_part, tol=INVOLVEMENT * scale)) if taking_part.size else 0
+                found = (involved, count)
+            self._involvement[key] = found
+        return self._involvement[key]
+
     def involve(self, rows) -> np.ndarray:
         """For each dependency, whether one of the equations `rows` takes part in it
         (a weight of at least `INVOLVEMENT` relative to the redundant equation's own 1)."""
-        weights = self.rows_in_dependencies(rows)
-        if not weights.shape[0]:
-            return np.zeros(self.n_redundant, dtype=bool)
-        largest = abs(weights).max(axis=0)
-        return np.asarray(largest.toarray() if hasattr(largest, "toarray") else largest).ravel() >= INVOLVEMENT
+        return self.involvement(rows)[0]
 
     def dependency_rank(self, rows) -> int:
         """The rank of the weights of the equations `rows` in the dependencies: how many
-        independent dependencies they take part in."""
-        weights = self.rows_in_dependencies(rows)
-        if sparse.issparse(weights):
-            weights = weights[:, np.unique(weights.tocoo().col)].toarray()
-        if not weights.size:
-            return 0
-        scale = max(1.0, float(np.abs(weights).max()))  # each dependency has 1 at its own row
-        return int(np.linalg.matrix_rank(weights, tol=1e-8 * scale))
+        independent dependencies they take part in (`involvement`)."""
+        return self.involvement(rows)[1]
 
     @property
     def dependencies(self) -> np.ndarray:
@@ -336,11 +355,16 @@ def _analysis_by_tall_lu(scaled, preference, absolute_tolerance, sigma_max, rng,
     """The analysis of a tall Jacobian of full column rank by `TallLU`, or None if a
     coordinate is left without a pivot or its certificate fails."""
     m, n = scaled.shape
-    factor = TallLU(scaled, preference)
-    if not factor.complete:
-        return None
-    values, right = factor.smallest_singular_triplets(rng)
-    if not values[0] >= CERTIFICATE_MARGIN * absolute_tolerance:
+    for fill_reducing in (False, True):  # the rows' own order, then a nested dissection
+        factor = TallLU(scaled, preference, fill_reducing)
+        if not factor.complete:
+            if factor.over_budget:
+                continue
+            return None
+        values, right = factor.smallest_singular_triplets(rng)
+        if values[0] >= CERTIFICATE_MARGIN * absolute_tolerance:
+            break
+    else:
         return None
     # the rows left out are combinations of B's: A's smallest singular value is at least
     # B's, and a Rayleigh–Ritz step with A on B's smallest directions estimates it from above

@@ -4,12 +4,15 @@ The common overconstrained mechanism has a Jacobian A of full column rank with m
 rows than columns (rotating squares: 3n² coordinates, (n − 2)² redundant equations).  Its
 rank is then the number of columns n, and naming the redundant equations is choosing n
 independent rows.  `TallLU` offers the rows of A in turn — the drivers first, then the
-joints in a fill-reducing order (`row_order`) — to a left-looking sparse LU of ``A^T``
+joints in their own order, or in a fill-reducing order if that fills in too much
+(`row_order`) — to a left-looking sparse LU of ``A^T``
 (`sparsekin.analysis._tall_lu_kernels.factor_rows`): a row whose remainder, after the rows
 kept so far, is at most `REMAINDER_TOLERANCE` is a combination of them and is named
-redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  A
-redundant row is eliminated once and dropped, so the fill is that of the square system
-that remains: near-linear on chains and meshes.
+redundant; the others are kept, each pivoting on a coordinate (partial pivoting).  Rows
+offered later are named redundant first: in the model's own order, each redundant row is
+the latest joint equation of its dependency (later joints first, the rule of the small
+models).  A redundant row is eliminated once and dropped, so the
+fill is that of the square system that remains: near-linear on chains and meshes.
 
 Such an LU is not rank-revealing in theory, so a *certificate* decides whether its answer
 stands: the smallest singular value of the square block ``B`` of the kept rows, estimated
@@ -28,9 +31,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
+from ..engine.ordering import fill_reducing_row_order
 from . import _tall_lu_kernels as _kernels
 
-__all__ = ["TallLU", "row_order"]
+__all__ = ["TallLU", "row_order", "NATURAL_FILL_LIMIT"]
 
 #: A row whose remainder after the rows kept before it is at most this (the scaled
 #: Jacobian has entries up to 1) is a combination of them.  Measured gap (design notes):
@@ -54,6 +58,17 @@ DEFER = 0.3
 #: failed certificate sends the analysis to the dense one, whose memory grows as
 #: equations × redundant.
 CERTIFICATE_MARGIN = 10.0
+#: The rows are offered in the model's order unless the LU's entries (L and U) then exceed
+#: this many times the entries of A; then in a nested-dissection order.  Entries of L + U
+#: in the model's order against a minimum-degree one (design notes, issue 26): 1.4× A's
+#: entries against 2.4× on rotating squares (100×100: 2.2e5 and 3.8e5), 2.2× against 2.4×
+#: on rectangles written as 2×2 motifs, 1.4× on the parallel-bar chain; and the kept block
+#: better conditioned (its smallest singular value at 100×100 squares 9.1e-7 against
+#: 3.4e-7; 2.0e-5 against 1.6e-6 at 60×60 motif rectangles).  A model whose joints are
+#: listed in a scattered order fills in far more (8e5 entries, about 60× A's, at 29×29 squares).
+#: Nested dissection against minimum degree on 60×60 squares with their joints shuffled:
+#: 1.60e5 against 1.57e5 entries, smallest singular value 3.8e-6 against 7.0e-7.
+NATURAL_FILL_LIMIT = 4.0
 #: Sweeps and width of the inverse subspace iteration of the certificate.
 CERTIFICATE_SWEEPS = 4
 CERTIFICATE_BLOCK = 4
@@ -65,26 +80,23 @@ INVOLVEMENT = 1e-6
 #: squared norm of 4 Gaussians is below 4/10^4 with probability about 2e-8).
 SKETCH_WIDTH = 4
 SKETCH_SLACK = 100.0
+#: Up to this many rows, their weights in every dependency are computed exactly, one solve
+#: per row (``-A_R B^-1 e_row``), not by the sketch: with one driver at 300×300 squares the
+#: sketch flagged 5 634 dependencies by rounding (weights about 1e-8), one solve each, 29 s
+#: of the first sample; the exact weights take one solve.
+EXACT_ROWS = 2 * SKETCH_WIDTH
 
 
-def row_order(matrix: sparse.csr_array, preference: np.ndarray) -> np.ndarray:
+def row_order(matrix: sparse.csr_array, preference: np.ndarray, fill_reducing: bool = False) -> np.ndarray:
     """The order in which the rows of a tall sparse matrix are offered to `TallLU`.
 
     The rows of preference below 1 (the drivers) first, those of 2 or more (rows a caller
-    wants named redundant if they are) last, and in between, and within each group, a
-    fill-reducing order: multiple minimum degree on the graph of ``A A^T`` (rows sharing a coordinate),
-    taken from SuperLU, which factors ``A A^T + c I`` (symmetric mode, diagonal pivots) and
-    hands out its permutation.  Rows offered later are named redundant first.  One
-    function, so that a nested dissection is a one-line change.
+    wants named redundant if they are) last, and in between, and within each group, the
+    rows in their own order — or, with `fill_reducing`, a nested dissection of the graph of
+    ``A A^T`` (rows sharing a coordinate; `fill_reducing_row_order`).  Rows offered later
+    are named redundant first.
     """
-    from scipy.sparse.linalg import splu
-
-    pattern = sparse.csr_array((np.ones(matrix.nnz), matrix.indices, matrix.indptr), shape=matrix.shape)
-    graph = sparse.csc_array(pattern @ pattern.T)
-    shifted = graph + sparse.diags_array(np.full(matrix.shape[0], 1.0 + float(np.max(graph.sum(axis=0), initial=0.0))))
-    factor = splu(sparse.csc_array(shifted), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                  options={"SymmetricMode": True})  # fmt: skip
-    order = np.argsort(factor.perm_c)
+    order = fill_reducing_row_order(matrix) if fill_reducing else np.arange(matrix.shape[0])
     group = np.digitize(preference[order], (1.0, 2.0))  # drivers, joints, rows to name first
     return order[np.argsort(group, kind="stable")].astype(np.int64)
 
@@ -100,11 +112,17 @@ class TallLU:
     preference : ndarray, shape (m,)
         Rows below 1 (drivers) are offered first, hence kept if independent; rows of 2
         or more last, hence named redundant if they are (`row_order`).
+    fill_reducing : bool
+        Offer the rows in a fill-reducing order; otherwise in their own order, and if
+        that fills in more than `NATURAL_FILL_LIMIT` times the entries of A, stop (then
+        `complete` is False and `over_budget` True).
 
     Attributes
     ----------
     complete : bool
         Every coordinate found a pivot (else some are free: the dense analysis decides).
+    over_budget : bool
+        The rows' own order filled in too much: the factorization stopped.
     kept_rows : ndarray of int, shape (n,)
         The rows of B, in pivot-step order.
     redundant_rows : ndarray of int, shape (m - n,)
@@ -115,11 +133,12 @@ class TallLU:
         Entries of L and U (the fill).
     """
 
-    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray) -> None:
+    def __init__(self, scaled: sparse.csr_array, preference: np.ndarray, fill_reducing: bool = False) -> None:
         m, n = scaled.shape
         self.shape = (m, n)
         self.scaled = scaled
-        self.order = row_order(scaled, np.asarray(preference, dtype=float))
+        self.order = row_order(scaled, np.asarray(preference, dtype=float), fill_reducing)
+        budget = np.iinfo(np.int64).max if fill_reducing else int(NATURAL_FILL_LIMIT * scaled.nnz)
         offered = sparse.csr_array(scaled[self.order])
         offered.sort_indices()
         stats = np.zeros(_kernels.N_STATS)
@@ -127,13 +146,14 @@ class TallLU:
          self.coordinate_of_step, column_of_step) = _kernels.factor_rows(
             offered.indptr.astype(np.int64), offered.indices.astype(np.int64), offered.data, n,
             int(np.count_nonzero(np.asarray(preference)[self.order] < 2.0)), REMAINDER_TOLERANCE, DEFER,
-            4 * offered.nnz + 16, stats,
+            4 * offered.nnz + 16, budget, stats,
         )  # fmt: skip
         self.max_abs_u = float(stats[_kernels.STAT_MAX_ABS_U])
         self.largest_skipped = float(stats[_kernels.STAT_LARGEST_SKIPPED])
         self.smallest_pivot = float(stats[_kernels.STAT_SMALLEST_PIVOT])
         self.complete = bool(np.all(column_of_step >= 0))
         self.n_entries = int(l_indptr[-1] + self.u_indptr[-1])
+        self.over_budget = self.n_entries > budget
         if not self.complete:
             return
         self.kept_rows = self.order[column_of_step]
@@ -196,7 +216,7 @@ class TallLU:
 
     def rows_in_dependencies(self, rows: np.ndarray) -> sparse.csc_array:
         """The weights of the rows `rows` in every dependency: shape (len(rows), m - n),
-        sparse, exact in the dependencies that involve them.
+        sparse, exact in the dependencies that involve them (in all, up to `EXACT_ROWS` rows).
 
         A sketch finds those dependencies without a solve per row: with a Gaussian block
         W (len(rows), `SKETCH_WIDTH`), ``V = A_R B^-1 E W`` (E the unit vectors of the
@@ -208,6 +228,15 @@ class TallLU:
         rows = np.asarray(rows, dtype=np.int64)
         steps = self.step_of_row[rows]
         kept = steps >= 0
+        if rows.size <= EXACT_ROWS:  # a solve per row gives its weight in every dependency
+            weights = np.zeros((rows.size, self.redundant_rows.size))
+            for index in np.flatnonzero(kept).tolist():
+                unit = np.zeros(self.shape[1])
+                unit[steps[index]] = 1.0
+                weights[index] = -(self.redundant_jacobian @ self.solve(unit))
+            own = np.flatnonzero(~kept)
+            weights[own, np.searchsorted(self.redundant_rows, rows[own])] = 1.0
+            return sparse.csc_array(weights)
         sketch = np.random.default_rng(0).standard_normal((rows.size, SKETCH_WIDTH))
         block = np.zeros((self.shape[1], SKETCH_WIDTH))
         np.add.at(block, steps[kept], sketch[kept])
