@@ -43,7 +43,7 @@ from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model.mechanism import Mechanism
 from sparsekin.engine.pattern import build_pattern
 from sparsekin.engine.ordering import metis_installed
-from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy
+from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy, sparse_solver_for
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -105,15 +105,19 @@ class RebuildBaseline:
 
 #: Linear solvers by path name: each is built from the mechanism's pattern.
 LINEAR_SOLVERS = {
-    "sparsekin": lambda pattern: RefactorSolver(
-        ordering="metis" if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed() else "colamd"
+    "sparsekin": lambda mechanism, pattern: (
+        sparse_solver_for(mechanism)
+        if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed()
+        else RefactorSolver()
     ),
-    "superlu": lambda pattern: SuperLUSolver(),
-    "dense": DenseBaseline,
-    "coo_spsolve": RebuildBaseline,
+    # ``"auto"`` on meshes before issue 29: the METIS-ordered refactorization, reused
+    "refactor-metis": lambda mechanism, pattern: RefactorSolver(ordering="metis"),
+    "superlu": lambda mechanism, pattern: SuperLUSolver(),
+    "dense": lambda mechanism, pattern: DenseBaseline(pattern),
+    "coo_spsolve": lambda mechanism, pattern: RebuildBaseline(pattern),
 }
 #: The paths whose Newton iteration is chord Newton (the others run plain Newton).
-CHORD = frozenset({"sparsekin"})
+CHORD = frozenset({"sparsekin", "refactor-metis"})
 
 
 class _Timed:
@@ -178,14 +182,14 @@ class Stepper:
         solver_phases = {
             "factor": "factorization", "factor_ordered": "factorization", "solve": "solves", "solve_held": "solves",
         }  # fmt: skip
-        solver = LINEAR_SOLVERS[linear_solver](pattern)
+        solver = LINEAR_SOLVERS[linear_solver](mechanism, pattern)
         self.stepper = KinematicStepper(
             mechanism, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
             pattern=pattern, assembler=assembler,
         )  # fmt: skip
         self.stepper.start(0.0)
         self.path = linear_solver
-        if linear_solver == "sparsekin" and fill_is_heavy(solver, pattern):
+        if linear_solver in CHORD and fill_is_heavy(solver, pattern):
             # as `start` does under "auto"; a refactorization GMRES finds necessary inside
             # a solve is timed with the solves
             # (`start` again solves from the drawing: the first Jacobian is refactored)

@@ -126,11 +126,44 @@ def test_refactorization_on_metis_order(rng):
     assert solver.nnz_factors < 1.3 * colamd.nnz_factors
 
 
+@pytest.mark.skipif(not metis_installed(), reason="no pymetis")
+def test_superlu_in_metis_order(rng, monkeypatch):
+    """`SuperLUSolver(ordering="metis")`: METIS's order once per pattern, less fill than
+    COLAMD on a mesh, and both systems solved as SuperLU in its own order solves them."""
+    from sparsekin.engine import ordering
+    from sparsekin.engine.linalg import SuperLUSolver
+
+    orders = []
+    original = ordering.fill_reducing_column_order
+    monkeypatch.setattr(ordering, "fill_reducing_column_order", lambda *a, **k: orders.append(1) or original(*a, **k))
+    jacobian = _lattice_jacobian(20, 20, rng)
+    solver = SuperLUSolver(ordering="metis")
+    for _ in range(3):
+        jacobian.data *= 1.0 + 0.01 * rng.standard_normal(jacobian.nnz)
+        solver.factor(jacobian)
+        rhs = rng.standard_normal((jacobian.shape[0], 2))
+        for transposed, operator in ((False, jacobian), (True, jacobian.T)):
+            expected = splu(operator.tocsc()).solve(rhs)
+            x = solver.solve(rhs, transposed=transposed)
+            np.testing.assert_allclose(operator @ x, rhs, rtol=0, atol=1e-11)
+            np.testing.assert_allclose(x, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    assert len(orders) == 1 and solver.n_factorizations == 3
+    solver.factor(_lattice_jacobian(20, 21, rng))  # a new pattern: a new order
+    assert len(orders) == 2
+    colamd = SuperLUSolver()
+    colamd.factor(jacobian)
+    solver.factor(jacobian)
+    assert len(orders) == 3 and solver.nnz_factors < colamd.nnz_factors
+
+
 def test_refactorization_ordering_is_checked():
     from sparsekin.engine.linalg import RefactorSolver
 
-    with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
-        RefactorSolver(ordering="amd")
+    from sparsekin.engine.linalg import SuperLUSolver
+
+    for solver in (RefactorSolver, SuperLUSolver):
+        with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
+            solver(ordering="amd")
 
 
 def test_metis_without_pymetis_names_the_extra(monkeypatch):

@@ -4,8 +4,9 @@ A linear solver factors the Jacobian (`factor`) and then solves any number of ri
 sides with that factorization (`solve`): one vector, or several at once as the columns
 of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocated `out`.
 
-* `SuperLUSolver` — scipy's SuperLU with the COLAMD ordering, a fresh factorization
-  every time.
+* `SuperLUSolver` — scipy's SuperLU, a fresh factorization every time, with the COLAMD
+  ordering or (``ordering="metis"``, meshes) METIS's nested dissection computed once per
+  pattern.
 * `RefactorSolver` — a first SuperLU factorization fixes the ordering and the pivot
   sequence; every later `factor` is a numeric refactorization on the fixed structural
   patterns of L and U (numba kernels in `sparsekin.engine._lu_kernels`), guarded: when the fixed
@@ -57,7 +58,7 @@ MAX_GROWTH = 1e3
 #: The column ordering of every SuperLU factorization (unless `RefactorSolver`'s
 #: ``ordering="metis"``).
 _ORDERING = "COLAMD"
-#: The column orderings of `RefactorSolver`'s fresh factorizations.
+#: The column orderings of `SuperLUSolver` and of `RefactorSolver`'s fresh factorizations.
 ORDERINGS = ("colamd", "metis")
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
@@ -132,6 +133,15 @@ def _checked_square(jacobian) -> int:
 class SuperLUSolver:
     """scipy's SuperLU, factoring the CSC view ``jacobian.T`` (no copy, no conversion).
 
+    Parameters
+    ----------
+    ordering : {"colamd", "metis"}
+        The column order: SuperLU's COLAMD, or METIS's nested dissection
+        (`sparsekin.engine.ordering.fill_reducing_column_order`, the ``meshes`` extra),
+        computed once per pattern and given to SuperLU as its natural order.  On meshes
+        the METIS order has less fill: faster factorizations and solves (docs/design-notes.md,
+        "Sparse LU on meshes").
+
     Examples
     --------
     >>> import numpy as np
@@ -144,19 +154,35 @@ class SuperLUSolver:
 
     name = "superlu"
 
-    def __init__(self) -> None:
+    def __init__(self, *, ordering: str = "colamd") -> None:
+        if ordering not in ORDERINGS:
+            raise ValueError(f"`ordering` must be one of {', '.join(map(repr, ORDERINGS))}, got {ordering!r}.")
+        self.ordering = ordering
         self._lu = None
+        self._order = None  # METIS's column order of the pattern (`_pattern`), once computed
+        self._pattern = None  # (indptr, indices) that `_order` was computed for
         self.n_factorizations = 0
         self.n_refactorizations = 0
         self.n_solves = 0
 
+    @property
+    def nnz_factors(self) -> int:
+        """Entries of SuperLU's last L and U (its nonzeros; no structural zeros kept)."""
+        if self._lu is None:
+            raise RuntimeError(_NOT_FACTORED)
+        return int(self._lu.nnz)
+
     def factor(self, jacobian: csr_array) -> None:
         """Factor `jacobian` (square CSR); raise `SingularMatrix` if it is exactly singular."""
         self.n_factorizations += 1
+        self._lu = None
+        matrix = jacobian.T
         try:
-            self._lu = _splu(jacobian.T)
+            if self.ordering == "metis":
+                self._lu = _splu(matrix[:, self._column_order(jacobian)], "NATURAL")
+            else:
+                self._lu = _splu(matrix)
         except RuntimeError as error:  # "Factor is exactly singular"
-            self._lu = None
             raise SingularMatrix(str(error)) from error
 
     def solve(
@@ -181,8 +207,17 @@ class SuperLUSolver:
         rhs = np.asarray(rhs, dtype=float)
         if out is not None:
             _checked_rhs(rhs, self._lu.shape[0], out)
-        # The factors are those of A = jacobian.T: jacobian @ x = rhs is the transposed system.
-        solution = self._lu.solve(rhs, trans="N" if transposed else "T")
+        # The factors are those of A = jacobian.T (of ``A Q = A[:, order]`` with METIS's
+        # order): jacobian @ x = rhs is ``(A Q).T x = Q.T rhs``, jacobian.T @ x = rhs is
+        # ``(A Q) (Q.T x) = rhs``.
+        order = self._order if self.ordering == "metis" else None
+        if transposed:
+            solution = self._lu.solve(rhs, trans="N")
+            if order is not None:
+                permuted, solution = solution, np.empty_like(solution)
+                solution[order] = permuted
+        else:
+            solution = self._lu.solve(rhs if order is None else rhs[order], trans="T")
         if out is not None:
             out[...] = solution
             solution = out
@@ -190,6 +225,21 @@ class SuperLUSolver:
         if not np.all(np.isfinite(solution)):
             raise SingularMatrix("the solution is not finite")
         return solution
+
+    def _column_order(self, jacobian: csr_array) -> np.ndarray:
+        """METIS's order of the columns of ``jacobian.T``, computed again only for a new pattern."""
+        pattern = self._pattern
+        same = pattern is not None and (
+            (jacobian.indptr is pattern[0] and jacobian.indices is pattern[1])
+            or (np.array_equal(jacobian.indptr, pattern[0]) and np.array_equal(jacobian.indices, pattern[1]))
+        )
+        if not same:
+            from .ordering import fill_reducing_column_order
+
+            self._order = None
+            self._order = fill_reducing_column_order(jacobian.T, method="metis")
+            self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
+        return self._order
 
 
 class RefactorSolver:
