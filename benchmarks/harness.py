@@ -19,6 +19,10 @@ The paths compared, measured in the same run:
   `ReusingSolver` (GMRES preconditioned by the held factorization): path ``"reuse"``.
 * ``superlu`` — the same with a fresh SuperLU factorization (COLAMD, through the CSC
   view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
+* ``superlu-metis`` — on meshes (issue 29): SuperLU in METIS's order
+  (`SuperLUSolver(ordering="metis")`), chord Newton, its factorization always reused across
+  samples by `ReusingSolver`: a first sample about twice as fast as ``sparsekin``'s on the
+  lattice, steps 10–20 % slower (SuperLU's solves; docs/design-notes.md, "Sparse LU on meshes").
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
   ``numpy.linalg.solve`` for every linear system.
 * `RebuildBaseline` — the straightforward sparse code: the Jacobian rebuilt from (row,
@@ -43,9 +47,9 @@ from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
 from sparsekin.model.mechanism import Mechanism
 from sparsekin.engine.pattern import build_pattern
 from sparsekin.engine.ordering import metis_installed
-from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy, sparse_solver_for
+from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy
 
-__all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
+__all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD", "REUSED"]
 
 #: The phases a time step is split into.
 PHASES = ("assembly", "factorization", "solves")
@@ -105,19 +109,19 @@ class RebuildBaseline:
 
 #: Linear solvers by path name: each is built from the mechanism's pattern.
 LINEAR_SOLVERS = {
-    "sparsekin": lambda mechanism, pattern: (
-        sparse_solver_for(mechanism)
-        if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed()
-        else RefactorSolver()
+    "sparsekin": lambda pattern: RefactorSolver(
+        ordering="metis" if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed() else "colamd"
     ),
-    # ``"auto"`` on meshes before issue 29: the METIS-ordered refactorization, reused
-    "refactor-metis": lambda mechanism, pattern: RefactorSolver(ordering="metis"),
-    "superlu": lambda mechanism, pattern: SuperLUSolver(),
-    "dense": lambda mechanism, pattern: DenseBaseline(pattern),
-    "coo_spsolve": lambda mechanism, pattern: RebuildBaseline(pattern),
+    # meshes (issue 29): SuperLU in METIS's order, reused across samples like "sparsekin"'s
+    "superlu-metis": lambda pattern: SuperLUSolver(ordering="metis"),
+    "superlu": lambda pattern: SuperLUSolver(),
+    "dense": DenseBaseline,
+    "coo_spsolve": RebuildBaseline,
 }
 #: The paths whose Newton iteration is chord Newton (the others run plain Newton).
-CHORD = frozenset({"sparsekin", "refactor-metis"})
+CHORD = frozenset({"sparsekin", "superlu-metis"})
+#: The paths that always reuse their factorization across samples (`ReusingSolver`).
+REUSED = frozenset({"superlu-metis"})
 
 
 class _Timed:
@@ -182,14 +186,14 @@ class Stepper:
         solver_phases = {
             "factor": "factorization", "factor_ordered": "factorization", "solve": "solves", "solve_held": "solves",
         }  # fmt: skip
-        solver = LINEAR_SOLVERS[linear_solver](mechanism, pattern)
+        solver = LINEAR_SOLVERS[linear_solver](pattern)
         self.stepper = KinematicStepper(
             mechanism, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
             pattern=pattern, assembler=assembler,
         )  # fmt: skip
         self.stepper.start(0.0)
         self.path = linear_solver
-        if linear_solver in CHORD and fill_is_heavy(solver, pattern):
+        if linear_solver in REUSED or (linear_solver == "sparsekin" and fill_is_heavy(solver, pattern)):
             # as `start` does under "auto"; a refactorization GMRES finds necessary inside
             # a solve is timed with the solves
             # (`start` again solves from the drawing: the first Jacobian is refactored)

@@ -172,3 +172,16 @@ def test_metis_without_pymetis_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "pymetis", None)  # import pymetis raises ImportError
     with pytest.raises(ImportError, match=r"pip install 'sparsekin\[meshes\]'"):
         fill_reducing_column_order(csr_array(np.eye(3)), method="metis")
+
+
+def test_blocks_of_columns_stay_together(rng):
+    """``block=3``: a body's three coordinates stay consecutive, in their own order."""
+    jacobian = _lattice_jacobian(6, 6, rng)
+    for method in ("level-sets", *(["metis"] if metis_installed() else [])):
+        order = fill_reducing_column_order(jacobian, method=method, block=3)
+        assert sorted(order.tolist()) == list(range(jacobian.shape[1]))
+        bodies = order.reshape(-1, 3)
+        assert np.all(bodies == bodies[:, :1] + np.arange(3)) and np.all(bodies[:, 0] % 3 == 0)
+    for block in (0, 5, True, 1.5):  # 6 x 6 cells: 78 bodies, 234 columns
+        with pytest.raises(ValueError, match="`block` must be a whole number >= 1 dividing the"):
+            fill_reducing_column_order(jacobian, block=block)

@@ -174,20 +174,3 @@ def test_counts_every_right_hand_side(rng):
     solver.solve(np.ones((50, 2)))  # by GMRES
     solver.solve_held(np.ones(50))
     assert solver.n_solves == 4
-
-
-def test_auto_on_meshes_reuses_superlu_in_metis_order():
-    """``"auto"`` from `MIN_METIS_COORDINATES` on: grids (lattice, rotating squares) take
-    SuperLU in METIS's order, reused across samples; chains keep the refactorization."""
-    from sparsekin import testset
-    from sparsekin.engine.pattern import build_pattern
-    from sparsekin.solve.stepper import fill_is_heavy, sparse_solver_for
-
-    for mesh in (testset.lattice(2, 2), testset.rotating_squares(3)):
-        solver = sparse_solver_for(mesh)
-        assert isinstance(solver, SuperLUSolver) and solver.ordering == "metis"
-        assert fill_is_heavy(solver, build_pattern(mesh))
-    for chain in (testset.four_bar_chain(5), testset.task5_chain(2)):
-        solver = sparse_solver_for(chain)
-        assert isinstance(solver, RefactorSolver) and solver.ordering == "metis"
-    assert not fill_is_heavy(SuperLUSolver(), build_pattern(testset.lattice(2, 2)))

@@ -58,6 +58,8 @@ MAX_GROWTH = 1e3
 #: The column ordering of every SuperLU factorization (unless `RefactorSolver`'s
 #: ``ordering="metis"``).
 _ORDERING = "COLAMD"
+#: A body's coordinates (x, y, angle): `SuperLUSolver(ordering="metis")` orders them together.
+COORDINATES_PER_BODY = 3
 #: The column orderings of `SuperLUSolver` and of `RefactorSolver`'s fresh factorizations.
 ORDERINGS = ("colamd", "metis")
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
@@ -136,11 +138,13 @@ class SuperLUSolver:
     Parameters
     ----------
     ordering : {"colamd", "metis"}
-        The column order: SuperLU's COLAMD, or METIS's nested dissection
-        (`sparsekin.engine.ordering.fill_reducing_column_order`, the ``meshes`` extra),
-        computed once per pattern and given to SuperLU as its natural order.  On meshes
-        the METIS order has less fill: faster factorizations and solves (docs/design-notes.md,
-        "Sparse LU on meshes").
+        ``"colamd"``: SuperLU's COLAMD on ``A = jacobian.T``.  ``"metis"`` (the ``meshes``
+        extra): the Jacobian itself, a CSC copy, its coordinates in METIS's nested
+        dissection of the graph of the bodies (a body's three coordinates kept together,
+        `sparsekin.engine.ordering.fill_reducing_column_order` with ``block=3``), computed
+        once per pattern.  On the lattice it has about half COLAMD's fill, and its
+        ordering costs a fraction of a factorization (docs/design-notes.md, "Sparse LU on
+        meshes").
 
     Examples
     --------
@@ -176,12 +180,11 @@ class SuperLUSolver:
         """Factor `jacobian` (square CSR); raise `SingularMatrix` if it is exactly singular."""
         self.n_factorizations += 1
         self._lu = None
-        matrix = jacobian.T
         try:
             if self.ordering == "metis":
-                self._lu = _splu(matrix[:, self._column_order(jacobian)], "NATURAL")
+                self._lu = _splu(jacobian.tocsc()[:, self._column_order(jacobian)], "NATURAL")
             else:
-                self._lu = _splu(matrix)
+                self._lu = _splu(jacobian.T)
         except RuntimeError as error:  # "Factor is exactly singular"
             raise SingularMatrix(str(error)) from error
 
@@ -207,17 +210,17 @@ class SuperLUSolver:
         rhs = np.asarray(rhs, dtype=float)
         if out is not None:
             _checked_rhs(rhs, self._lu.shape[0], out)
-        # The factors are those of A = jacobian.T (of ``A Q = A[:, order]`` with METIS's
-        # order): jacobian @ x = rhs is ``(A Q).T x = Q.T rhs``, jacobian.T @ x = rhs is
-        # ``(A Q) (Q.T x) = rhs``.
-        order = self._order if self.ordering == "metis" else None
-        if transposed:
-            solution = self._lu.solve(rhs, trans="N")
-            if order is not None:
-                permuted, solution = solution, np.empty_like(solution)
-                solution[order] = permuted
-        else:
-            solution = self._lu.solve(rhs if order is None else rhs[order], trans="T")
+        if self.ordering == "metis":
+            # The factors are those of ``J Q = jacobian[:, order]``: J x = rhs is
+            # ``(J Q) (Q.T x) = rhs``, J.T x = rhs is ``(J Q).T x = Q.T rhs``.
+            if transposed:
+                solution = self._lu.solve(rhs[self._order], trans="T")
+            else:
+                permuted = self._lu.solve(rhs, trans="N")
+                solution = np.empty_like(permuted)
+                solution[self._order] = permuted
+        else:  # the factors are those of A = jacobian.T: jacobian @ x = rhs is the transposed system
+            solution = self._lu.solve(rhs, trans="N" if transposed else "T")
         if out is not None:
             out[...] = solution
             solution = out
@@ -227,7 +230,8 @@ class SuperLUSolver:
         return solution
 
     def _column_order(self, jacobian: csr_array) -> np.ndarray:
-        """METIS's order of the columns of ``jacobian.T``, computed again only for a new pattern."""
+        """METIS's order of the coordinates (the columns of `jacobian`), by bodies when
+        they come three by three; computed again only for a new pattern."""
         pattern = self._pattern
         same = pattern is not None and (
             (jacobian.indptr is pattern[0] and jacobian.indices is pattern[1])
@@ -237,7 +241,9 @@ class SuperLUSolver:
             from .ordering import fill_reducing_column_order
 
             self._order = None
-            self._order = fill_reducing_column_order(jacobian.T, method="metis")
+            n = jacobian.shape[1]
+            block = COORDINATES_PER_BODY if n % COORDINATES_PER_BODY == 0 else 1
+            self._order = fill_reducing_column_order(jacobian, method="metis", block=block)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order
 

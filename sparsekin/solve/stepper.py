@@ -55,7 +55,6 @@ __all__ = [
     "MIN_METIS_COORDINATES",
     "TOLERANCE_RANGE",
     "fill_is_heavy",
-    "sparse_solver_for",
 ]
 
 #: Smallest and largest accepted `tolerance`: below about 4 eps the residual cannot be
@@ -189,7 +188,7 @@ class KinematicStepper:
                 linear_solver = "dense" if pattern.n_coordinates <= COMPILED_MAX_COORDINATES else "refactor"
             self.chord = linear_solver != "superlu" if chord is None else bool(chord)
             if self.auto and pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed():
-                linear_solver = sparse_solver_for(mechanism)
+                linear_solver = RefactorSolver(ordering="metis")
             else:
                 linear_solver = _SOLVER_CLASSES[linear_solver]()
         else:
@@ -455,27 +454,8 @@ def _reason(failure: Exception) -> str:
     return failure.reason if isinstance(failure, NoConvergence) else "the Jacobian is singular"
 
 
-# ---- issue 29: the sparse solver of "auto" on meshes (one change, to move into the solver plan)
-def sparse_solver_for(mechanism: Mechanism):
-    """``"auto"``'s sparse solver from `MIN_METIS_COORDINATES` on, with pymetis installed.
-
-    A grid (a repeat over two indices: lattices, rotating squares) is a mesh: SuperLU in
-    METIS's order, a fresh factorization whenever one is needed, reused across samples
-    (`fill_is_heavy`).  On the lattice at 10^5 bodies it beats the refactorization on its
-    first factorization, its refactorization and its solves (docs/design-notes.md, "Sparse
-    LU on meshes").  Anything else (chains) keeps the METIS-ordered refactorization.
-    """
-    if any(copies.is_grid for copies in mechanism.copies):
-        return SuperLUSolver(ordering="metis")
-    return RefactorSolver(ordering="metis")
-
-
 def fill_is_heavy(linear_solver, pattern: ConstraintPattern) -> bool:
-    """Whether a factorization by `linear_solver` costs enough to be reused across samples:
-    a refactorization with more fill-in than `MAX_REFACTOR_FILL`, or SuperLU in METIS's
-    order (`sparse_solver_for` a mesh)."""
-    if isinstance(linear_solver, SuperLUSolver):
-        return linear_solver.ordering == "metis"
+    """Whether `linear_solver` is a refactorization with more fill-in than `MAX_REFACTOR_FILL`."""
     return isinstance(linear_solver, RefactorSolver) and linear_solver.nnz_factors > MAX_REFACTOR_FILL * pattern.nnz
 
 
