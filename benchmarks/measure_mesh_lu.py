@@ -9,14 +9,14 @@ the option has one, and a solve (median of three); it checks each solution by it
 option on its own line.  Options (default: all that are installed):
 
 * ``superlu`` — scipy's SuperLU with COLAMD (`SuperLUSolver`);
-* ``superlu-metis`` — `SuperLUSolver(ordering="metis")`: SuperLU on the columns in METIS's
-  order (``permc_spec="NATURAL"``); its "refactorization" is a fresh SuperLU factorization
-  in the order it holds, and ``ordering_s`` times METIS's order alone;
+* ``superlu-metis`` — `SuperLUSolver(ordering="metis")`: SuperLU on J's columns in METIS's
+  order of the bodies (``permc_spec="NATURAL"``); its "refactorization" is a fresh SuperLU
+  factorization in the order it holds, and ``ordering_s`` times that order alone;
 * ``refactor-metis`` — `RefactorSolver(ordering="metis")`;
 * ``pardiso`` — MKL Pardiso through `pypardiso` (not a dependency; skipped when missing).
 
-The factorizations are of ``A = J.T`` (the CSC view of the CSR Jacobian) and the solves of
-``J x = b``, as every solver of `sparsekin.engine.linalg` does them.
+The solves are of ``J x = b``; the factorizations of ``A = J.T`` (the CSC view of the CSR
+Jacobian), except ``superlu-metis``'s, of J's CSC copy.
 """
 
 from __future__ import annotations
@@ -103,7 +103,8 @@ def measure(option: str, jacobian, b: np.ndarray) -> dict | None:
     if option == "superlu-metis":
         from sparsekin.engine.ordering import fill_reducing_column_order
 
-        ordering_s, _ = _timed(lambda: fill_reducing_column_order(jacobian.T, method="metis"))
+        block = linalg.COORDINATES_PER_BODY if jacobian.shape[1] % linalg.COORDINATES_PER_BODY == 0 else 1
+        ordering_s, _ = _timed(lambda: fill_reducing_column_order(jacobian, method="metis", block=block))
         solver = linalg.SuperLUSolver(ordering="metis")
         row = _solver_option(solver, jacobian, b)  # its refactorization: SuperLU again, in the held order
         return dict(row, ordering_s=ordering_s)

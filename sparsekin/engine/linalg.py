@@ -43,6 +43,7 @@ __all__ = [
     "MIN_PIVOT_RATIO",
     "MAX_GROWTH",
     "ORDERINGS",
+    "COORDINATES_PER_BODY",
 ]
 
 #: Guard of `RefactorSolver`: the smallest accepted ratio of a pivot to the largest
