@@ -2,10 +2,10 @@
 factorization of its Jacobian, in one fresh process.
 
 Usage: ``python3 benchmarks/measure_mesh_steps.py FAMILY BODIES [PATH ...]`` with paths of
-`harness.LINEAR_SOLVERS` (default: ``sparsekin superlu-metis``).  First the first sample
-as `solve_kinematics` makes it (pattern, ``linear_solver="auto"``'s stepper, `start` at
-t = 0).  Then for each path: the harness's first sample (`harness.Stepper`, which solves
-it twice on the reuse path: once more after the switch)
+`harness.LINEAR_SOLVERS` or ``auto`` (default: ``auto sparsekin superlu-metis``).  ``auto``:
+the first sample as `solve_kinematics` makes it (pattern, ``linear_solver="auto"``'s
+stepper, `start` at t = 0).  Every other path: the harness's first sample
+(`harness.Stepper`, which solves it twice on the reuse path: once more after the switch)
 and the median over three rounds of four steps of `families.STEP`, with the split of the
 last round.  Then the reference of issue 29: one SuperLU factorization (COLAMD, what
 ``linear_solver="superlu"`` does at every Newton iteration) of the Jacobian at the first
@@ -47,9 +47,11 @@ def first_sample_auto(mechanism) -> dict:
 def main(family: str, bodies: int, paths: list[str]) -> None:
     Stepper(build(family, 100), "sparsekin", STEP).run(1)  # compile outside the timings
     mechanism = build(family, bodies)
-    row = first_sample_auto(mechanism)
-    print(json.dumps(dict(row, family=family, bodies=mechanism.n_bodies, peak_rss_bytes=_peak_rss_bytes())), flush=True)
-    for path in paths:
+    if "auto" in paths:
+        row = first_sample_auto(mechanism)
+        print(json.dumps(dict(row, family=family, bodies=mechanism.n_bodies, peak_rss_bytes=_peak_rss_bytes())),
+              flush=True)  # fmt: skip
+    for path in [path for path in paths if path != "auto"]:
         start = time.perf_counter()
         stepper = Stepper(mechanism, path, STEP)
         first = time.perf_counter() - start
@@ -72,4 +74,4 @@ def main(family: str, bodies: int, paths: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]), sys.argv[3:] or ["sparsekin", "superlu-metis"])
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3:] or ["auto", "sparsekin", "superlu-metis"])
