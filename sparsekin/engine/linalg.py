@@ -56,8 +56,7 @@ MIN_PIVOT_RATIO = 1e-3
 #: The rounding errors of LU scale with the growth: at 1e3 they stay below about
 #: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
 MAX_GROWTH = 1e3
-#: The column ordering of every SuperLU factorization (unless `RefactorSolver`'s
-#: ``ordering="metis"``).
+#: The column ordering of every SuperLU factorization (unless ``ordering="metis"``).
 _ORDERING = "COLAMD"
 #: A body's coordinates (x, y, angle): `SuperLUSolver(ordering="metis")` orders them together.
 COORDINATES_PER_BODY = 3
@@ -134,7 +133,8 @@ def _checked_square(jacobian) -> int:
 
 
 class SuperLUSolver:
-    """scipy's SuperLU, factoring the CSC view ``jacobian.T`` (no copy, no conversion).
+    """scipy's SuperLU: COLAMD on the CSC view ``jacobian.T`` (no copy, no conversion), or
+    the Jacobian in METIS's order of its bodies.
 
     Parameters
     ----------
@@ -241,7 +241,7 @@ class SuperLUSolver:
         if not same:
             from .ordering import fill_reducing_column_order
 
-            self._order = None
+            self._order = self._pattern = None  # until the new order is there
             n = jacobian.shape[1]
             block = COORDINATES_PER_BODY if n % COORDINATES_PER_BODY == 0 else 1
             self._order = fill_reducing_column_order(jacobian, method="metis", block=block)
