@@ -326,7 +326,8 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
         "same values (`superlu-metis`: a fresh SuperLU in the held order; `refactor-metis`: the numeric",
         "refactorization); solve: median of three; backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞);",
         "L + U: entries held (SuperLU's nonzeros; the refactorization's structural pattern).",
-        "Each size's options ran in one process, one after the other; compare within a size.",
+        "Each size's options ran in one process, one after the other; compare within a size, not with",
+        "the tables above (issue 29's runs were made at load average 10–15 on the 2 cores).",
         "",
         "| bodies | option | first | again | solve | backward error | L + U |",
         "|---|---|---|---|---|---|---|",
@@ -347,7 +348,7 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
             "twice on the reuse path) and the median of three rounds of four steps, then one SuperLU (COLAMD)",
             "factorization of the Jacobian at t = 0 as the reference.",
             "",
-            "| bodies | what | path taken | first sample | per step | of which solves | peak memory |",
+            "| bodies | what | path taken | first sample | per step | solves per step, last round | peak memory |",
             "|---|---|---|---|---|---|---|",
         ]
         for r in steps:
