@@ -343,10 +343,11 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
     if steps:
         lines += [
             "",
-            "First sample and time per step, same process per size (`measure_mesh_steps.py`): `auto`'s first",
-            "sample as `solve_kinematics` makes it, then per path the harness's stepper (its first sample solves",
-            "twice on the reuse path) and the median of three rounds of four steps, then one SuperLU (COLAMD)",
-            "factorization of the Jacobian at t = 0 as the reference.",
+            "First sample and time per step, one process per line group ending in its reference, one SuperLU",
+            "(COLAMD) factorization of the Jacobian at t = 0 (`measure_mesh_steps.py`): \"first sample\" lines",
+            "as `solve_kinematics` makes it with `auto`'s solver or with SuperLU in METIS's order; path lines",
+            "the harness's stepper (its first sample solves twice on the reuse path) and the median of three",
+            "rounds of four steps.",
             "",
             "| bodies | what | path taken | first sample | per step | solves per step, last round | peak memory |",
             "|---|---|---|---|---|---|---|",
