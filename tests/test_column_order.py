@@ -157,9 +157,7 @@ def test_superlu_in_metis_order(rng, monkeypatch):
 
 
 def test_refactorization_ordering_is_checked():
-    from sparsekin.engine.linalg import RefactorSolver
-
-    from sparsekin.engine.linalg import SuperLUSolver
+    from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
 
     for solver in (RefactorSolver, SuperLUSolver):
         with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
