@@ -21,8 +21,9 @@ The paths compared, measured in the same run:
   view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
 * ``superlu-metis`` — on meshes (issue 29): SuperLU in METIS's order
   (`SuperLUSolver(ordering="metis")`), chord Newton, its factorization always reused across
-  samples by `ReusingSolver`: a first sample about twice as fast as ``sparsekin``'s on the
-  lattice, steps 10–20 % slower (SuperLU's solves; docs/design-notes.md, "Sparse LU on meshes").
+  samples by `ReusingSolver`: on the lattice a first sample 3–3.5 times as fast as
+  ``sparsekin``'s, steps within about 15 % either way in runs under load, not shown to be
+  no slower (docs/design-notes.md, "Sparse LU on meshes").
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
   ``numpy.linalg.solve`` for every linear system.
 * `RebuildBaseline` — the straightforward sparse code: the Jacobian rebuilt from (row,
