@@ -28,6 +28,8 @@ COMMAND = (
     "--benchmark-json=benchmarks/results.json"
 )
 _HERE = Path(__file__).resolve().parent
+#: Lines printed by `measure_mesh_lu.py` and `measure_mesh_steps.py` (issue 29), kept by hand.
+MESH_LU = _HERE / "mesh_lu.jsonl"
 #: Sizes over which the scaling exponents are fitted, bodies.
 FIT_RANGE = (1_000, 1_000_000)
 #: The solver whose time the ratios divide, and the baselines, in column order.
@@ -188,6 +190,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_startup(document["startup"][0])]
     if document.get("overconstrained"):
         lines += ["", *_overconstrained(document["overconstrained"])]
+    if MESH_LU.exists():
+        lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
     if document["others"]:
         lines += [
             "",
@@ -304,6 +308,57 @@ def _forces(records: list[dict]) -> list[str]:
         cells = [info["family"], f"{info['bodies']:,}", info["forces"], _seconds(info["median"]),
                  _seconds(info["per_step"]), ratio]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def mesh_lu_section(records: list[dict]) -> list[str]:
+    """`MESH_LU`: every LU option on the lattice's Jacobian, then first sample and step."""
+    options = [r for r in records if "option" in r]
+    lines = [
+        "## Sparse LU on the lattice (issue 29; `measure_mesh_lu.py`, `measure_mesh_steps.py`)",
+        "",
+        "Not part of the pytest-benchmark run: `benchmarks/mesh_lu.jsonl` holds the lines printed by",
+        "`python3 benchmarks/measure_mesh_lu.py lattice BODIES` (one fresh process per size; pypardiso from",
+        "a separate install, single thread) and `python3 benchmarks/measure_mesh_steps.py lattice BODIES`.",
+        "One Jacobian J at t = 0, J x = b solved (A = Jᵀ factored; `superlu-metis` factors J, its",
+        "coordinates in METIS's order of the bodies). First: everything a first `factor` does (ordering,",
+        "analysis, numbers; in brackets the order alone, timed apart); again: a second `factor` with the",
+        "same values (`superlu-metis`: a fresh SuperLU in the held order; `refactor-metis`: the numeric",
+        "refactorization); solve: median of three; backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞);",
+        "L + U: entries held (SuperLU's nonzeros; the refactorization's structural pattern).",
+        "Each size's options ran in one process, one after the other; compare within a size, not with",
+        "the tables above (issue 29's runs were made at load average 10–15 on the 2 cores).",
+        "",
+        "| bodies | option | first | again | solve | backward error | L + U |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in options:
+        again = _seconds(r["refactorization_s"]) if "refactorization_s" in r else "—"
+        entries = f"{r['nnz_factors'] / 1e6:.1f} M" if "nnz_factors" in r else "—"
+        ordering = f" (METIS {_seconds(r['ordering_s'])})" if "ordering_s" in r else ""
+        cells = [f"{r['bodies']:,}", f"`{r['option']}`", _seconds(r["first_factorization_s"]) + ordering, again,
+                 _seconds(r["solve_s"]), f"{r['backward_error']:.1e}", entries]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    steps = [r for r in records if "path" in r]
+    if steps:
+        lines += [
+            "",
+            "First sample and time per step, one process per line group ending in its reference, one SuperLU",
+            "(COLAMD) factorization of the Jacobian at t = 0 (`measure_mesh_steps.py`): \"first sample\" lines",
+            "as `solve_kinematics` makes it with `auto`'s solver or with SuperLU in METIS's order; path lines",
+            "the harness's stepper (its first sample solves twice on the reuse path) and the median of three",
+            "rounds of four steps.",
+            "",
+            "| bodies | what | path taken | first sample | per step | solves per step, last round | peak memory |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in steps:
+            first = r.get("first_sample_s", r.get("factorization_s"))
+            step = _seconds(r["per_step_s"]) if "per_step_s" in r else "—"
+            solves = _seconds(r["split_s"]["solves"]) if "split_s" in r else "—"
+            cells = [f"{r['bodies']:,}", r["path"], r.get("taken", "—"), _seconds(first), step, solves,
+                     f"{r['peak_rss_bytes'] / 2**30:.2f} GB"]  # fmt: skip
+            lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 

@@ -127,11 +127,42 @@ def test_refactorization_on_metis_order(rng):
     assert solver.nnz_factors < 1.3 * colamd.nnz_factors
 
 
-def test_refactorization_ordering_is_checked():
-    from sparsekin.engine.linalg import RefactorSolver
+@pytest.mark.skipif(not metis_installed(), reason="no pymetis")
+def test_superlu_in_metis_order(rng, monkeypatch):
+    """`SuperLUSolver(ordering="metis")`: METIS's order once per pattern, less fill than
+    COLAMD on a mesh, and both systems solved as SuperLU in its own order solves them."""
+    from sparsekin.engine import ordering
+    from sparsekin.engine.linalg import SuperLUSolver
 
-    with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
-        RefactorSolver(ordering="amd")
+    orders = []
+    original = ordering.fill_reducing_column_order
+    monkeypatch.setattr(ordering, "fill_reducing_column_order", lambda *a, **k: orders.append(1) or original(*a, **k))
+    jacobian = _lattice_jacobian(20, 20, rng)
+    solver = SuperLUSolver(ordering="metis")
+    for _ in range(3):
+        jacobian.data *= 1.0 + 0.01 * rng.standard_normal(jacobian.nnz)
+        solver.factor(jacobian)
+        rhs = rng.standard_normal((jacobian.shape[0], 2))
+        for transposed, operator in ((False, jacobian), (True, jacobian.T)):
+            expected = splu(operator.tocsc()).solve(rhs)
+            x = solver.solve(rhs, transposed=transposed)
+            np.testing.assert_allclose(operator @ x, rhs, rtol=0, atol=1e-11)
+            np.testing.assert_allclose(x, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    assert len(orders) == 1 and solver.n_factorizations == 3
+    solver.factor(_lattice_jacobian(20, 21, rng))  # a new pattern: a new order
+    assert len(orders) == 2
+    colamd = SuperLUSolver()
+    colamd.factor(jacobian)
+    solver.factor(jacobian)
+    assert len(orders) == 3 and solver.nnz_factors < colamd.nnz_factors
+
+
+def test_refactorization_ordering_is_checked():
+    from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
+
+    for solver in (RefactorSolver, SuperLUSolver):
+        with pytest.raises(ValueError, match="`ordering` must be one of 'colamd', 'metis'"):
+            solver(ordering="amd")
 
 
 def test_metis_without_pymetis_names_the_extra(monkeypatch):
@@ -140,3 +171,16 @@ def test_metis_without_pymetis_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "pymetis", None)  # import pymetis raises ImportError
     with pytest.raises(ImportError, match=r"pip install 'sparsekin\[meshes\]'"):
         fill_reducing_column_order(csr_array(np.eye(3)), method="metis")
+
+
+def test_blocks_of_columns_stay_together(rng):
+    """``block=3``: a body's three coordinates stay consecutive, in their own order."""
+    jacobian = _lattice_jacobian(6, 6, rng)
+    for method in ("level-sets", *(["metis"] if metis_installed() else [])):
+        order = fill_reducing_column_order(jacobian, method=method, block=3)
+        assert sorted(order.tolist()) == list(range(jacobian.shape[1]))
+        bodies = order.reshape(-1, 3)
+        assert np.all(bodies == bodies[:, :1] + np.arange(3)) and np.all(bodies[:, 0] % 3 == 0)
+    for block in (0, 5, True, 1.5):  # 6 x 6 cells: 78 bodies, 234 columns
+        with pytest.raises(ValueError, match="`block` must be a whole number >= 1 dividing the"):
+            fill_reducing_column_order(jacobian, block=block)

@@ -174,3 +174,27 @@ def test_counts_every_right_hand_side(rng):
     solver.solve(np.ones((50, 2)))  # by GMRES
     solver.solve_held(np.ones(50))
     assert solver.n_solves == 4
+
+
+@pytest.mark.filterwarnings("ignore::sparsekin.RedundantConstraintWarning")
+@pytest.mark.parametrize("build", [lambda t: t.lattice(3, 4), lambda t: t.rotating_squares(4)], ids=["lattice", "squares"])
+def test_superlu_in_metis_order_reused_along_a_motion(build):
+    """The benchmarks' ``superlu-metis`` path (issue 29): SuperLU in METIS's order of the
+    bodies, held by `ReusingSolver` across samples, follows the motion SuperLU solves at
+    every Newton iteration (the rotating squares through their reduced system)."""
+    pytest.importorskip("pymetis")
+    from sparsekin import solve_kinematics, testset
+    from sparsekin.solve.stepper import KinematicStepper
+
+    mechanism = build(testset)
+    times = np.linspace(0.0, 1.0, 21)
+    reference = solve_kinematics(mechanism, times, linear_solver="superlu")
+    solver = ReusingSolver(SuperLUSolver(ordering="metis"))
+    stepper = KinematicStepper(mechanism, linear_solver=solver)
+    stepper.start(times[0])
+    coordinates = [stepper.coordinates.copy()]
+    for t in times[1:]:
+        stepper.advance(t)
+        coordinates.append(stepper.coordinates.copy())
+    np.testing.assert_allclose(np.array(coordinates), reference.coordinates, rtol=0, atol=1e-10)
+    assert solver.n_factorizations < len(times) // 2  # held across samples

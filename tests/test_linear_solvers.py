@@ -41,7 +41,19 @@ FAMILIES = {
     "four_bar_chain": (lambda: testset.four_bar_chain(8), 1.2),
     "lattice": (lambda: testset.lattice(3, 4), 1.0),
 }
-SOLVERS = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
+
+
+def _superlu_in_metis_order() -> SuperLUSolver:
+    pytest.importorskip("pymetis")  # the `meshes` extra
+    return SuperLUSolver(ordering="metis")
+
+
+SOLVERS = {
+    "superlu": SuperLUSolver,
+    "superlu-metis": _superlu_in_metis_order,
+    "refactor": RefactorSolver,
+    "dense": DenseSolver,
+}
 N_CONFIGURATIONS = 4
 
 

@@ -4,8 +4,9 @@ A linear solver factors the Jacobian (`factor`) and then solves any number of ri
 sides with that factorization (`solve`): one vector, or several at once as the columns
 of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocated `out`.
 
-* `SuperLUSolver` — scipy's SuperLU with the COLAMD ordering, a fresh factorization
-  every time.
+* `SuperLUSolver` — scipy's SuperLU, a fresh factorization every time, with the COLAMD
+  ordering or (``ordering="metis"``, meshes) METIS's nested dissection computed once per
+  pattern.
 * `RefactorSolver` — a first SuperLU factorization fixes the ordering and the pivot
   sequence; every later `factor` is a numeric refactorization on the fixed structural
   patterns of L and U (numba kernels in `sparsekin.engine._lu_kernels`), guarded: when the fixed
@@ -42,6 +43,7 @@ __all__ = [
     "MIN_PIVOT_RATIO",
     "MAX_GROWTH",
     "ORDERINGS",
+    "COORDINATES_PER_BODY",
 ]
 
 #: Guard of `RefactorSolver`: the smallest accepted ratio of a pivot to the largest
@@ -54,10 +56,11 @@ MIN_PIVOT_RATIO = 1e-3
 #: The rounding errors of LU scale with the growth: at 1e3 they stay below about
 #: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
 MAX_GROWTH = 1e3
-#: The column ordering of every SuperLU factorization (unless `RefactorSolver`'s
-#: ``ordering="metis"``).
+#: The column ordering of every SuperLU factorization (unless ``ordering="metis"``).
 _ORDERING = "COLAMD"
-#: The column orderings of `RefactorSolver`'s fresh factorizations.
+#: A body's coordinates (x, y, angle): `SuperLUSolver(ordering="metis")` orders them together.
+COORDINATES_PER_BODY = 3
+#: The column orderings of `SuperLUSolver` and of `RefactorSolver`'s fresh factorizations.
 ORDERINGS = ("colamd", "metis")
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
@@ -130,7 +133,19 @@ def _checked_square(jacobian) -> int:
 
 
 class SuperLUSolver:
-    """scipy's SuperLU, factoring the CSC view ``jacobian.T`` (no copy, no conversion).
+    """scipy's SuperLU: COLAMD on the CSC view ``jacobian.T`` (no copy, no conversion), or
+    the Jacobian in METIS's order of its bodies.
+
+    Parameters
+    ----------
+    ordering : {"colamd", "metis"}
+        ``"colamd"``: SuperLU's COLAMD on ``A = jacobian.T``.  ``"metis"`` (the ``meshes``
+        extra): the Jacobian itself, a CSC copy, its coordinates in METIS's nested
+        dissection of the graph of the bodies (a body's three coordinates kept together,
+        `sparsekin.engine.ordering.fill_reducing_column_order` with ``block=3``), computed
+        once per pattern.  On the lattice it has about half COLAMD's fill, and its
+        ordering costs a fraction of a factorization (docs/design-notes.md, "Sparse LU on
+        meshes").
 
     Examples
     --------
@@ -144,19 +159,34 @@ class SuperLUSolver:
 
     name = "superlu"
 
-    def __init__(self) -> None:
+    def __init__(self, *, ordering: str = "colamd") -> None:
+        if ordering not in ORDERINGS:
+            raise ValueError(f"`ordering` must be one of {', '.join(map(repr, ORDERINGS))}, got {ordering!r}.")
+        self.ordering = ordering
         self._lu = None
+        self._order = None  # METIS's column order of the pattern (`_pattern`), once computed
+        self._pattern = None  # (indptr, indices) that `_order` was computed for
         self.n_factorizations = 0
         self.n_refactorizations = 0
         self.n_solves = 0
 
+    @property
+    def nnz_factors(self) -> int:
+        """Entries of SuperLU's last L and U (its nonzeros; no structural zeros kept)."""
+        if self._lu is None:
+            raise RuntimeError(_NOT_FACTORED)
+        return int(self._lu.nnz)
+
     def factor(self, jacobian: csr_array) -> None:
         """Factor `jacobian` (square CSR); raise `SingularMatrix` if it is exactly singular."""
         self.n_factorizations += 1
+        self._lu = None
         try:
-            self._lu = _splu(jacobian.T)
+            if self.ordering == "metis":
+                self._lu = _splu(jacobian.tocsc()[:, self._column_order(jacobian)], "NATURAL")
+            else:
+                self._lu = _splu(jacobian.T)
         except RuntimeError as error:  # "Factor is exactly singular"
-            self._lu = None
             raise SingularMatrix(str(error)) from error
 
     def solve(
@@ -181,8 +211,17 @@ class SuperLUSolver:
         rhs = np.asarray(rhs, dtype=float)
         if out is not None:
             _checked_rhs(rhs, self._lu.shape[0], out)
-        # The factors are those of A = jacobian.T: jacobian @ x = rhs is the transposed system.
-        solution = self._lu.solve(rhs, trans="N" if transposed else "T")
+        if self.ordering == "metis":
+            # The factors are those of ``J Q = jacobian[:, order]``: J x = rhs is
+            # ``(J Q) (Q.T x) = rhs``, J.T x = rhs is ``(J Q).T x = Q.T rhs``.
+            if transposed:
+                solution = self._lu.solve(rhs[self._order], trans="T")
+            else:
+                permuted = self._lu.solve(rhs, trans="N")
+                solution = np.empty_like(permuted)
+                solution[self._order] = permuted
+        else:  # the factors are those of A = jacobian.T: jacobian @ x = rhs is the transposed system
+            solution = self._lu.solve(rhs, trans="N" if transposed else "T")
         if out is not None:
             out[...] = solution
             solution = out
@@ -190,6 +229,24 @@ class SuperLUSolver:
         if not np.all(np.isfinite(solution)):
             raise SingularMatrix("the solution is not finite")
         return solution
+
+    def _column_order(self, jacobian: csr_array) -> np.ndarray:
+        """METIS's order of the coordinates (the columns of `jacobian`), by bodies when
+        they come three by three; computed again only for a new pattern."""
+        pattern = self._pattern
+        same = pattern is not None and (
+            (jacobian.indptr is pattern[0] and jacobian.indices is pattern[1])
+            or (np.array_equal(jacobian.indptr, pattern[0]) and np.array_equal(jacobian.indices, pattern[1]))
+        )
+        if not same:
+            from .ordering import fill_reducing_column_order
+
+            self._order = self._pattern = None  # until the new order is there
+            n = jacobian.shape[1]
+            block = COORDINATES_PER_BODY if n % COORDINATES_PER_BODY == 0 else 1
+            self._order = fill_reducing_column_order(jacobian, method="metis", block=block)
+            self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
+        return self._order
 
 
 class RefactorSolver:

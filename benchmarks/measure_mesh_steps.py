@@ -1,0 +1,82 @@
+"""The first sample and the time per step of a model on several paths, beside one SuperLU
+factorization of its Jacobian, in one fresh process.
+
+Usage: ``python3 benchmarks/measure_mesh_steps.py FAMILY BODIES [PATH ...]`` with paths of
+`harness.LINEAR_SOLVERS` or of `FIRST_SAMPLES` (default: all four).  ``auto`` and
+``superlu-metis-start``: the first sample as `solve_kinematics` makes it (pattern, stepper,
+`start` at t = 0) with ``"auto"``'s solver or with SuperLU in METIS's order.  Every other path: the harness's first sample
+(`harness.Stepper`, which solves it twice on the reuse path: once more after the switch)
+and the median over three rounds of four steps of `families.STEP`, with the split of the
+last round.  Then the reference of issue 29: one SuperLU factorization (COLAMD, what
+``linear_solver="superlu"`` does at every Newton iteration) of the Jacobian at the first
+sample.  Prints one JSON object per line, with the peak resident memory so far.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+_HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(_HERE), str(_HERE.parent)]  # the harness, and sparsekin when not installed
+
+from families import STEP, build  # noqa: E402
+from harness import Stepper  # noqa: E402
+from measure_mesh_lu import _peak_rss_bytes, jacobian_at_drawing  # noqa: E402
+
+from sparsekin.engine.linalg import SuperLUSolver  # noqa: E402
+from sparsekin.solve.stepper import KinematicStepper  # noqa: E402
+
+ROUNDS, STEPS_PER_ROUND = 3, 4
+
+
+#: First samples as `solve_kinematics` makes them (pattern, stepper, `start` at t = 0): with
+#: ``"auto"``, and with the linear solver ``superlu-metis`` holds (one factorization; the
+#: switch to `ReusingSolver` after it costs nothing).
+FIRST_SAMPLES = {"auto": lambda: "auto", "superlu-metis-start": lambda: SuperLUSolver(ordering="metis")}
+
+
+def first_sample(mechanism, name: str) -> dict:
+    start = time.perf_counter()
+    stepper = KinematicStepper(mechanism, linear_solver=FIRST_SAMPLES[name]())
+    stepper.start(0.0)
+    seconds = time.perf_counter() - start
+    return {"path": f"{name}, first sample", "taken": stepper.path, "first_sample_s": seconds,
+            "factorizations": stepper.n_factorizations, "solves": stepper.n_solves}  # fmt: skip
+
+
+def main(family: str, bodies: int, paths: list[str]) -> None:
+    Stepper(build(family, 100), "sparsekin", STEP).run(1)  # compile outside the timings
+    mechanism = build(family, bodies)
+    for name in [path for path in paths if path in FIRST_SAMPLES]:
+        row = first_sample(mechanism, name)
+        print(json.dumps(dict(row, family=family, bodies=mechanism.n_bodies, peak_rss_bytes=_peak_rss_bytes())),
+              flush=True)  # fmt: skip
+    for path in [path for path in paths if path not in FIRST_SAMPLES]:
+        start = time.perf_counter()
+        stepper = Stepper(mechanism, path, STEP)
+        first = time.perf_counter() - start
+        rounds = []
+        for _ in range(ROUNDS):
+            stepper.reset()
+            start = time.perf_counter()
+            stepper.run(STEPS_PER_ROUND)
+            rounds.append((time.perf_counter() - start) / STEPS_PER_ROUND)
+        split = {phase: seconds / STEPS_PER_ROUND for phase, seconds in stepper.seconds.items()}
+        print(json.dumps({"family": family, "bodies": mechanism.n_bodies, "path": path, "taken": stepper.path,
+                          "first_sample_s": first, "per_step_s": float(np.median(rounds)), "split_s": split,
+                          "peak_rss_bytes": _peak_rss_bytes()}), flush=True)  # fmt: skip
+        del stepper
+    jacobian, _ = jacobian_at_drawing(family, bodies)
+    start = time.perf_counter()
+    SuperLUSolver().factor(jacobian)
+    print(json.dumps({"family": family, "bodies": mechanism.n_bodies, "path": "one SuperLU factorization",
+                      "factorization_s": time.perf_counter() - start, "peak_rss_bytes": _peak_rss_bytes()}))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3:] or ["auto", "superlu-metis-start", "sparsekin", "superlu-metis"])
