@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.assemble import start_pattern
 from ..engine.forces import ForceSolver, build_load_pattern
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern, build_pattern, build_point_map, per_element
@@ -191,6 +192,9 @@ def solve_kinematics(
         pattern = build_pattern(mechanism)
     else:
         _check_pattern(pattern, mechanism)
+    # Start from the drawing assembled at the first time, on its branch (issue 27: rough
+    # drawings with exact lengths, copies drawn at another phase of their driver).
+    pattern = start_pattern(mechanism, pattern, float(times[0]))
     selection = Selection(mechanism, coordinates, points, joints, forces, pattern=pattern)
     n = pattern.n_coordinates
     if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
