@@ -41,7 +41,7 @@ from ..engine.assembly import Assembler
 from ..engine.krylov import ReusingSolver
 from ..engine.linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER, Factorizer, NoConvergence, solve_positions
-from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed, tiled_ordering
+from ..engine.ordering import MIN_TILED_COORDINATES, hub_last_ordering, metis_installed, tiled_ordering
 from ..engine.pattern import ConstraintPattern, build_pattern
 from ..engine.reduced import ReducedSystem
 from ..errors import ConvergenceError, ModelError
@@ -271,11 +271,13 @@ class KinematicStepper:
         """A chain of many repeated units: the refactorization's first pivot order tiled from
         a short chain (`sparsekin.engine.ordering`), not from SuperLU on the whole chain."""
         suggest = getattr(self.linear_solver, "suggest", None)  # a RefactorSolver's
-        if (suggest is not None and self.mechanism.copies and self.system is self.assembler
-                and self.pattern.n_coordinates >= MIN_TILED_COORDINATES):  # fmt: skip
+        if suggest is None or self.system is not self.assembler:
+            return
+        ordering = hub_last_ordering(self.mechanism, self.pattern, t)  # many bodies on one: the hub last (issue 27)
+        if ordering is None and self.mechanism.copies and self.pattern.n_coordinates >= MIN_TILED_COORDINATES:
             ordering = tiled_ordering(self.mechanism, self.pattern, t)
-            if ordering is not None:
-                suggest(*ordering)
+        if ordering is not None:
+            suggest(*ordering)
 
     def resume(self, t: float, coordinates, velocities, accelerations, first: tuple[float, np.ndarray]) -> None:
         """Continue from a sample solved elsewhere (the compiled loop), at time `t`.
