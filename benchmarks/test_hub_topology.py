@@ -1,6 +1,6 @@
 """Many legs on one crankshaft body (a hub, a star) against the same legs in a chain (issue 27).
 
-`hub_models.jansen_machine`: `count` Jansen legs whose cranks are welded to one crankshaft
+`jansen.jansen_machine` (tests/jansen.py): `count` Jansen legs whose cranks are welded to one crankshaft
 body, or each to the previous one; the same bodies and equations.  Per step: the median of
 `ROUNDS` rounds of `STEPS` full steps of `KinematicStepper` (what `solve_kinematics` runs at
 this size: refactorization, chord Newton), from the same solved first sample, both
@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from hub_models import foot_path, jansen_machine
+from jansen import jansen_machine, jansen_points
 
 from sparsekin.engine.pattern import build_point_map
 from sparsekin.model.geometry import to_global
@@ -61,7 +61,7 @@ def test_hub_against_chain(benchmark, request):
 
     measured = benchmark.pedantic(measure, rounds=1, iterations=1)
     hub, chain = measured["hub"], measured["chain"]
-    exact = foot_path(np.array([STEPS * DT]))[0]  # circle intersections
+    exact = jansen_points(0.3 + STEPS * DT)["G"][0]  # circle intersections
     for topology in (hub, chain):
         np.testing.assert_allclose(topology.pop("foot"), exact, rtol=0.0, atol=1e-9)
     benchmark.extra_info.update({"legs": count, "hub": hub, "chain": chain,

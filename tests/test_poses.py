@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 from helpers import assert_close, assert_same_motion
-from test_link_lengths import jansen_leg, jansen_points
+from jansen import jansen_leg, jansen_points
 
 from sparsekin import (
     Body,

@@ -27,7 +27,7 @@ from .describe import (
     motion_summary,
     row_preference,
 )
-from .notices import actuator_directions, law_offsets, notice_lines, unjoined_point_lines
+from .notices import actuator_directions, hub_lines, law_offsets, notice_lines, unjoined_point_lines
 from .rank import JacobianAnalysis, analyse_jacobian
 from .rigidity import counts_line, describe_redundant, listed_redundant
 
@@ -139,6 +139,8 @@ class ModelReport:
         many moved (-1: too many points to locate).
     lengths : tuple of str
         One line per body with `lengths`: each stated length and its drawn distance.
+    hubs : tuple of str
+        A line when bodies carry many others (`sparsekin.analysis.notices.hub_lines`).
     """
 
     name: str
@@ -169,6 +171,7 @@ class ModelReport:
     moves: tuple[tuple[str, float], ...] = ()
     n_moved: int = 0
     lengths: tuple[str, ...] = ()
+    hubs: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -266,7 +269,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
     weights = pattern.residual_weights
     preference = row_preference(mechanism, pattern)
     drawn = pattern.initial_coordinates.copy()
-    moves, n_moved = (), 0
+    moves, n_moved, hubs = (), 0, ()
     if pattern.n_equations == 0:  # nothing to assemble: every coordinate is free
         analysis = analyse_jacobian(sparse.csr_array((0, pattern.n_coordinates)))
         assembled, coordinates, assembly = True, drawn, f"nothing to assemble at t = {time:g} s: no equation"
@@ -289,6 +292,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
             found = point_moves(mechanism, drawn, coordinates)
             moves, n_moved = ((), -1) if found is None else (tuple(found[0]), found[1])
         raw_residual = assembler.residual
+        hubs = hub_lines(mechanism, pattern, assembler.jacobian) if assembled else ()
         residual = raw_residual * weights
     n_joint_equations = int(pattern.element_first_row[len(mechanism.joints)])
     consistent = np.abs(residual[analysis.redundant_rows]) <= CONSISTENCY_TOLERANCE
@@ -337,6 +341,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         has_forces=mechanism.has_forces,
         moves=moves,
         n_moved=n_moved,
+        hubs=hubs,
         lengths=tuple(_lengths_line(where, stated) for where, stated in mechanism.shapes.lengths),
         left_out=tuple(f"{c.label}: {n} element{'s' * (n != 1)} on the open boundary or restricted to some copies"
                        for c in mechanism.copies if (n := c.n_left_out())),
