@@ -32,6 +32,7 @@ from .settings import (
     RunSettings,
     add_folder_argument,
     add_force_arguments,
+    add_label_argument,
     add_time_arguments,
     resolve_run_settings,
 )
@@ -68,6 +69,10 @@ def add_run_command(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
+    add_label_argument(parser)
+    parser.add_argument("--abscissa", metavar="DRIVER",
+                        help="plot the motion figures of --plot against the value this driver drives (a crank "
+                        "angle, a stroke) instead of time")  # fmt: skip
     parser.add_argument("--save-pose", nargs=2, metavar=("T", "OUT.toml"),
                         help="also write a model drawn at the solved pose at time T (s), its laws shifted so that "
                         "it starts there: a rough drawing becomes an exact one with T = 0")  # fmt: skip
