@@ -15,6 +15,8 @@ References, each written here from the geometry of the file, never from the solv
 
 * rotating rectangles: every rectangle's centre and angle from the closed form of the
   lattice's opening, and Poisson's ratio from it.
+* Jansen's leg (link lengths on a drawing rounded to whole units): every joint from circle
+  intersections (tests/jansen.py).
 
 (Task 5 is checked against ADAMS in test_task5.py, the planetary gear train against
 Willis' formula in test_elements.py; the rotating squares and the lattice against their
@@ -310,3 +312,16 @@ def test_rotating_rectangles_open_as_their_closed_form_with_their_poisson_ratio(
     # central differences of ln(size) in time: error O(dt²) relative to the ratio's own curvature
     np.testing.assert_allclose(size.poisson_ratio[inner], ratio[inner], rtol=2e-2)
     assert ratio.max() < -4.0  # strongly auxetic over the whole run, never -1
+
+
+# ---------------------------------------------------------------------- Jansen's leg
+def test_jansen_leg_walks_the_path_of_its_link_lengths():
+    from jansen import jansen_points
+
+    mechanism = load_model(EXAMPLES / "jansen_leg.toml")
+    times = np.linspace(0.0, mechanism.analysis.t_end, mechanism.analysis.steps)
+    result = solve_kinematics(mechanism, times)
+    drawn = math.atan2(mechanism.points["A"][1], mechanism.points["A"][0])  # the crank's drawn direction
+    reference = jansen_points(drawn + times)
+    for name in ("G", "F"):
+        np.testing.assert_allclose(result.point(name).position, reference[name], rtol=0, atol=1e-9)
