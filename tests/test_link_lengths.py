@@ -8,6 +8,7 @@ closure at a time).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -138,3 +139,19 @@ def test_legs_on_one_crankshaft_are_ordered_hub_last_and_check_says_so():
     # the shaft's angle: 3 equations of each weld, 2 of its pin, 1 of its driver
     assert report.hubs == (f"hub: shaft carries many bodies (up to 93 Jacobian entries in a column); the run "
                            f"eliminates it last: factors {fills['hub']:.3g}× the Jacobian",)  # fmt: skip
+
+
+def test_a_mass_at_the_foot_of_a_rough_drawing_sits_at_the_exact_foot():
+    """Quasi-static: the crank's torque balances gravity on a point mass at the foot,
+    torque · ω = m g · (the foot's upward speed), the speed from the circle intersections by
+    central differences."""
+    leg = jansen_leg()
+    massive = dataclasses.replace(leg, gravity=(0.0, -9.81), bodies=tuple(
+        dataclasses.replace(body, mass=2.0, com="G") if body.name == "leg" else body for body in leg.bodies))
+    times = np.linspace(0.0, 2.0 * math.pi, 13)
+    run = solve_kinematics(massive, times, quasi_static=True)
+    crank = math.atan2(leg.points["A"][1], leg.points["A"][0]) + times
+    step = 1e-5
+    upward = (jansen_points(crank + step)["G"][:, 1] - jansen_points(crank - step)["G"][:, 1]) / (2 * step)
+    torque = run.driver_force(0).force
+    np.testing.assert_allclose(torque, 2.0 * 9.81 * upward, rtol=0.0, atol=1e-6 * 2.0 * 9.81 * np.abs(upward).max())

@@ -55,7 +55,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..model.geometry import to_local
 from ..model.laws import LawPacker, LawTable, fill_laws
 from ..model.loads import LoadArrays, MassArrays, pack_loads
 from ..model.mechanism import Mechanism
@@ -129,7 +128,7 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
     for kind, indices, columns in element_columns(mechanism, "loads", first_law[:-1], resolver):
         blocks += kind.loads(columns)
     table, others, n_laws = pack_element_laws(mechanism, "loads")
-    arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
+    arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames, mechanism.shapes)
     return LoadPattern(arrays, table, others, n_laws)
 
 
@@ -148,7 +147,7 @@ def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
             mass[bodies], inertia[bodies] = body.mass or 0.0, body.inertia or 0.0
             if body.com is not None:
                 com[bodies] = copies.reference_positions([body.com], ks)[:, 0]
-    return MassArrays(mass, inertia, np.ascontiguousarray(to_local(resolver.frames[:n], com)))
+    return MassArrays(mass, inertia, np.ascontiguousarray(mechanism.local_points(np.arange(n), com, resolver.frames)))
 
 
 class ForceOutputArrays(NamedTuple):
@@ -280,7 +279,7 @@ def _reaction_geometry(mechanism: Mechanism, pattern: ConstraintPattern, joints:
         side_is_first[where] = first != ground
         carrier_body = (first if carrier == 0 else second)
         point_body[where] = carrier_body
-        point_local[where] = to_local(resolver.frames[carrier_body], point[chosen])
+        point_local[where] = mechanism.local_points(carrier_body, point[chosen], resolver.frames)
     return side, side_is_first, point_body, point_local
 
 
