@@ -155,3 +155,18 @@ def test_a_mass_at_the_foot_of_a_rough_drawing_sits_at_the_exact_foot():
     upward = (jansen_points(crank + step)["G"][:, 1] - jansen_points(crank - step)["G"][:, 1]) / (2 * step)
     torque = run.driver_force(0).force
     np.testing.assert_allclose(torque, 2.0 * 9.81 * upward, rtol=0.0, atol=1e-6 * 2.0 * 9.81 * np.abs(upward).max())
+
+
+def test_a_hub_held_through_another_body_is_named_with_a_way_out():
+    """The crankshaft pinned to a bearing welded to the ground: its own equations do not hold
+    it alone, so the run cannot eliminate it last, and check warns."""
+    from jansen import jansen_machine
+
+    from sparsekin import Revolute, Rigid
+
+    machine = jansen_machine(30, "hub")
+    held = dataclasses.replace(machine, bodies=(*machine.own("bodies"), Body("bearing", origin="O")),
+                               joints=(Revolute(("shaft", "bearing"), at="O"), Rigid(("bearing", "ground"))))  # fmt: skip
+    (line,) = check_model(held).hubs
+    assert line.startswith("warning: hub: shaft carries many bodies") and "the run cannot eliminate it last" in line
+    assert "attach the copies one to the next (a chain)" in line

@@ -29,12 +29,13 @@ import numpy as np
 from ..engine.assembly import Assembler
 from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.newton import NoConvergence, solve_positions
-from ..engine.pattern import ConstraintPattern, build_point_map, build_pattern
+from ..engine.pattern import ConstraintPattern, build_point_map
 from ..engine.reduced import ReducedSystem
 from ..model.geometry import to_global
 from ..model.mechanism import Mechanism
 
-__all__ = ["Assembly", "AssemblyFailed", "assemble", "start_pattern", "point_moves", "MOST_LISTED_MOVES"]
+__all__ = ["Assembly", "AssemblyFailed", "assemble", "start_pattern", "point_moves", "reduced_system",
+           "MOST_LISTED_MOVES"]
 
 #: Convergence tolerance of the assembly: lengths relative to the model size, angles in rad.
 ASSEMBLY_TOLERANCE = 1e-12
@@ -143,10 +144,10 @@ def assemble(system, drawn: np.ndarray, coordinate_weights: np.ndarray, *,
         If a step of the path cannot be corrected even when short.
     """
     drawn = np.asarray(drawn, dtype=float)
-    start = system.fill_residual_jacobian(drawn)
-    if start <= tolerance:
-        return Assembly(drawn.copy(), drawn, 0, 0, start)
     homotopy = _Homotopy(system, drawn)
+    start = float(np.max(np.abs(homotopy.offset) * homotopy.weights, initial=0.0))
+    if not start > tolerance:  # also NaN: plain Newton from the drawing says what is wrong
+        return Assembly(drawn.copy(), drawn, 0, 0, start)
     solver = SuperLUSolver()
     q, previous, done, step, last_step = drawn.copy(), None, 0.0, 1.0, 1.0
     steps = corrections = 0
@@ -229,7 +230,3 @@ def reduced_system(assembler: Assembler, analysis, drawn: np.ndarray) -> Reduced
     held = analysis.free_coordinates
     return ReducedSystem(assembler, kept, held, drawn[held])
 
-
-def assembled_pattern(mechanism: Mechanism, t: float = 0.0) -> ConstraintPattern:
-    """`build_pattern(mechanism)` started from the mechanism assembled at `t`."""
-    return start_pattern(mechanism, build_pattern(mechanism), t)

@@ -168,8 +168,9 @@ def hub_lines(mechanism: Mechanism, pattern: ConstraintPattern, jacobian) -> tup
     carried = f"hub: {names} carr{'y' if bodies.size > 1 else 'ies'} many bodies (up to {entries} Jacobian entries in a column)"
     if ordering is not None and fill <= HEAVY_FILL:
         return (f"{carried}; the run eliminates it last: factors {fill:.3g}× the Jacobian",)
-    return (f"warning: {carried}; the factors fill in {fill:.3g}× the Jacobian, and a run slows down as much: "
-            "attach the copies one to the next (a chain), or the hub's joints to the ground only",)
+    why = "" if ordering is not None else " (the run cannot eliminate it last: it is not held by joints to the ground alone)"
+    return (f"warning: {carried}{why}; the factors fill in {fill:.3g}× the Jacobian, and each step costs about as "
+            "much more: attach the copies one to the next (a chain), or pin the hub to the ground directly",)
 
 
 def notice_lines(report) -> list[str]:

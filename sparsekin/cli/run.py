@@ -115,11 +115,28 @@ def run_command(arguments: argparse.Namespace) -> int:
                 f"{settings.directory}: {', '.join(path.name for path in written)}")
         return EXIT_INTERRUPTED
     timeline.solved = time.perf_counter()
+    _note_heavy_fill(mechanism, result)
     written = write_outputs(mechanism, result, settings)
     if pose_time is not None:
         written.append(_save_pose(result, pose_time, Path(arguments.save_pose[1]), arguments.model))
     print(_summary(mechanism, result, timeline, written))
     return EXIT_SUCCESS
+
+
+def _note_heavy_fill(mechanism: Mechanism, result: KinematicsResult) -> None:
+    """One note when a hub (a body many others are attached to) left the factors heavy: the
+    run then reused its factorization across samples (path "reuse")."""
+    if result.linear_solver != "reuse" or not mechanism.copies:
+        return
+    from ..engine.ordering import hub_coordinates
+    from ..engine.pattern import build_pattern
+
+    hub = hub_coordinates(build_pattern(mechanism))
+    if hub.size:
+        names = ", ".join(sorted({mechanism.body_name(int(b)) for b in hub[:12] // 3}))
+        report(f"note: the factors filled in heavily around {names}, which many bodies are attached to (the run "
+               "reused its factorization across samples): attach the copies one to the next (a chain), and see "
+               "sparsekin check")
 
 
 def _pose_time(arguments: argparse.Namespace) -> float | None:

@@ -125,10 +125,11 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
 
 
 def hub_coordinates(pattern: ConstraintPattern) -> np.ndarray:
-    """The coordinates (columns of the Jacobian) with more than `HUB_DEGREE` entries: those
-    of a body that many others are attached to (a crankshaft, a frame, a hub)."""
+    """The three coordinates of every body that many others are attached to (a crankshaft,
+    a frame, a hub): one of its columns of the Jacobian has more than `HUB_DEGREE` entries."""
     degree = np.bincount(pattern.indices, minlength=pattern.n_coordinates)
-    return np.flatnonzero(degree > HUB_DEGREE)
+    bodies = np.flatnonzero((degree > HUB_DEGREE).reshape(-1, 3).any(axis=1))
+    return (3 * bodies[:, None] + np.arange(3)).ravel()
 
 
 def hub_last_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):

@@ -143,6 +143,14 @@ class BodyShapes:
         found[asked[same]] = candidate[same]
         return found
 
+    def local_points(self, frames: np.ndarray, bodies: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Where the points that start at `points` (k, 2, drawn) sit in the frames of `bodies`
+        (k,; rows of the drawn `frames`): their drawn local coordinates, or their body's
+        shape's."""
+        local = to_local(frames[bodies], points)
+        self.correct(bodies, points, local)
+        return local
+
     def correct(self, frame: np.ndarray, points: np.ndarray, local: np.ndarray) -> None:
         """Put the shapes' local positions into `local` (k, 2) for the points `points` (drawn,
         global) placed on bodies `frame`: the points a body lists take their shape's position;

@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import to_local
+from .lengths import NO_SHAPES
 
 __all__ = [
     "PointForce",
@@ -150,10 +150,7 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray, shapes=N
 def _local(frames: np.ndarray, body: np.ndarray, points: np.ndarray, shapes=None) -> np.ndarray:
     """The points in the drawn frames of their bodies (their shapes' places on bodies with
     lengths), shape (k, 2)."""
-    local = to_local(frames[body], points)
-    if shapes:
-        shapes.correct(body, points, local)
-    return np.ascontiguousarray(local)
+    return np.ascontiguousarray((shapes or NO_SHAPES).local_points(frames, body, points))
 
 
 _INDEX_FIELDS = ("law", "body", "body_i", "body_j")

@@ -43,7 +43,6 @@ from .elements import (
     PointRef,
 )
 from .elements.base import _Element
-from .geometry import to_local
 from .lengths import NO_SHAPES, BodyShapes, body_shapes
 from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message, find_copy
 
@@ -245,11 +244,7 @@ class Mechanism:
         """Where the points that start at `points` (k, 2, drawn) sit in the frames of `bodies`
         (k,): their drawn local coordinates, or their body's shape where it has lengths.
         `frames`: the drawn frames (n_bodies (+ 1), 3), if at hand."""
-        frames = self.frames() if frames is None else frames
-        local = to_local(frames[bodies], points)
-        if self._shapes:
-            self._shapes.correct(bodies, points, local)
-        return local
+        return self._shapes.local_points(self.frames() if frames is None else frames, bodies, points)
 
     @property
     def copies(self) -> tuple[Copies, ...]:
