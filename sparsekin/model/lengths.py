@@ -197,7 +197,8 @@ def body_shapes(mechanism) -> BodyShapes:
             drawn = copies.reference_positions(list(body.points), ks)  # (m, n, 2)
             relative = drawn - drawn[:, :1]
             angles = frames[indices, 2]
-            size = max(float(np.abs(relative).max(initial=0.0)), 1e-3)
+            # alike to the rounding of the drawn coordinates (copies far along a chain round more)
+            size = max(float(np.abs(relative).max(initial=0.0)), float(np.abs(drawn).max(initial=0.0)), 1e-3)
             alike = bool(np.all(np.abs(relative - relative[:1]) <= 1e-12 * size) and np.all(angles == angles[0]))
             shape_frames = frames[indices]
             origin_listed = isinstance(body.origin, str) and body.origin in body.points
