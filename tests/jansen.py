@@ -16,7 +16,8 @@ from sparsekin import Body, Linear, Mechanism, Repeat, Revolute, Rigid, Rotation
 DRAWN_AT = 0.3
 
 #: The holy numbers (the crank axle at the origin, the rocker pivot at (-a, -l)).
-HOLY = dict(a=38.0, b=41.5, c=39.3, d=40.1, e=55.8, f=39.4, g=36.7, h=65.7, i=49.0, j=50.0, k=61.9, l=7.8, m=15.0)
+HOLY = {"a": 38.0, "b": 41.5, "c": 39.3, "d": 40.1, "e": 55.8, "f": 39.4, "g": 36.7, "h": 65.7, "i": 49.0, "j": 50.0,
+        "k": 61.9, "l": 7.8, "m": 15.0}
 #: The links: body name -> (points, the holy letters of its lengths between them).
 LINKS = {
     "crank": (("O", "A"), (("O", "A", "m"),)),
@@ -57,7 +58,7 @@ def jansen_points(crank_angle):
     e = _circles(p, n["d"], c, n["e"], +1)  # outside, to the left
     f = _circles(e, n["f"], d, n["g"], -1)
     g = _circles(f, n["h"], d, n["i"], -1)
-    return dict(O=o, P=p, A=a, C=c, D=d, E=e, F=f, G=g)
+    return {"O": o, "P": p, "A": a, "C": c, "D": d, "E": e, "F": f, "G": g}
 
 
 def jansen_leg(drawn_at: float = DRAWN_AT, rounding: float = 1.0, phase: float = 0.0, rate: float = 1.0) -> Mechanism:

@@ -137,8 +137,8 @@ def test_legs_on_one_crankshaft_are_ordered_hub_last_and_check_says_so():
     assert fills["hub"] <= 1.5 * fills["chain"]
     report = check_model(jansen_machine(30, "hub"))
     # the shaft's angle: 3 equations of each weld, 2 of its pin, 1 of its driver
-    assert report.hubs == (f"hub: shaft carries many bodies (up to 93 Jacobian entries in a column); the run "
-                           f"eliminates it last: factors {fills['hub']:.3g}× the Jacobian",)  # fmt: skip
+    assert report.hubs == ((f"hub: shaft carries many bodies (up to 93 Jacobian entries in a column); the run "
+                            f"eliminates it last: factors {fills['hub']:.3g}× the Jacobian"),)  # fmt: skip
 
 
 def test_a_mass_at_the_foot_of_a_rough_drawing_sits_at_the_exact_foot():

@@ -60,7 +60,7 @@ def test_several_paths_in_one_figure(leg_run, tmp_path, monkeypatch):
 def test_motion_against_the_crank_angle(leg_run, tmp_path, monkeypatch):
     from sparsekin.plots import plot_point_motion
 
-    leg, run = leg_run
+    _, run = leg_run
     figures = captured_figures(monkeypatch)
     plot_point_motion(run, ["G"], tmp_path, abscissa="drivers[0]")
     axes = figures[0].axes[-1]

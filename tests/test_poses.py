@@ -27,9 +27,9 @@ from sparsekin import (
     solve_kinematics,
 )
 from sparsekin.cli import main
+from sparsekin.model.laws import Linear, Polynomial, Spline
 from sparsekin.model.modelfile import load_model, save_model
 from sparsekin.model.poses import shifted_law
-from sparsekin.model.laws import Linear, Polynomial, Spline
 from sparsekin.solve.poses import pose_model
 
 TIMES = np.linspace(0.0, 2.0 * math.pi, 49)

@@ -169,8 +169,8 @@ def hub_lines(mechanism: Mechanism, pattern: ConstraintPattern, jacobian) -> tup
     if ordering is not None and fill <= HEAVY_FILL:
         return (f"{carried}; the run eliminates it last: factors {fill:.3g}× the Jacobian",)
     why = "" if ordering is not None else " (the run cannot eliminate it last: it is not held by joints to the ground alone)"
-    return (f"warning: {carried}{why}; the factors fill in {fill:.3g}× the Jacobian, and each step costs about as "
-            "much more: attach the copies one to the next (a chain), or pin the hub to the ground directly",)
+    return ((f"warning: {carried}{why}; the factors fill in {fill:.3g}× the Jacobian, and each step costs about as "
+             "much more: attach the copies one to the next (a chain), or pin the hub to the ground directly"),)
 
 
 def notice_lines(report) -> list[str]:

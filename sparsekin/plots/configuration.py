@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from ..engine.pattern import build_point_map
-from ..model.geometry import rotate
 from ..model.elements import Joint
+from ..model.geometry import rotate
 from ..model.mechanism import GROUND, Mechanism
 from .canvas import SYMBOL_SCALE, Canvas
 from .labels import Label, place_labels
