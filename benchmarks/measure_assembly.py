@@ -112,7 +112,8 @@ def measure(count: int) -> dict:
         t3 = time.perf_counter()
     moved = float(np.max(np.abs(started.initial_coordinates - pattern.initial_coordinates)))
     return {"bodies": mechanism.n_bodies, "load": t1 - t0, "pattern": t2 - t1, "assembly": t3 - t2,
-            "largest change": moved, "peak memory MB": _peak_mb() - before, "assembled": started is not pattern}
+            "largest change": moved, "peak memory MB": _peak_mb() - before,
+            "assembled": started is not pattern}  # fmt: skip
 
 
 if __name__ == "__main__":
@@ -122,7 +123,8 @@ if __name__ == "__main__":
     sizes = [int(a) for a in sys.argv[1:]] or [1000, 10000, 100000]
     print(f"{'bodies':>8} {'load s':>8} {'pattern s':>10} {'assembly s':>11} {'peak MB':>8}  largest change")
     for count in sizes:
-        out = subprocess.run([sys.executable, __file__, "--one", str(count)], capture_output=True, text=True, check=True)
+        command = [sys.executable, __file__, "--one", str(count)]
+        out = subprocess.run(command, capture_output=True, text=True, check=True)
         row = json.loads(out.stdout.strip().splitlines()[-1])
         print(f"{row['bodies']:>8} {row['load']:>8.3g} {row['pattern']:>10.3g} {row['assembly']:>11.3g} "
               f"{row['peak memory MB']:>8.0f}  {row['largest change']:.3g}")

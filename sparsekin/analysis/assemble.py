@@ -165,7 +165,8 @@ def assemble(system, drawn: np.ndarray, coordinate_weights: np.ndarray, *,
             step = min(step, target - done) / 2.0
             if step < SMALLEST_STEP:
                 reason = getattr(failure, "reason", "the Jacobian is singular")
-                raise AssemblyFailed(f"{reason} at {100.0 * done:.3g} % of the way from the drawing", done, q) from None
+                where = f"{reason} at {100.0 * done:.3g} % of the way from the drawing"
+                raise AssemblyFailed(where, done, q) from None
             continue
         corrections += taken
         steps += 1
@@ -200,7 +201,8 @@ def start_pattern(mechanism: Mechanism, pattern: ConstraintPattern, t: float) ->
     return dataclasses.replace(pattern, initial_coordinates=assembly.coordinates)
 
 
-def point_moves(mechanism: Mechanism, drawn: np.ndarray, coordinates: np.ndarray, most: int = MOST_LISTED_MOVES):
+def point_moves(mechanism: Mechanism, drawn: np.ndarray, coordinates: np.ndarray,
+                most: int = MOST_LISTED_MOVES):  # fmt: skip
     """How far the named points moved from the drawing to `coordinates`, the largest first:
     ``(name, distance)`` pairs (at most `most`) and the number of points that moved
     (more than 1e-12 of the model size); None when the model has too many points to

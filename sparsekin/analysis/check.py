@@ -396,8 +396,10 @@ def _assemble(mechanism, pattern, assembler, time, drawn, analysis):
             f"to the model size; largest in {where})"
         )
     moved = float(np.max(np.abs(assembly.coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
-    how = (f"in {assembly.corrections} Newton correction{'s' * (assembly.corrections != 1)} over "
-           f"{assembly.steps} step{'s' * (assembly.steps != 1)} from the drawing") if assembly.steps else "as drawn"
+    how = "as drawn"
+    if assembly.steps:
+        how = (f"in {assembly.corrections} Newton correction{'s' * (assembly.corrections != 1)} over "
+               f"{assembly.steps} step{'s' * (assembly.steps != 1)} from the drawing, on its branch")
     return True, assembly.coordinates, (
         f"assembled at t = {time:g} s {how}: largest residual {assembly.residual:.2g}, largest change of a coordinate "
         f"{moved:.2g} (lengths relative to the model size, {pattern.length_scale:.4g} m; angles in rad)"
