@@ -141,3 +141,16 @@ def test_twelve_legs_from_one_drawn_leg_each_foot_at_its_phase():
         assert_close(run.point(f"l{k}.G").position, mirrored, 1e-9 / 100, err_msg=f"l{k}")
     exact = jansen_points(drawn + times + 2.0 * math.pi / 3.0)["G"]
     np.testing.assert_allclose(run.point("r1.G").position, exact, rtol=0.0, atol=1e-9)
+
+
+def test_the_pose_of_a_grid_runs_on_as_the_grid():
+    """A repeat's copies are written one by one; their equations, laid out kind by kind in
+    the grid and copy by copy in the posed model, are compared row by row."""
+    from examples_loader import EXAMPLES
+
+    grid = load_model(EXAMPLES / "lattice.toml")
+    times = np.linspace(0.0, 0.5, 6)
+    run = solve_kinematics(grid, times)
+    later = solve_kinematics(pose_model(run, times[3]), times[3:] - times[3])
+    assert_same_motion([later.coordinates, later.velocities, later.accelerations],
+                       [run.coordinates[3:], run.velocities[3:], run.accelerations[3:]], 1e-10)  # fmt: skip
