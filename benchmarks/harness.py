@@ -38,12 +38,12 @@ from scipy.sparse import coo_array
 from scipy.sparse.linalg import spsolve
 
 from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.discretization import discretize
 from sparsekin.engine.krylov import ReusingSolver
-from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
+from sparsekin.engine.linalg import SuperLUSolver
 from sparsekin.model.mechanism import Mechanism
-from sparsekin.engine.pattern import build_pattern
-from sparsekin.engine.ordering import metis_installed
-from sparsekin.solve.stepper import MIN_METIS_COORDINATES, KinematicStepper, fill_is_heavy
+from sparsekin.solve.policy import Thresholds, plan_linear_solver
+from sparsekin.solve.stepper import KinematicStepper
 
 __all__ = ["PHASES", "Stepper", "DenseBaseline", "RebuildBaseline", "LINEAR_SOLVERS", "CHORD"]
 
@@ -103,14 +103,22 @@ class RebuildBaseline:
         return out
 
 
-#: Linear solvers by path name: each is built from the mechanism's pattern.
+#: ``linear_solver="auto"``'s thresholds with the compiled loop left out: the plan of a
+#: model above `COMPILED_MAX_COORDINATES`, for every size.
+ABOVE_COMPILED = Thresholds(compiled_max_coordinates=0)
+
+
+def sparsekin_plan(model):
+    """What ``"auto"`` plans for `model` above the compiled size (`plan_linear_solver`)."""
+    return plan_linear_solver(model, "auto", ABOVE_COMPILED)
+
+
+#: Linear solvers by path name: each is built from the mechanism's arrays (`discretize`).
 LINEAR_SOLVERS = {
-    "sparsekin": lambda pattern: RefactorSolver(
-        ordering="metis" if pattern.n_coordinates >= MIN_METIS_COORDINATES and metis_installed() else "colamd"
-    ),
-    "superlu": lambda pattern: SuperLUSolver(),
-    "dense": DenseBaseline,
-    "coo_spsolve": RebuildBaseline,
+    "sparsekin": lambda model: sparsekin_plan(model).make_solver(),
+    "superlu": lambda model: SuperLUSolver(),
+    "dense": lambda model: DenseBaseline(model.constraints),
+    "coo_spsolve": lambda model: RebuildBaseline(model.constraints),
 }
 #: The paths whose Newton iteration is chord Newton (the others run plain Newton).
 CHORD = frozenset({"sparsekin"})
@@ -162,11 +170,12 @@ class Stepper:
     """
 
     def __init__(self, mechanism: Mechanism, linear_solver: str, step: float) -> None:
-        self.pattern = pattern = build_pattern(mechanism)
+        model = discretize(mechanism)
+        self.pattern = pattern = model.constraints
         self.step = step
         self.seconds = dict.fromkeys(PHASES, 0.0)
         assembler = _Timed(
-            Assembler(mechanism, pattern),
+            Assembler(model),
             self.seconds,
             {
                 "set_time": "assembly",
@@ -178,14 +187,14 @@ class Stepper:
         solver_phases = {
             "factor": "factorization", "factor_ordered": "factorization", "solve": "solves", "solve_held": "solves",
         }  # fmt: skip
-        solver = LINEAR_SOLVERS[linear_solver](pattern)
+        solver = LINEAR_SOLVERS[linear_solver](model)
         self.stepper = KinematicStepper(
-            mechanism, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
-            pattern=pattern, assembler=assembler,
+            model, linear_solver=_Timed(solver, self.seconds, solver_phases), chord=linear_solver in CHORD,
+            assembler=assembler,
         )  # fmt: skip
         self.stepper.start(0.0)
         self.path = linear_solver
-        if linear_solver == "sparsekin" and fill_is_heavy(solver, pattern):
+        if linear_solver == "sparsekin" and sparsekin_plan(model).reuses(solver, pattern.nnz):
             # as `start` does under "auto"; a refactorization GMRES finds necessary inside
             # a solve is timed with the solves
             # (`start` again solves from the drawing: the first Jacobian is refactored)
@@ -205,7 +214,7 @@ class Stepper:
     def reset(self) -> None:
         """Back to the solved first sample, with the timers and counters at zero."""
         t, q, qd, qdd = self._start
-        self.stepper.resume(t, q, qd, qdd, first=(t, q))
+        self.stepper.start_from(t, q, qd, qdd, first=(t, q))
         self.time = t
         self.newton_iterations = 0
         for phase in PHASES:

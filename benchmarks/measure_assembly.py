@@ -4,7 +4,7 @@ The IFToMM chain of four-bar loops (cranks of length 1, 1 m apart, couplers of l
 every link given by its exact `lengths`, drawn roughly: every crank top at 1.03 m instead
 of 1 m, 0.01 m to the right.  (Each coupler's end on the previous crank, T, is drawn where
 that crank's top is drawn: it then takes the top's exact place.)  The drawing
-meets neither the lengths nor the joints; `sparsekin.analysis.assemble.start_pattern` brings
+meets neither the lengths nor the joints; `sparsekin.analysis.assemble.start_discretization` brings
 it onto them (the run's start).  Each size runs in a fresh process, so that its peak
 resident memory is its own (less the same process's peak before the model was built).
 
@@ -92,8 +92,8 @@ def measure(count: int) -> dict:
 
     import numpy as np
 
-    from sparsekin.analysis.assemble import start_pattern
-    from sparsekin.engine.pattern import build_pattern
+    from sparsekin.analysis.assemble import start_discretization
+    from sparsekin.engine.discretization import discretize
     from sparsekin.model.modelfile import load_model
 
     with tempfile.TemporaryDirectory() as folder:
@@ -101,19 +101,19 @@ def measure(count: int) -> dict:
         path.write_text(MODEL.format(count=count))
         warm.write_text(MODEL.format(count=10))
         small = load_model(warm)  # the kernels compiled (or loaded from the cache) before the clock starts
-        start_pattern(small, build_pattern(small), 0.0)
+        start_discretization(discretize(small), 0.0)
         before = _peak_mb()
         t0 = time.perf_counter()
         mechanism = load_model(path)
         t1 = time.perf_counter()
-        pattern = build_pattern(mechanism)
+        drawn = discretize(mechanism)
         t2 = time.perf_counter()
-        started = start_pattern(mechanism, pattern, 0.0)
+        started = start_discretization(drawn, 0.0)
         t3 = time.perf_counter()
-    moved = float(np.max(np.abs(started.initial_coordinates - pattern.initial_coordinates)))
+    moved = float(np.max(np.abs(started.constraints.initial_coordinates - drawn.constraints.initial_coordinates)))
     return {"bodies": mechanism.n_bodies, "load": t1 - t0, "pattern": t2 - t1, "assembly": t3 - t2,
             "largest change": moved, "peak memory MB": _peak_mb() - before,
-            "assembled": started is not pattern}  # fmt: skip
+            "assembled": started is not drawn}  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ import time
 import numpy as np
 from scipy.sparse.linalg import splu
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import testset
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
@@ -30,7 +31,7 @@ def main(sides: list[int]) -> None:
     for side in sides:
         mechanism = testset.lattice(side, side)
         pattern = build_pattern(mechanism)
-        assembler = Assembler(mechanism, pattern)
+        assembler = Assembler(Discretization(mechanism, pattern))
         assembler.set_time(0.0)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
         matrix = assembler.jacobian.T.tocsc()

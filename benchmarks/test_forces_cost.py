@@ -5,8 +5,8 @@
 * ``test_chain_step``: ``task5_chain`` with the masses of examples/task5_dynamics.toml on
   every copy, under gravity: one time step of the refactorization path (positions,
   velocities, accelerations), then the same step and the forces of its drivers only, or
-  of every driver and joint (`sparsekin.engine.forces.ForceSolver`: one transposed solve, the
-  applied and inertial forces, the reactions).
+  of every driver and joint (`sparsekin.solve.observers.InverseDynamics` on the stepper's
+  `linearization`: one transposed solve, the applied and inertial forces, the reactions).
 
 Issue 11's target: forces cost at most 30 % of the kinematic step, on Task 5 and at 10^6
 bodies.  ``--sizes=full`` runs the chain at 10^4 and 10^6 bodies; the smoke size at 100.
@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from sparsekin import load_model, solve_kinematics, testset
-from sparsekin.engine.forces import ForceSolver, build_load_pattern
 from sparsekin.results.recording import Selection
+from sparsekin.solve.observers import InverseDynamics
 from sparsekin.solve.stepper import KinematicStepper
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "task5_dynamics.toml"
@@ -66,21 +66,20 @@ class _Chain:
         self.mechanism = mechanism = loaded_chain(max(1, bodies // 10))
         self.stepper = stepper = KinematicStepper(mechanism, linear_solver="refactor", forces=True)
         stepper.start(0.0)
-        loads = build_load_pattern(mechanism)
-        drivers = Selection(mechanism, coordinates=False, forces=[f"drivers[{d}]" for d in range(mechanism.n_drivers)],
-                            pattern=stepper.pattern)  # fmt: skip
-        every = Selection(mechanism, coordinates=False, forces="all", pattern=stepper.pattern)
-        self.solvers = {"drivers": ForceSolver(stepper.pattern, loads, drivers.forces),
-                        "all": ForceSolver(stepper.pattern, loads, every.forces)}  # fmt: skip
+        model = stepper.discretization
+        drivers = Selection(stepper.discretization, coordinates=False,
+                            forces=[f"drivers[{d}]" for d in range(mechanism.n_drivers)])  # fmt: skip
+        every = Selection(stepper.discretization, coordinates=False, forces="all")
+        self.solvers = {"drivers": InverseDynamics(model, drivers.forces), "all": InverseDynamics(model, every.forces)}
         for solver in self.solvers.values():
-            solver.evaluate(stepper)  # compile outside the timing
+            solver(stepper.linearization())  # compile outside the timing
 
     def steps(self, n: int, forces: str | None) -> None:
         solver = None if forces is None else self.solvers[forces]
         for _ in range(n):
             self.stepper.advance(self.stepper.time + STEP)
             if solver is not None:
-                solver.evaluate(self.stepper)
+                solver(self.stepper.linearization())
 
 
 _CHAINS: dict[int, _Chain] = {}

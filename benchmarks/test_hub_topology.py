@@ -37,7 +37,7 @@ def _per_step(mechanism) -> tuple[float, KinematicStepper]:
     first = (stepper.coordinates.copy(), stepper.velocities.copy(), stepper.accelerations.copy())
     rounds = []
     for _ in range(ROUNDS):
-        stepper.resume(0.0, *first, first=(0.0, first[0]))
+        stepper.start_from(0.0, *first, first=(0.0, first[0]))
         start = time.perf_counter()
         for k in range(1, STEPS + 1):
             stepper.advance(k * DT)

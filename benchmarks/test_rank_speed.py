@@ -12,6 +12,7 @@ import dataclasses
 
 import pytest
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import analyse_jacobian, testset
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
@@ -28,7 +29,7 @@ def pytest_generate_tests(metafunc):
 
 def jacobian_at_start(mechanism):
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     return assembler.jacobian.copy()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from examples_loader import load_example
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import solve_kinematics
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.linalg import SuperLUSolver
@@ -26,7 +27,7 @@ def task5():
 @pytest.fixture(scope="module")
 def assembled(task5):
     pattern = build_pattern(task5)
-    assembler = Assembler(task5, pattern)
+    assembler = Assembler(Discretization(task5, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)  # compiles the kernels
     solver = SuperLUSolver()

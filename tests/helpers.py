@@ -95,3 +95,19 @@ def four_bar(points: dict, law, *, coupler_points=("A", "B"), masses: dict | Non
     pins = [("crank", "ground", "O2"), ("crank", "coupler", "A"), ("coupler", "rocker", "B"),
             ("rocker", "ground", "O4")]
     return _crank_driven(points, _links(points, links, masses, angles), pins, [], law, gravity, name)
+
+
+def solve_with(mechanism, times, *, thresholds=None, guard=None, chunk_samples=None, store=None, **options):
+    """`solve_kinematics` with the thresholds of ``"auto"`` (`sparsekin.solve.policy.Thresholds`),
+    the branch guard or the recorder's chunk given as arguments (the layer under the
+    facade, `sparsekin.solve.kinematics.run_kinematics`); `options` are those of
+    `solve_kinematics` (tolerance, max_iterations, linear_solver, what to record)."""
+    from sparsekin.engine.discretization import discretize
+    from sparsekin.solve.kinematics import run_kinematics
+    from sparsekin.solve.options import BranchGuard, Request, SolveOptions, check_times
+    from sparsekin.solve.policy import Thresholds
+
+    how = {key: options.pop(key) for key in ("tolerance", "max_iterations", "linear_solver") if key in options}
+    solve_options = SolveOptions(**how, thresholds=thresholds or Thresholds(), guard=guard or BranchGuard())
+    request = Request(**options, chunk_samples=chunk_samples)
+    return run_kinematics(discretize(mechanism), check_times(times, mechanism), solve_options, request, store=store)

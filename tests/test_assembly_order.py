@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import testset
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.linalg import RefactorSolver
@@ -20,10 +21,10 @@ def chain():
 def test_values_in_order_are_the_csr_values_permuted(chain, rng):
     mechanism, pattern = chain
     q = pattern.initial_coordinates + 0.01 * rng.standard_normal(pattern.n_coordinates)
-    plain = Assembler(mechanism, pattern)
+    plain = Assembler(Discretization(mechanism, pattern))
     plain.fill_residual_jacobian(q)
     positions = rng.permutation(pattern.nnz)
-    ordered = Assembler(mechanism, pattern)
+    ordered = Assembler(Discretization(mechanism, pattern))
     ordered.fill_in_order(positions)
     ordered.fill_residual_jacobian(q)
     np.testing.assert_array_equal(ordered.values[positions], plain.jacobian.data)
@@ -36,7 +37,7 @@ def test_values_in_order_are_the_csr_values_permuted(chain, rng):
 
 def test_refactor_from_values_in_order_solves_the_system(chain, rng):
     mechanism, pattern = chain
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     solver = RefactorSolver()
     solver.factor(assembler.jacobian)
@@ -61,7 +62,7 @@ def test_positions_must_be_a_permutation(chain, mistake):
     else:
         positions[0] = 1 if mistake == "duplicate" else pattern.nnz
     with pytest.raises(ValueError, match=r"`positions` must be a permutation of range"):
-        Assembler(mechanism, pattern).fill_in_order(positions)
+        Assembler(Discretization(mechanism, pattern)).fill_in_order(positions)
 
 
 def test_gamma_before_any_refill_uses_the_right_angles(chain, rng):
@@ -69,9 +70,9 @@ def test_gamma_before_any_refill_uses_the_right_angles(chain, rng):
     (all angles 0), a first γ at q = 0 must see cos 1, sin 0."""
     mechanism, pattern = chain
     q, qd = np.zeros(pattern.n_coordinates), rng.standard_normal(pattern.n_coordinates)
-    fresh = Assembler(mechanism, pattern)
+    fresh = Assembler(Discretization(mechanism, pattern))
     fresh.fill_acceleration_rhs(q, qd)
-    refilled = Assembler(mechanism, pattern)
+    refilled = Assembler(Discretization(mechanism, pattern))
     refilled.fill_residual_jacobian(q + 1.0)  # other angles first
     refilled.fill_acceleration_rhs(q, qd)
     np.testing.assert_array_equal(fresh.acceleration_rhs, refilled.acceleration_rhs)

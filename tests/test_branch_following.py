@@ -18,10 +18,10 @@ import math
 
 import numpy as np
 import pytest
-from helpers import RTOL, four_bar
+from helpers import RTOL, four_bar, solve_with
 
 from sparsekin import Linear, Mechanism, solve_kinematics
-from sparsekin.solve import stepper
+from sparsekin.solve.branch_guard import BranchGuard, branch_jump
 from sparsekin.testset import task5
 
 CRANK, COUPLER, ROCKER, GROUND = 0.1, 0.3, 0.202, 0.4  # m
@@ -95,10 +95,9 @@ def test_coarse_steps_stay_on_their_branch():
         np.testing.assert_allclose(solved, exact, rtol=RTOL, atol=RTOL * scale)
 
 
-def test_without_the_guard_the_same_steps_jump_to_the_other_branch(monkeypatch):
+def test_without_the_guard_the_same_steps_jump_to_the_other_branch():
     """The guard is what keeps the branch: switched off, the step across 180° lands on the mirror image."""
-    monkeypatch.setattr(stepper, "BRANCH_DEFECT_RATIO", math.inf)
-    result = solve_kinematics(build_four_bar(), COARSE)
+    result = solve_with(build_four_bar(), COARSE, guard=BranchGuard(defect_ratio=math.inf))
     assert result.complete and result.n_subdivisions == 0
     position = result.point("B").position
     right, mirror = four_bar_motion(COARSE, 1)[0], four_bar_motion(COARSE, -1)[0]
@@ -132,17 +131,16 @@ def test_a_single_huge_step_is_subdivided_onto_the_right_branch(t_end):
 
 
 def test_the_guard_measures_the_corrected_trapezoidal_rule():
-    """`_jumped` directly: a smooth rotation passes, the same end point with the mirror velocity does not."""
+    """`branch_jump` directly: a smooth rotation passes, the same end point with the mirror velocity does not."""
     h, omega = 0.1, 1.0
     times = np.array([0.0, h])
     angle, rate, acceleration = np.sin(omega * times), omega * np.cos(omega * times), -(omega**2) * np.sin(omega * times)
     weights = np.ones(1)
     smooth = [np.array([value]) for value in (angle[0], rate[0], acceleration[0], angle[1], rate[1], acceleration[1])]
     predicted = smooth[3] - 0.01  # Newton moved 0.01 rad from its predictor
-    arguments = (stepper.BRANCH_DEFECT_RATIO, stepper.BRANCH_MIN_DEFECT, stepper.BRANCH_MIN_CORRECTION)
-    assert not stepper._jumped(h, *smooth, predicted, weights, *arguments)
+    assert not branch_jump(h, smooth[:3], smooth[3:], predicted, weights)
     mirrored = smooth.copy()
     mirrored[4] = -smooth[4]  # the velocity of the other branch
-    assert stepper._jumped(h, *mirrored, predicted, weights, *arguments)
+    assert branch_jump(h, mirrored[:3], mirrored[3:], predicted, weights)
     # ... unless Newton hardly moved from the predictor: then it cannot have left the branch
-    assert not stepper._jumped(h, *mirrored, smooth[3] - 1e-4, weights, *arguments)
+    assert not branch_jump(h, mirrored[:3], mirrored[3:], smooth[3] - 1e-4, weights)

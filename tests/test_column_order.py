@@ -14,6 +14,7 @@ import pytest
 from scipy.sparse import block_diag, csr_array, random_array
 from scipy.sparse.linalg import splu
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.ordering import fill_reducing_column_order, metis_installed
 from sparsekin.engine.pattern import build_pattern
@@ -26,7 +27,7 @@ def _lattice_jacobian(rows: int, cols: int, rng) -> csr_array:
     """The lattice's Jacobian at a perturbed drawing: no entry is zero by accident."""
     mechanism = lattice(rows, cols)
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.3)
     q = pattern.initial_coordinates + 0.01 * rng.standard_normal(pattern.n_coordinates)
     assembler.fill_residual_jacobian(q)

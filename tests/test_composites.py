@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import ModelError, load_model, solve_kinematics
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
@@ -127,7 +128,7 @@ def test_a_cylinder_is_the_six_blocks_written_by_hand(tmp_path):
     assert np.array_equal(patterns[0].indices, patterns[1].indices)
     filled = []
     for mechanism, pattern in zip((composite, hand), patterns):
-        assembler = Assembler(mechanism, pattern)
+        assembler = Assembler(Discretization(mechanism, pattern))
         assembler.set_time(0.3)
         assembler.fill_residual_jacobian(pattern.initial_coordinates.copy())
         filled.append((assembler.residual.copy(), assembler.jacobian.toarray()))

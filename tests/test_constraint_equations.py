@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from reference import constraint_residual
+from sparsekin.engine.discretization import Discretization
 from sparsekin import (
     AbsoluteDriver,
     Body,
@@ -92,7 +93,7 @@ def sized(mechanism, vector):
 
 
 def assembled(mechanism):
-    assembler = Assembler(mechanism, build_pattern(mechanism))
+    assembler = Assembler(Discretization(mechanism, build_pattern(mechanism)))
     assembler.set_time(0.0)  # targets at the laws' initial values, zero rates
     return assembler
 
@@ -179,7 +180,7 @@ def test_a_row_that_is_not_finite_leaves_the_others_complete():
 
     mechanism = load_model(Path(__file__).resolve().parent / "data" / "slider_crank.toml")
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.3)  # the driven row's target: the drawn crank angle + 0.3 s · rate
     q = pattern.initial_coordinates.copy()
     assert np.isfinite(assembler.fill_residual_jacobian(q))

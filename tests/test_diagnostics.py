@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from scipy import sparse
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import (
     Body,
     ConvergenceError,
@@ -55,7 +56,7 @@ RTOL = 1e-10
 # ---------------------------------------------------------------------- helpers
 def jacobian_at(mechanism: Mechanism, coordinates=None, t: float = 0.0) -> sparse.csr_array:
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(t)
     assembler.fill_residual_jacobian(pattern.initial_coordinates if coordinates is None else coordinates)
     return assembler.jacobian.copy()

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 import sparsekin as sk
+from sparsekin.engine.discretization import Discretization
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
 
@@ -312,7 +313,7 @@ def test_redundant_parallelogram_gives_the_minimum_norm_reactions():
         result = sk.solve_kinematics(mechanism, times)
     # the reference: b = Q - M qdd - h from the motion, then numpy's minimum-norm solution
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     mass, inertia = masses_of(mechanism)
     com, _, acceleration, _, alpha = com_motion(result, mechanism)
     for k, t in enumerate(times):

@@ -19,6 +19,7 @@ from examples_loader import EXAMPLES
 from hand_built import lattice_as_before, lattice_by_hand, rotating_squares_by_hand
 from test_repeat import assert_same_equations
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import (Body, Mechanism, ModelError, RedundantConstraintWarning, Revolute, load_model, save_model,
                        solve_kinematics, testset)
 from sparsekin.engine.assembly import Assembler
@@ -78,7 +79,7 @@ def test_rotating_squares_counts_follow_the_specification(n):
     assert mechanism.n_equations == 4 * n * n - 4 * n + 4
     assert sum(isinstance(j, Revolute) for j in mechanism.joints) == 2 * n * (n - 1) + 1
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     np.testing.assert_allclose(assembler.residual, 0.0, atol=1e-14)  # assembled as drawn

@@ -12,10 +12,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from helpers import MOTION, assert_same_motion
+from helpers import MOTION, assert_same_motion, solve_with
 
 from sparsekin import SingularConfigurationError, solve_kinematics, testset
-from sparsekin.solve.stepper import COMPILED_MAX_COORDINATES
+from sparsekin.solve.policy import COMPILED_MAX_COORDINATES, Thresholds
 
 FAMILIES = {
     "task5": (testset.task5, np.linspace(0.0, 4.0, 401)),
@@ -126,15 +126,12 @@ def test_auto_refactors_a_model_above_the_compiled_size():
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
 
 
-def test_auto_reuses_a_factorization_with_heavy_fill(monkeypatch):
+def test_auto_reuses_a_factorization_with_heavy_fill():
     """Above `MAX_REFACTOR_FILL` entries of L + U per Jacobian entry, ``auto`` goes on
     reusing the refactorization across samples (GMRES preconditioned by it) from the first
     sample on; the motion is the same, with far fewer factorizations than samples."""
-    from sparsekin.solve import stepper
-
-    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     mechanism, times = testset.lattice(6, 8), np.linspace(0.0, 1.0, 51)
-    result = solve_kinematics(mechanism, times)
+    result = solve_with(mechanism, times, thresholds=Thresholds(max_refactor_fill=1.0))  # every model's fill is heavier
     assert result.linear_solver == "reuse"
     assert result.n_factorizations + result.n_refactorizations < result.n_times // 5
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), 8.0)
@@ -149,34 +146,28 @@ REDUNDANT_FAMILIES = {
 
 @pytest.mark.filterwarnings("ignore::sparsekin.RedundantConstraintWarning")
 @pytest.mark.parametrize("name", ["task5_chain", "four_bar_chain", "lattice", *REDUNDANT_FAMILIES])
-def test_reuse_agrees_with_superlu_on_every_family(monkeypatch, name):
+def test_reuse_agrees_with_superlu_on_every_family(name):
     """The reusing path on the families whose paths are compared above (velocities and
     accelerations included), over their whole motions; on the overconstrained ones too,
     whose reduced system first filled in the refactorization's order."""
-    from sparsekin.solve import kinematics, stepper
-
-    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 0.0)  # every model reuses
-    monkeypatch.setattr(stepper, "COMPILED_MAX_COORDINATES", 0)  # none runs the compiled loop
-    monkeypatch.setattr(kinematics, "COMPILED_MAX_COORDINATES", 0)
     build, times = {**FAMILIES, **REDUNDANT_FAMILIES}[name]
     mechanism = build()
-    result = solve_kinematics(mechanism, times)
+    # every model reuses, none runs the compiled loop
+    result = solve_with(mechanism, times, thresholds=Thresholds(max_refactor_fill=0.0, compiled_max_coordinates=0))
     assert result.linear_solver == "reuse"
     scale = max(np.abs(mechanism.positions(list(mechanism.points))).max(), 1e-3)
     assert_same_run(result, solve_kinematics(mechanism, times, linear_solver="superlu"), scale)
 
 
-def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample(monkeypatch):
+def test_auto_with_heavy_fill_gives_the_forces_of_superlu_from_the_first_sample():
     """Reusing the factorization from the first sample on, the forces (transposed systems,
     solved by GMRES with the held factorization) are those of ``linear_solver="superlu"``
     at every sample, the first included."""
-    from sparsekin.solve import stepper
-
-    monkeypatch.setattr(stepper, "MAX_REFACTOR_FILL", 1.0)  # every model's fill is heavier
     grid = testset.lattice(6, 8).expanded()  # every bar with its own mass below
     bodies = tuple(replace(body, mass=2.0, inertia=0.2) for body in grid.bodies)
     mechanism, times = replace(grid, bodies=bodies, gravity=(0.0, -9.81)), np.linspace(0.0, 1.0, 11)
-    result = solve_kinematics(mechanism, times, forces="all")
+    heavy = Thresholds(max_refactor_fill=1.0)  # every model's fill is heavier
+    result = solve_with(mechanism, times, forces="all", thresholds=heavy)
     reference = solve_kinematics(mechanism, times, forces="all", linear_solver="superlu")
     assert result.linear_solver == "reuse" and result.complete
     assert result.force_labels == reference.force_labels and len(result.force_labels) > 100

@@ -15,6 +15,7 @@ from numba import njit
 from scipy.sparse import csr_array
 from scipy.sparse.linalg import splu, spsolve
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import solve_kinematics, testset
 from sparsekin.engine import _lu_kernels
 from sparsekin.engine.assembly import Assembler
@@ -51,7 +52,7 @@ class Family:
         build, t_end = FAMILIES[name]
         self.mechanism = build()
         self.pattern = build_pattern(self.mechanism)
-        self.assembler = Assembler(self.mechanism, self.pattern)
+        self.assembler = Assembler(Discretization(self.mechanism, self.pattern))
         self.times = np.linspace(0.0, t_end, N_CONFIGURATIONS)
         self.coordinates = solve_kinematics(self.mechanism, self.times).coordinates
 
@@ -207,7 +208,7 @@ def test_fill_straight_into_factor_order(family, rng):
     solver.factor(family.jacobian_at(0))
     positions = np.append(solver.value_positions, family.pattern.nnz)  # keep the discard slot
     composed = replace(family.pattern, primitives=family.pattern.primitives.with_slots(positions))
-    ordered = Assembler(family.mechanism, composed)
+    ordered = Assembler(Discretization(family.mechanism, composed))
     by_gather = RefactorSolver()
     by_gather.factor(family.jacobian_at(0))
     for k in range(1, N_CONFIGURATIONS):
@@ -373,7 +374,7 @@ def test_a_failed_fresh_factorization_leaves_the_fill_in_the_solver_order(rng):
     from sparsekin.engine.newton import Factorizer
 
     family = Family("task5_chain")
-    assembler = Assembler(family.mechanism, family.pattern)  # one that fills in factor order
+    assembler = Assembler(Discretization(family.mechanism, family.pattern))  # one that fills in factor order
     jacobian = family.jacobian_at(0)
     other = splu(jacobian.T.tocsc(), permc_spec="MMD_AT_PLUS_A")  # a pivot order that is not COLAMD's
     solver = RefactorSolver()

@@ -18,7 +18,7 @@ from jansen import LINKS, jansen_leg, jansen_points
 from sparsekin import Body, ModelError, check_model, solve_kinematics
 from sparsekin.analysis.assemble import assemble
 from sparsekin.engine.assembly import Assembler
-from sparsekin.engine.pattern import build_pattern
+from sparsekin.engine.discretization import discretize
 from sparsekin.model.lengths import nearest_points
 from sparsekin.model.modelfile import load_model, save_model
 
@@ -79,8 +79,9 @@ def test_check_reports_the_moves_largest_first_and_the_lengths_used(capsys):
 
 def test_the_assembly_follows_the_drawing_and_reports_its_steps():
     leg = jansen_leg(phase=4.0 * math.pi / 3.0)
-    pattern = build_pattern(leg)
-    assembler = Assembler(leg, pattern)
+    model = discretize(leg)
+    pattern = model.constraints
+    assembler = Assembler(model)
     assembler.set_time(0.0)
     assembly = assemble(assembler, pattern.initial_coordinates, pattern.coordinate_weights)
     assert assembly.steps > 1 and assembly.residual <= 1e-12
@@ -120,13 +121,14 @@ def test_legs_on_one_crankshaft_are_ordered_hub_last_and_check_says_so():
     fills = {}
     for topology in ("hub", "chain"):
         machine = jansen_machine(30, topology)
-        pattern = build_pattern(machine)
-        ordering = hub_last_ordering(machine, pattern)
+        model = discretize(machine)
+        pattern = model.constraints
+        ordering = hub_last_ordering(model)
         assert (ordering is not None) == (topology == "hub") == bool(hub_coordinates(pattern).size)
         solver = RefactorSolver()
         if ordering is not None:
             solver.suggest(*ordering)
-        assembler = Assembler(machine, pattern)
+        assembler = Assembler(model)
         assembler.set_time(0.0)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
         solver.factor(assembler.jacobian)

@@ -22,34 +22,41 @@ import numpy as np
 import pytest
 from scipy import sparse
 
+from helpers import solve_with
+
 import sparsekin as sk
+from sparsekin.engine.discretization import Discretization
 from sparsekin import testset
-from sparsekin.analysis import rank as rank_module
 from sparsekin.analysis.describe import row_preference
 from sparsekin.analysis.rank import analyse_jacobian
 from sparsekin.analysis.rigidity import counts_line
 from sparsekin.engine.assembly import Assembler
-from sparsekin.engine import forces as forces_module
-from sparsekin.engine.forces import MAX_MIN_NORM_EQUATIONS, augmented_minimum_norm, minimum_norm_multipliers
+from sparsekin.engine.multipliers import MAX_MIN_NORM_EQUATIONS, augmented_minimum_norm, minimum_norm_multipliers
 from sparsekin.engine.linalg import SuperLUSolver
 from sparsekin.engine.pattern import build_pattern
+from sparsekin.solve.policy import Thresholds
 
 G = 9.81
 
 
 def jacobian_at_drawing(mechanism):
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     return sparse.csr_array(assembler.jacobian, copy=True), row_preference(mechanism, pattern), pattern
 
 
 @pytest.fixture(params=["dense", "tall LU"])
-def path(request, monkeypatch):
-    """Both analyses: the tall LU from 1 coordinate on, or never."""
-    monkeypatch.setattr(rank_module, "SMALLEST_TALL_LU", 1 if request.param == "tall LU" else 10**9)
-    return request.param
+def path(request):
+    """Both analyses: the tall LU from 1 coordinate on, or never (the coordinates from which
+    the tall LU analyses a Jacobian)."""
+    return 1 if request.param == "tall LU" else 10**9
+
+
+def solve(mechanism, times, tall_lu_from):
+    """`solve_kinematics`, its redundant equations found by the tall LU from `tall_lu_from` coordinates on."""
+    return solve_with(mechanism, times, thresholds=Thresholds(smallest_tall_lu=tall_lu_from))
 
 
 def squares_closed_form(n, t):
@@ -72,7 +79,7 @@ def test_rotating_squares_follow_the_closed_form_with_the_exact_redundant_count(
     assert len(mechanism.joints) == 2 * n * (n - 1) + 2
     times = np.linspace(0.0, 3.0, 7)
     with pytest.warns(sk.RedundantConstraintWarning, match=rf"{(n - 2) ** 2} redundant equations? left out"):
-        result = sk.solve_kinematics(mechanism, times)
+        result = solve(mechanism, times, path)
     assert len(result.redundant_equations) == (n - 2) ** 2
     q, qd, qdd = squares_closed_form(n, times)
     np.testing.assert_allclose(result.coordinates, q, rtol=0, atol=1e-10)
@@ -83,7 +90,7 @@ def test_rotating_squares_follow_the_closed_form_with_the_exact_redundant_count(
 @pytest.mark.parametrize("n", [4, 12])
 def test_counts_of_the_rotating_squares(n, path):
     mechanism = testset.rotating_squares(n)
-    report = sk.check_model(mechanism)
+    report = sk.check_model(mechanism, tall_lu_from=path)
     assert (report.n_coordinates, report.n_equations, report.rank) == (3 * n * n, 4 * n * n - 4 * n + 4, 3 * n * n)
     assert len(report.redundant) == (n - 2) ** 2
     assert report.dof_by_rank == (1, 0)  # one flex without the driver: Poisson's ratio −1
@@ -132,7 +139,7 @@ def test_parallel_bar_chain_follows_the_closed_form(bars, path):
     times = np.linspace(0.0, 2.0, 9)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = sk.solve_kinematics(mechanism, times)
+        result = solve(mechanism, times, path)
     redundant = [w for w in caught if issubclass(w.category, sk.RedundantConstraintWarning)]
     assert len(redundant) == (bars == 3)
     assert len(result.redundant_equations) == (n if bars == 3 else 0)
@@ -158,8 +165,8 @@ def bar_of_wrong_length(n, cell, error=1e-3):
 
 def test_an_inconsistent_redundant_set_is_named_as_such(path):
     n, cell = 20, 7
-    assert sk.check_model(bar_of_wrong_length(n, cell)).problems == (f"{n} redundant equations",)
-    report = sk.check_model(bar_of_wrong_length(n, cell), time=0.5)  # sheared: the bars disagree
+    assert sk.check_model(bar_of_wrong_length(n, cell), tall_lu_from=path).problems == (f"{n} redundant equations",)
+    report = sk.check_model(bar_of_wrong_length(n, cell), time=0.5, tall_lu_from=path)  # sheared: the bars disagree
     assert len(report.redundant) == n
     bad = [equation for equation in report.redundant if not equation.consistent]
     assert len(bad) == 2 and any("not satisfied" in problem for problem in report.problems)
@@ -169,15 +176,14 @@ def test_an_inconsistent_redundant_set_is_named_as_such(path):
     assert "NOT satisfied" in str(report)
     with pytest.raises(sk.ConvergenceError, match="contradict"), warnings.catch_warnings():
         warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
-        sk.solve_kinematics(bar_of_wrong_length(n, cell), np.linspace(0.0, 1.0, 3))
+        solve(bar_of_wrong_length(n, cell), np.linspace(0.0, 1.0, 3), path)
 
 
 @pytest.mark.parametrize("builder", [lambda: testset.rotating_squares(9), lambda: testset.parallel_bar_chain(40)])
-def test_tall_lu_agrees_with_the_dense_analysis(builder, monkeypatch):
+def test_tall_lu_agrees_with_the_dense_analysis(builder):
     jacobian, preference, pattern = jacobian_at_drawing(builder())
     dense = analyse_jacobian(jacobian, row_preference=preference)
-    monkeypatch.setattr(rank_module, "SMALLEST_TALL_LU", 1)
-    tall = analyse_jacobian(jacobian, row_preference=preference)
+    tall = analyse_jacobian(jacobian, row_preference=preference, tall_lu_from=1)
     assert type(tall.dependency_source).__name__ == "TallLU"
     assert (tall.rank, tall.n_redundant, tall.n_free) == (dense.rank, dense.n_redundant, 0)
     scaled = tall.row_scale[:, None] * jacobian.toarray() * tall.column_scale
@@ -195,12 +201,12 @@ def test_a_driver_in_a_redundancy_is_named(path):
     chain = testset.parallel_bar_chain(30, bars=3)
     twin = sk.RotationalDriver(("c12", "p11"), law=chain.drivers[12].law, name="twin")
     mechanism = replace(chain, drivers=(*chain.drivers, twin))
-    report = sk.check_model(mechanism)
+    report = sk.check_model(mechanism, tall_lu_from=path)
     assert len(report.redundant) == 31
     assert sum(equation.involves_drivers for equation in report.redundant) >= 1
     assert report.dof_by_rank == (30, 0)  # one shear per cell without the drivers
     with pytest.raises(sk.ModelError, match="drivers take part in a redundancy"):
-        sk.solve_kinematics(mechanism, np.linspace(0.0, 1.0, 3))
+        solve(mechanism, np.linspace(0.0, 1.0, 3), path)
 
 
 def test_minimum_norm_multipliers_match_least_squares(rng):
@@ -217,10 +223,10 @@ def test_minimum_norm_multipliers_match_least_squares(rng):
 
 
 @pytest.mark.parametrize("method", ["conjugate gradients", "augmented LU"])
-def test_energy_balance_with_more_than_64_redundant_equations(method, monkeypatch):
+def test_energy_balance_with_more_than_64_redundant_equations(method):
     """Drivers' power = d/dt (kinetic + potential energy) on a chain with masses under gravity."""
-    if method == "augmented LU":  # what runs when conjugate gradients converge too slowly
-        monkeypatch.setattr(forces_module, "MIN_NORM_ITERATIONS", 0)
+    # the augmented LU: what runs when conjugate gradients converge too slowly
+    thresholds = Thresholds(min_norm_iterations=0) if method == "augmented LU" else Thresholds()
     n = MAX_MIN_NORM_EQUATIONS + 6
     chain = testset.parallel_bar_chain(n, bars=3)
     bodies = [replace(body, mass=1.0 + 0.5 * (k % 4), inertia=0.1) for k, body in enumerate(chain.bodies)]
@@ -228,7 +234,7 @@ def test_energy_balance_with_more_than_64_redundant_equations(method, monkeypatc
     h = 1e-3
     times = np.arange(0.0, 0.2 + h / 2, h)
     with pytest.warns(sk.RedundantConstraintWarning, match="minimum-norm"):
-        result = sk.solve_kinematics(mechanism, times)
+        result = solve_with(mechanism, times, thresholds=thresholds)
     mass = np.array([body.mass for body in bodies])
     inertia = np.array([body.inertia for body in bodies])
     velocity = result.velocities.reshape(times.size, -1, 3)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from examples_loader import EXAMPLES
+from sparsekin.engine.discretization import Discretization, discretize
 from sparsekin import (
     Body,
     Harmonic,
@@ -93,7 +94,7 @@ def assert_same_equations(repeated: Mechanism, by_hand: Mechanism, rng) -> None:
         np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
     np.testing.assert_allclose(a.target, b.target, rtol=0, atol=1e-12 * a.length_scale)
     np.testing.assert_allclose(a.initial_coordinates, b.initial_coordinates, rtol=0, atol=1e-12 * a.length_scale)
-    assemblers = Assembler(repeated, a), Assembler(by_hand, b)
+    assemblers = Assembler(Discretization(repeated, a)), Assembler(Discretization(by_hand, b))
     for _ in range(3):
         q = a.initial_coordinates + 0.05 * rng.standard_normal(a.n_coordinates)
         for assembler in assemblers:
@@ -454,17 +455,19 @@ def test_the_point_names_of_a_repeat_index_like_a_list():
     assert result.point_names[-1] == "a3.R" and result.point_names[-3:] == ["a3.P", "a3.Q", "a3.R"]
 
 
-def test_an_own_driver_on_a_copy_beyond_the_short_chain_takes_superlus_order(monkeypatch):
-    from sparsekin.solve import stepper
-    from sparsekin.engine.ordering import tiled_ordering
+def test_an_own_driver_on_a_copy_beyond_the_short_chain_takes_superlus_order():
+    from helpers import solve_with
 
-    monkeypatch.setattr(stepper, "MIN_TILED_COORDINATES", 0)  # tile even this short chain
+    from sparsekin.engine.ordering import tiled_ordering
+    from sparsekin.solve.policy import Thresholds
+
     long_chain = load_model(EXAMPLES / "four_bar_chain.toml")
     chain = replace(long_chain, analysis=Analysis(), repeats=(replace(long_chain.repeats[0], count=10),))
     at_the_end = replace(chain, drivers=(RotationalDriver(("u9.crank", "ground"), law=Linear(rate=1.0)),))
-    assert tiled_ordering(chain, build_pattern(chain)) is not None  # the tiling applies to the chain itself
-    assert tiled_ordering(at_the_end, build_pattern(at_the_end)) is None  # its short chain has no u9.crank
+    assert tiled_ordering(discretize(chain)) is not None  # the tiling applies to the chain itself
+    assert tiled_ordering(discretize(at_the_end)) is None  # its short chain has no u9.crank
     times = np.linspace(0.0, 1.0, 11)
-    result = solve_kinematics(at_the_end, times, linear_solver="refactor")
+    tile = Thresholds(min_tiled_coordinates=0)  # tile even this short chain
+    result = solve_with(at_the_end, times, linear_solver="refactor", thresholds=tile)
     angle = math.pi / 2 + times  # driven from the far end, every crank still turns alike
     np.testing.assert_allclose(result.point("A0").position, np.c_[np.cos(angle), np.sin(angle)], atol=1e-9)

@@ -122,6 +122,22 @@ def test_task5_amplitudes_above_0054_lock_up_when_a_single_run_does(swept, task5
     np.testing.assert_allclose(swept.t_stop[locking], [0.94, 0.75, 0.65, 0.59], rtol=0, atol=1e-12)
 
 
+def test_the_sweeps_motion_gives_each_variant_what_its_run_gives(swept, serial):
+    """`SweepResult.motion` has a run's accessors with the variant first: recorded points and
+    joints, and what is derived from the coordinates (a point not recorded, a driver's
+    coordinate), each variant's row the serial run's, NaN after its last sample."""
+    motion = swept.motion
+    assert motion.point("K").position.shape == (AMPLITUDES.size, TIMES.size, 2)
+    for k, (_, run, _) in enumerate(serial):
+        n = run.n_times
+        for swept_motion, run_motion in ((motion.point("K"), run.point("K")), (motion.point("B"), run.point("B")),
+                                         (motion.joint("actuator1"), run.joint("actuator1")),
+                                         (motion.driver(0), run.driver(0))):  # fmt: skip
+            for swept_array, run_array in zip(swept_motion, run_motion):
+                np.testing.assert_array_equal(swept_array[k, :n], run_array)
+                assert np.isnan(swept_array[k, n:]).all()
+
+
 def test_a_sweep_labels_its_dataset_as_a_run_does(swept, task5):
     """In memory as in a store, the labels of a sweep's Dataset are those of one run's."""
     _, run, _ = serial_run(task5)
@@ -408,11 +424,14 @@ def test_external_scheduler_runs_the_same_sweep(task5, capsys, tmp_path):
     assert_store_and_csv_match(tmp_path / "out", runs, BOTH)
 
 
-def test_unreachable_scheduler_is_a_usage_error(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr("sparsekin.cli.sweep.SCHEDULER_TIMEOUT", 1)
-    status, _, err = run_cli(["sweep", TASK5, "--vary", f"{BOTH[0]}=0.03:0.07:3", "--scheduler", "tcp://127.0.0.1:9",
-                              "--out", tmp_path], capsys)  # fmt: skip
-    assert status == 2 and "--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there" in err
+def test_unreachable_scheduler_is_a_usage_error():
+    """A scheduler that does not answer within the timeout: the usage error of ``--scheduler``
+    (a `CommandError`: exit status 2, its message on stderr)."""
+    from sparsekin.cli.common import CommandError
+    from sparsekin.cli.sweep import _connect
+
+    with pytest.raises(CommandError, match="--scheduler tcp://127.0.0.1:9: cannot reach a Dask scheduler there"):
+        _connect("tcp://127.0.0.1:9", timeout=1)
 
 
 def test_import_sparsekin_does_not_import_dask():

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sparsekin.engine.discretization import Discretization
 from sparsekin import ConvergenceError, solve_kinematics
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
@@ -27,7 +28,7 @@ def task5():
 def test_jacobian_determinant_at_start_matches_report(task5):
     """The report's det of the 30×30 Jacobian at t = 0 (given to 7 significant digits)."""
     pattern = build_pattern(task5)
-    assembler = Assembler(task5, pattern)
+    assembler = Assembler(Discretization(task5, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     jacobian = assembler.jacobian.toarray()

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from examples_loader import EXAMPLES
+from sparsekin.engine.discretization import Discretization
 from sparsekin import load_model, save_model, solve_kinematics, testset
 from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.pattern import build_pattern
@@ -74,7 +75,7 @@ def test_lattice_jacobian_is_square_and_well_conditioned_over_its_run():
     pattern = build_pattern(mechanism)
     assert pattern.n_equations == pattern.n_coordinates
     result = solve_kinematics(mechanism, np.linspace(0.0, np.pi, 61))  # one period of the rows
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     smallest = []
     for t, q in zip(result.times, result.coordinates):
         assembler.set_time(t)

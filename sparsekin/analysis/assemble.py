@@ -15,8 +15,8 @@ through the last two solutions and corrected by Newton (sparse LU); a step that 
 cannot correct is halved, a step it corrects easily is doubled.  A drawing that already
 satisfies the equations costs one residual evaluation.
 
-`check_model` reports the result; the run (`sparsekin.solve_kinematics`) starts from it
-(`start_pattern`).
+`check_model` reports the result; the run (`sparsekin.solve.kinematics.run_kinematics`)
+starts from it (`start_discretization`).
 """
 
 from __future__ import annotations
@@ -27,14 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..engine.assembly import Assembler
+from ..engine.discretization import Discretization
 from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.newton import NoConvergence, solve_positions
-from ..engine.pattern import ConstraintPattern, build_point_map
+from ..engine.pattern import build_point_map
 from ..engine.reduced import ReducedSystem
 from ..model.geometry import to_global
 from ..model.mechanism import Mechanism
 
-__all__ = ["Assembly", "AssemblyFailed", "assemble", "start_pattern", "point_moves", "reduced_system",
+__all__ = ["Assembly", "AssemblyFailed", "assemble", "start_discretization", "point_moves", "reduced_system",
            "MOST_LISTED_MOVES"]
 
 #: Convergence tolerance of the assembly: lengths relative to the model size, angles in rad.
@@ -180,25 +181,27 @@ def assemble(system, drawn: np.ndarray, coordinate_weights: np.ndarray, *,
     return Assembly(q, drawn, steps, corrections, norm)
 
 
-def start_pattern(mechanism: Mechanism, pattern: ConstraintPattern, t: float) -> ConstraintPattern:
-    """`pattern` whose start (`~ConstraintPattern.initial_coordinates`) is the mechanism
-    assembled at `t` from its drawing, when the drawing does not satisfy the equations
-    there; `pattern` itself otherwise, or when the path fails (plain Newton from the
-    drawing then says why it cannot start).
+def start_discretization(discretization: Discretization, t: float) -> Discretization:
+    """`discretization` whose constraints start (`~ConstraintPattern.initial_coordinates`)
+    at the mechanism assembled at `t` from its drawing, when the drawing does not satisfy
+    the equations there; `discretization` itself otherwise, or when the path fails (plain
+    Newton from the drawing then says why it cannot start).
 
-    Square patterns only (a model with redundant equations starts from its drawing).
+    Square constraints only (a model with redundant equations starts from its drawing).
     """
+    pattern = discretization.constraints
     if pattern.n_equations != pattern.n_coordinates or pattern.n_equations == 0:
-        return pattern
-    assembler = Assembler(mechanism, pattern)
+        return discretization
+    assembler = Assembler(discretization)
     assembler.set_time(float(t))
     try:
         assembly = assemble(assembler, pattern.initial_coordinates, pattern.coordinate_weights)
     except AssemblyFailed:
-        return pattern
+        return discretization
     if assembly.steps == 0:
-        return pattern
-    return dataclasses.replace(pattern, initial_coordinates=assembly.coordinates)
+        return discretization
+    started = dataclasses.replace(pattern, initial_coordinates=assembly.coordinates)
+    return dataclasses.replace(discretization, constraints=started)
 
 
 def point_moves(mechanism: Mechanism, drawn: np.ndarray, coordinates: np.ndarray,

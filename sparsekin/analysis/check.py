@@ -15,8 +15,9 @@ import numpy as np
 from scipy import sparse
 
 from ..engine.assembly import Assembler
+from ..engine.discretization import discretize
 from ..engine.outputs import LimitState, limit_states, own_coordinates
-from ..engine.pattern import build_output_pattern, build_pattern
+from ..engine.pattern import build_output_pattern
 from ..engine.reduced import CONSISTENCY_TOLERANCE
 from ..model.mechanism import Mechanism
 from .assemble import ASSEMBLY_TOLERANCE, AssemblyFailed, assemble, point_moves, reduced_system
@@ -28,7 +29,7 @@ from .describe import (
     row_preference,
 )
 from .notices import actuator_directions, hub_lines, law_offsets, notice_lines, unjoined_point_lines
-from .rank import JacobianAnalysis, analyse_jacobian
+from .rank import SMALLEST_TALL_LU, JacobianAnalysis, analyse_jacobian
 from .rigidity import counts_line, describe_redundant, listed_redundant
 
 __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "format_report"]
@@ -222,7 +223,7 @@ class ModelReport:
         return format_report(self)
 
 
-def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
+def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = SMALLEST_TALL_LU) -> ModelReport:
     """Assemble `mechanism` at `time` and report its rank, redundant equations and free motions.
 
     Newton–Raphson first brings the drawn configuration onto the constraints (leaving out
@@ -234,6 +235,10 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
     mechanism : Mechanism
     time : float
         Time of the analysis, s (the drivers' values at that time are used).
+    tall_lu_from : int
+        A Jacobian with more equations than coordinates, at least this many, is analysed
+        by a sparse LU first (`sparsekin.analysis.rank.SMALLEST_TALL_LU`; see
+        `analyse_jacobian`).
 
     Returns
     -------
@@ -265,7 +270,8 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
     is_number = isinstance(time, (int, float, np.integer, np.floating)) and not isinstance(time, bool)
     if not (is_number and math.isfinite(time)):
         raise ValueError(f"`time` must be a finite number (s), got {time!r}.")
-    pattern = build_pattern(mechanism)
+    discretization = discretize(mechanism)
+    pattern = discretization.constraints
     weights = pattern.residual_weights
     preference = row_preference(mechanism, pattern)
     drawn = pattern.initial_coordinates.copy()
@@ -275,24 +281,24 @@ def check_model(mechanism: Mechanism, time: float = 0.0) -> ModelReport:
         assembled, coordinates, assembly = True, drawn, f"nothing to assemble at t = {time:g} s: no equation"
         residual = raw_residual = np.zeros(0)
     else:
-        assembler = Assembler(mechanism, pattern)
+        assembler = Assembler(discretization)
         assembler.set_time(float(time))
         assembler.fill_residual_jacobian(drawn)
-        first = analyse_jacobian(assembler.jacobian, row_preference=preference)
+        first = analyse_jacobian(assembler.jacobian, row_preference=preference, tall_lu_from=tall_lu_from)
         assembled, coordinates, assembly = _assemble(mechanism, pattern, assembler, float(time), drawn, first)
         assembler.fill_residual_jacobian(coordinates)
         moved = float(np.max(np.abs(coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
         if assembled and moved > ASSEMBLY_TOLERANCE:  # else the drawing's analysis holds (twice the cost saved)
             left_out = preference.copy()
             left_out[first.redundant_rows] += 2.0  # the equations the assembly left out: named first
-            analysis = analyse_jacobian(assembler.jacobian, row_preference=left_out)
+            analysis = analyse_jacobian(assembler.jacobian, row_preference=left_out, tall_lu_from=tall_lu_from)
         else:
             analysis = first
         if assembled and moved > ASSEMBLY_TOLERANCE:
             found = point_moves(mechanism, drawn, coordinates)
             moves, n_moved = ((), -1) if found is None else (tuple(found[0]), found[1])
         raw_residual = assembler.residual
-        hubs = hub_lines(mechanism, pattern, assembler.jacobian) if assembled else ()
+        hubs = hub_lines(discretization, assembler.jacobian) if assembled else ()
         residual = raw_residual * weights
     n_joint_equations = int(pattern.element_first_row[len(mechanism.joints)])
     consistent = np.abs(residual[analysis.redundant_rows]) <= CONSISTENCY_TOLERANCE

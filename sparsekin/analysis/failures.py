@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..engine.pattern import ConstraintPattern
+from ..engine.discretization import Discretization
 from ..engine.reduced import CONSISTENCY_TOLERANCE
 from ..errors import (
     ConvergenceError,
@@ -30,7 +30,6 @@ from ..errors import (
     SingularConfigurationError,
     warn_caller,
 )
-from ..model.mechanism import Mechanism
 from .describe import (
     describe_motion,
     driven_labels,
@@ -68,12 +67,12 @@ class Diagnosis:
 
     Parameters
     ----------
-    mechanism : Mechanism
-    pattern : ConstraintPattern
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`).
     """
 
-    def __init__(self, mechanism: Mechanism, pattern: ConstraintPattern) -> None:
-        self.mechanism, self.pattern = mechanism, pattern
+    def __init__(self, discretization: Discretization) -> None:
+        self.mechanism, self.pattern = discretization.mechanism, discretization.constraints
         self._driven_labels: list[str] | None = None
         self.redundancy_analysis: JacobianAnalysis | None = None
 
@@ -105,11 +104,13 @@ class Diagnosis:
         return f"; largest residual {abs(residual[worst]):.3g} in {self.label(row)}"
 
     # ------------------------------------------------------------------ at the start
-    def redundant_rows(self, assembler, t: float, coordinates: np.ndarray, forces: bool = False) -> np.ndarray:
+    def redundant_rows(self, assembler, t: float, coordinates: np.ndarray, forces: bool = False, *,
+                       tall_lu_from: int | None = None) -> np.ndarray:  # fmt: skip
         """The equations to leave out of a model with more equations than coordinates.
 
         Warns with `RedundantConstraintWarning` naming them (and, if the run computes
-        `forces`, saying which reactions it gives for the redundant set).
+        `forces`, saying which reactions it gives for the redundant set).  `tall_lu_from`:
+        see `sparsekin.analysis.rank.analyse_jacobian`.
 
         Raises
         ------
@@ -120,7 +121,8 @@ class Diagnosis:
         mechanism, pattern = self.mechanism, self.pattern
         assembler.set_time(t)
         assembler.fill_residual_jacobian(coordinates)
-        analysis = _analyse(assembler.jacobian, row_preference=row_preference(mechanism, pattern))
+        options = {} if tall_lu_from is None else {"tall_lu_from": tall_lu_from}
+        analysis = _analyse(assembler.jacobian, row_preference=row_preference(mechanism, pattern), **options)
         self.redundancy_analysis = analysis  # its factors give the reduced system a pivot order
         n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
         if analysis.n_free:

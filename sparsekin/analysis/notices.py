@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..engine.assembly import DriverLaws
+from ..engine.discretization import DriverLaws
 from ..engine.linalg import RefactorSolver, SingularMatrix
 from ..engine.ordering import hub_coordinates, hub_last_ordering
 from ..engine.pattern import ConstraintPattern
@@ -144,11 +144,12 @@ def unjoined_point_lines(mechanism: Mechanism) -> tuple[str, ...]:
     return tuple(lines)
 
 
-def hub_lines(mechanism: Mechanism, pattern: ConstraintPattern, jacobian) -> tuple[str, ...]:
+def hub_lines(discretization, jacobian) -> tuple[str, ...]:
     """One line when bodies carry many attachments (a hub: a crankshaft, a frame): which,
     and how much the factors of `jacobian` fill in with the order the run takes for them
     (`sparsekin.engine.ordering.hub_last_ordering`); a warning with a way out when that is
     heavy."""
+    mechanism, pattern = discretization.mechanism, discretization.constraints
     hub = hub_coordinates(pattern)
     if not hub.size or pattern.n_equations != pattern.n_coordinates:
         return ()
@@ -156,7 +157,7 @@ def hub_lines(mechanism: Mechanism, pattern: ConstraintPattern, jacobian) -> tup
     names = ", ".join(mechanism.body_name(int(b)) for b in bodies[:LISTED_NOTICES])
     names += " …" if bodies.size > LISTED_NOTICES else ""
     entries = int(np.bincount(pattern.indices, minlength=pattern.n_coordinates)[hub].max())
-    ordering = hub_last_ordering(mechanism, pattern)
+    ordering = hub_last_ordering(discretization)
     solver = RefactorSolver()
     if ordering is not None:
         solver.suggest(*ordering)

@@ -214,6 +214,7 @@ def analyse_jacobian(
     tolerance: float | None = None,
     row_preference: np.ndarray | None = None,
     seed: int = 0,
+    tall_lu_from: int = SMALLEST_TALL_LU,
 ) -> JacobianAnalysis:
     """Numerical rank, free motions and redundant equations of a sparse Jacobian.
 
@@ -230,6 +231,9 @@ def analyse_jacobian(
     seed : int
         Seed of the random start blocks (the result does not depend on it, beyond
         rounding).
+    tall_lu_from : int
+        A tall Jacobian (more rows than columns) of at least this many columns is
+        analysed by a sparse LU first (`SMALLEST_TALL_LU`).
 
     Returns
     -------
@@ -290,7 +294,7 @@ def analyse_jacobian(
                     smallest_equations=image / np.linalg.norm(image),
                 )
 
-    if m > n >= SMALLEST_TALL_LU:  # the common overconstrained case: full column rank
+    if m > n >= tall_lu_from:  # the common overconstrained case: full column rank
         found = _analysis_by_tall_lu(scaled, row_preference, absolute_tolerance, sigma_max, rng, common)
         if found is not None:
             return found

@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from ..model.mechanism import Mechanism
+from ..results import schema
 from ..results.kinematics import KinematicsResult
+from ..results.schema import result_arrays
 from .common import report
 from .settings import RunSettings
 
@@ -159,7 +161,7 @@ def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
     """Write time and the force columns the run recorded, every float by `repr`.
 
     The header is ``t,motor.force,motor.power,pivot.fx,pivot.fy,...``
-    (`sparsekin.engine.forces.ForceOutputs`).  A model with masses or loads but no driver or
+    (`sparsekin.engine.force_columns.ForceOutputs`).  A model with masses or loads but no driver or
     joint has no force column: the column ``t`` alone, as ``joints.csv`` without joints;
     for None, the header alone.
     """
@@ -175,13 +177,11 @@ def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
 
 def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:
     """Write arrays ``t``, ``q``, ``qd``, ``qdd`` (n_times × 3·n_bodies) and ``body_names``."""
+    names = [v.name for v in schema.COORDINATE_VARIABLES]
     if result is None or result.coordinates is None:
-        empty = np.empty((0, 3 * len(body_names)))
-        arrays = {"t": np.empty(0), "q": empty, "qd": empty, "qdd": empty}
+        arrays = {schema.TIME: np.empty(0)} | dict.fromkeys(names, np.empty((0, 3 * len(body_names))))
     else:
-        arrays = {
-            "t": result.times, "q": result.coordinates, "qd": result.velocities, "qdd": result.accelerations
-        }
+        arrays = {schema.TIME: result.times} | {name: result_arrays(result)[name] for name in names}
     np.savez(path, **arrays, body_names=np.array(body_names, dtype=str))
     return path
 

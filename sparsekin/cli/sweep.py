@@ -88,7 +88,7 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         For a bad argument, a bad model file or an output folder that cannot be written.
     """
     _require_distributed()
-    from ..solve.kinematics import _checked_times
+    from ..solve.options import check_times
     from ..studies.sweeps import VariantSet, default_worker_count, sweep, write_variants_csv
 
     mechanism = load_model(arguments.model)
@@ -112,7 +112,7 @@ def sweep_command(arguments: argparse.Namespace) -> int:
     if arguments.variants_per_task is not None and arguments.variants_per_task < 1:
         raise CommandError(f"--variants-per-task must be a whole number >= 1, got {arguments.variants_per_task}")
     try:  # what every variant's run would refuse, e.g. times outside a spline law's range: once, here
-        _checked_times(settings.times, mechanism)
+        check_times(settings.times, mechanism)
     except ValueError as error:
         raise CommandError(str(error)) from None
     if arguments.plot_point is not None and not arguments.plot_figures:
@@ -186,15 +186,18 @@ def _require_distributed() -> None:
         raise CommandError('sweep needs dask, distributed, zarr and xarray: pip install "sparsekin[distributed]"') from None
 
 
-def _connect(address: str):
-    """A client of the scheduler at `address`, or a CommandError saying it cannot be reached."""
+#: Seconds to wait for ``--scheduler ADDRESS`` to answer.
+SCHEDULER_TIMEOUT = 10
+
+
+def _connect(address: str, timeout: float = SCHEDULER_TIMEOUT):
+    """A client of the scheduler at `address`, or a CommandError saying it cannot be
+    reached within `timeout` seconds."""
     import distributed
 
     try:
-        return distributed.Client(address, timeout=SCHEDULER_TIMEOUT)
+        return distributed.Client(address, timeout=timeout)
     except (OSError, TimeoutError, ValueError) as error:
         raise CommandError(f"--scheduler {address}: cannot reach a Dask scheduler there ({error})") from None
 
 
-#: Seconds to wait for ``--scheduler ADDRESS`` to answer.
-SCHEDULER_TIMEOUT = 10

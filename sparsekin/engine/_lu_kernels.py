@@ -130,18 +130,21 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
 
 
 @njit(**_JIT)
-def refactor_lu(
-    values, gather, b_indptr, b_rows,
-    l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse, work, stats,
-):  # fmt: skip
+def refactor_lu(values, gather, b_pattern, lower, upper, work, stats):
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
 
-    B's entry p is ``values[gather[p]]``, or ``values[p]`` when `gather` is empty.
+    `b_pattern` is B's ``(indptr, rows)``, `lower` L's ``(indptr, indices, values)``,
+    `upper` U's ``(indptr, indices, values, inverse of the diagonal)``; the values of L
+    and U are filled.  B's entry p is ``values[gather[p]]``, or ``values[p]`` when `gather`
+    is empty.
     `work` (shape (n,)) must be zero on entry and is zero on return.  The factorization
     stops at the first column whose pivot is zero or non-finite and records it in
     ``stats[STAT_BAD_COLUMN]``; a non-finite entry of L or U makes
     ``stats[STAT_NON_FINITE]`` NaN.
     """
+    b_indptr, b_rows = b_pattern
+    l_indptr, l_indices, l_values = lower
+    u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
     direct = gather.size == 0
     max_l = 1.0
@@ -194,15 +197,14 @@ def refactor_lu(
 
 
 @njit(**_JIT)
-def solve_lu(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
-    rhs, work, out, probe,
-):  # fmt: skip
+def solve_lu(factors, rhs, work, out, probe):
     """Solve ``A x = rhs`` with ``Pr A Pc = L U``: fill `out` (may be `rhs` itself).
 
-    `rhs`, `work` and `out` have shape (n,).  ``probe[0]`` becomes 0 if every entry of
+    `factors` is ``(perm_r, perm_c, (L's indptr, indices, values), (U's indptr, indices,
+    values, inverse of the diagonal))``; `rhs`, `work` and `out` have shape (n,).  ``probe[0]`` becomes 0 if every entry of
     the solution is finite, NaN otherwise.
     """
+    perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = rhs.size
     for i in range(n):
         work[perm_r[i]] = rhs[i]
@@ -224,15 +226,14 @@ def solve_lu(
 
 
 @njit(**_JIT)
-def solve_lu_transposed(
-    perm_r, perm_c, l_indptr, l_indices, l_values, u_indptr, u_indices, u_values, u_inverse,
-    rhs, work, out, probe,
-):  # fmt: skip
+def solve_lu_transposed(factors, rhs, work, out, probe):
     """Solve ``A^T x = rhs`` with ``Pr A Pc = L U`` (``A^T = Pc U^T L^T Pr``): fill `out`.
 
-    `rhs`, `work` and `out` have shape (n,); `out` may be `rhs` itself.  ``probe[0]``
+    `factors` as for `solve_lu`; `rhs`, `work` and `out` have shape (n,); `out` may be
+    `rhs` itself.  ``probe[0]``
     becomes 0 if every entry of the solution is finite, NaN otherwise.
     """
+    perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = rhs.size
     for i in range(n):
         work[perm_c[i]] = rhs[i]

@@ -13,10 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..model.laws import fill_laws
-from ..model.mechanism import Mechanism
 from . import _kernels
-from .pattern import ConstraintPattern, pack_element_laws
+from .discretization import Discretization, DriverLaws
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -24,33 +22,14 @@ if TYPE_CHECKING:
 __all__ = ["Assembler", "DriverLaws"]
 
 
-class DriverLaws:
-    """The laws of every driven row (`ConstraintPattern.driven_row`), evaluated together.
-
-    Built-in laws are evaluated in one numba call over a `sparsekin.model.laws.LawTable`, so
-    that a model with 10^5 drivers costs one call per time; other law objects are called
-    one by one.
-    """
-
-    def __init__(self, mechanism: Mechanism, initial: np.ndarray) -> None:
-        self.table, self._others, self.n_laws = pack_element_laws(mechanism, "drivers", initial)
-        self._initial = initial
-
-    def evaluate(self, t: float, value: np.ndarray, rate: np.ndarray, acceleration: np.ndarray) -> None:
-        """Fill the value and time derivatives of every law at time `t` (s)."""
-        fill_laws(self.table, float(t), value, rate, acceleration)
-        for k, law in self._others:
-            value[k], rate[k], acceleration[k] = law.evaluate(t, float(self._initial[k]))
-
-
 class Assembler:
     """Residual, Jacobian and acceleration right-hand side of a mechanism, refilled in place.
 
     Parameters
     ----------
-    mechanism : Mechanism
-    pattern : ConstraintPattern
-        From `sparsekin.engine.pattern.build_pattern`.
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`): its
+        constraint pattern and driver laws.
 
     Attributes
     ----------
@@ -72,8 +51,8 @@ class Assembler:
         The laws' values at the last `set_time`, m or rad (one per driven row).
     """
 
-    def __init__(self, mechanism: Mechanism, pattern: ConstraintPattern) -> None:
-        self.pattern = pattern
+    def __init__(self, discretization: Discretization) -> None:
+        self.pattern = pattern = discretization.constraints
         n_coordinates, n_equations = pattern.n_coordinates, pattern.n_equations
         # Coordinates and velocities with the ground appended as a body of zeros.
         self._q = np.zeros(n_coordinates + 3)
@@ -93,7 +72,7 @@ class Assembler:
         self._target = pattern.target.copy()
         self.velocity_rhs = np.zeros(n_equations)
         self._target_acceleration = np.zeros(n_equations)
-        self.laws = DriverLaws(mechanism, pattern.driven_initial)
+        self.laws: DriverLaws = discretization.driver_laws
         n_driven = pattern.driven_row.size
         self.driver_values = np.zeros(n_driven)
         self._driver_rates = np.zeros(n_driven)

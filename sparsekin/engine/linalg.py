@@ -398,16 +398,16 @@ class RefactorSolver:
         rhs, out = _checked_rhs(rhs, self._n, out)
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
         kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
-        factors = (self._perm_r, self._perm_c, self._l_indptr, self._l_indices, self._l_values,
-                   self._u_indptr, self._u_indices, self._u_values, self._u_inverse)  # fmt: skip
+        factors = (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
+                   (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
         if rhs.ndim == 1:
-            kernel(*factors, rhs, self._solve_work, out, self._probe)
+            kernel(factors, rhs, self._solve_work, out, self._probe)
             finite = self._probe[0] == 0.0
         else:  # column by column
             column = np.empty(self._n)
             finite = True
             for c in range(rhs.shape[1]):
-                kernel(*factors, np.ascontiguousarray(rhs[:, c]), self._solve_work, column, self._probe)
+                kernel(factors, np.ascontiguousarray(rhs[:, c]), self._solve_work, column, self._probe)
                 out[:, c] = column
                 finite &= self._probe[0] == 0.0
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
@@ -536,8 +536,8 @@ class RefactorSolver:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
         stats = self._stats
         _lu_kernels.refactor_lu(
-            values, gather, self._b_indptr, self._b_rows, self._l_indptr, self._l_indices, self._l_values,
-            self._u_indptr, self._u_indices, self._u_values, self._u_inverse, self._work, stats,
+            values, gather, (self._b_indptr, self._b_rows), (self._l_indptr, self._l_indices, self._l_values),
+            (self._u_indptr, self._u_indices, self._u_values, self._u_inverse), self._work, stats,
         )  # fmt: skip
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf

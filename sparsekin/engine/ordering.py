@@ -27,10 +27,10 @@ import dataclasses
 import numpy as np
 
 from ..errors import ModelError
-from ..model.mechanism import Analysis, Mechanism
+from ..model.mechanism import Analysis
 from ..model.units import Cycle, Step
 from .assembly import Assembler
-from .pattern import ConstraintPattern, build_pattern
+from .discretization import Discretization, discretize
 
 __all__ = [
     "tiled_ordering",
@@ -56,7 +56,7 @@ HUB_DEGREE = 48
 DISSECTION_LEAF_SIZE = 16
 
 
-def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
+def tiled_ordering(discretization: Discretization, t: float = 0.0):
     """``(perm_r, perm_c)`` for the first factorization of ``jacobian.T`` (SuperLU's
     convention: ``Pr A Pc = L U``), tiled from a short chain; None if the mechanism has no
     repeats, names a copy that the short chain lacks (an own driver on ``u4999.crank``,
@@ -64,20 +64,20 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
 
     Parameters
     ----------
-    mechanism : Mechanism
-    pattern : ConstraintPattern
-        ``build_pattern(mechanism)``; square.
+    discretization : Discretization
+        The mechanism's arrays; its constraints square.
     t : float
         The time of the first sample (the short chain's Jacobian is taken there, at its
         drawing).
     """
+    mechanism, pattern = discretization.mechanism, discretization.constraints
     if not mechanism.copies or pattern.n_equations != pattern.n_coordinates:
         return None
     if any(c.is_grid or c.total("bodies") != c.count * c.n_bodies or c.n_left_out() for c in mechanism.copies):
         return None  # a grid, or parts left out of some copies: no short chain to tile from
     middles = [_middle_copies(copies) for copies in mechanism.copies]
     try:
-        short = dataclasses.replace(
+        short_mechanism = dataclasses.replace(
             mechanism,
             analysis=Analysis(),
             repeats=tuple(dataclasses.replace(c.repeat, count=min(c.count, m + 2))
@@ -87,8 +87,9 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
         # The model names a copy beyond the short chain (its own driver on ``u4999.crank``,
         # another repeat's `first`): no short chain, SuperLU orders the long one.
         return None
-    short_pattern = build_pattern(short)
-    assembler = Assembler(short, short_pattern)
+    short = discretize(short_mechanism)
+    short_pattern = short.constraints
+    assembler = Assembler(short)
     assembler.set_time(t)
     assembler.fill_residual_jacobian(short_pattern.initial_coordinates)
     try:
@@ -104,7 +105,7 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     coordinate_at_step[lu.perm_r] = np.arange(steps.size)
     pivot = coordinate_at_step[steps]
 
-    equation_map, equation_shift = _equation_map(mechanism, pattern, short, short_pattern, middles)
+    equation_map, equation_shift = _equation_map(discretization, short, middles)
     # big equation -> its representative in the short chain, shifted by whole copies
     key = steps[equation_map] + equation_shift * steps.size
     order = np.argsort(key, kind="stable")
@@ -113,7 +114,7 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     # its pivot: the representative's pivot coordinate, in the same shifted copy
     short_pivot = pivot[equation_map]
     pivot_body = short_pivot // 3
-    big_body = _unmap(pivot_body, equation_shift, mechanism, short)
+    big_body = _unmap(pivot_body, equation_shift, mechanism, short_mechanism)
     if big_body is None:
         return None
     pivot_coordinate = 3 * big_body + short_pivot % 3
@@ -124,7 +125,7 @@ def tiled_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 
     return perm_r, perm_c
 
 
-def hub_coordinates(pattern: ConstraintPattern) -> np.ndarray:
+def hub_coordinates(pattern) -> np.ndarray:
     """The three coordinates of every body that many others are attached to (a crankshaft,
     a frame, a hub): one of its columns of the Jacobian has more than `HUB_DEGREE` entries."""
     degree = np.bincount(pattern.indices, minlength=pattern.n_coordinates)
@@ -132,7 +133,7 @@ def hub_coordinates(pattern: ConstraintPattern) -> np.ndarray:
     return (3 * bodies[:, None] + np.arange(3)).ravel()
 
 
-def hub_last_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float = 0.0):
+def hub_last_ordering(discretization: Discretization, t: float = 0.0):
     """``(perm_r, perm_c)`` (as `tiled_ordering`'s) that eliminates a hub's coordinates last;
     None without a hub, or when the hub's own equations do not pivot on it.
 
@@ -142,16 +143,18 @@ def hub_last_ordering(mechanism: Mechanism, pattern: ConstraintPattern, t: float
     step than the same legs welded one to the next).  Here the equations that involve only
     hub coordinates (the hub's joint to the ground, its driver) are pivoted on them, last;
     the rest of the Jacobian, without the hub's columns, is ordered by SuperLU (COLAMD) at
-    the start `pattern.initial_coordinates`.  The hub's columns then fill only their own
-    rows of L (three per hub body), and the matrix is block triangular: no other fill.
+    the start of its constraints (`~ConstraintPattern.initial_coordinates`).  The hub's
+    columns then fill only their own rows of L (three per hub body), and the matrix is block
+    triangular: no other fill.
     """
+    pattern = discretization.constraints
     if pattern.n_equations != pattern.n_coordinates or not pattern.n_equations:
         return None
     hub = np.zeros(pattern.n_coordinates, dtype=bool)
     hub[hub_coordinates(pattern)] = True
     if not hub.any():
         return None
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(discretization)
     assembler.set_time(t)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
     jacobian = assembler.jacobian
@@ -196,9 +199,11 @@ def _representative(k: np.ndarray, count: int, short_count: int, middles: int) -
     return s
 
 
-def _equation_map(mechanism, pattern, short, short_pattern, middles):
+def _equation_map(long: Discretization, short: Discretization, middles):
     """For every equation of the long chain: its representative in the short one, and the
     copy shift."""
+    mechanism, pattern = long.mechanism, long.constraints
+    short_pattern, short = short.constraints, short.mechanism
     maps, shifts = [], []
     for kind in ("joints", "drivers"):
         first = 0 if kind == "joints" else mechanism.n_joints

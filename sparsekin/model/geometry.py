@@ -73,21 +73,21 @@ def carried_motion(
 
     Parameters
     ----------
-    frames, rates, accelerations : ndarray, shape (n_times, 3)
+    frames, rates, accelerations : ndarray, shape (..., n_times, 3)
         The body's ``(x, y, angle)`` at each time (m, rad) and its first and second time
-        derivatives.
+        derivatives (any leading dimensions: a sweep's variants).
     local : array_like, shape (2,)
         The point in the body frame, m.
 
     Returns
     -------
-    position, velocity, acceleration : ndarray, shape (n_times, 2)
+    position, velocity, acceleration : ndarray, shape (..., n_times, 2)
         Global, in m, m/s and m/s².
     """
-    turned = rotate(np.asarray(local, dtype=float), frames[:, 2])  # R s, global
-    across = np.stack([-turned[:, 1], turned[:, 0]], axis=1)  # Omega R s
-    omega, alpha = rates[:, 2:3], accelerations[:, 2:3]
-    position = frames[:, :2] + turned
-    velocity = rates[:, :2] + omega * across
-    acceleration = accelerations[:, :2] + alpha * across - omega**2 * turned
+    turned = rotate(np.asarray(local, dtype=float), frames[..., 2])  # R s, global
+    across = np.stack([-turned[..., 1], turned[..., 0]], axis=-1)  # Omega R s
+    omega, alpha = rates[..., 2:3], accelerations[..., 2:3]
+    position = frames[..., :2] + turned
+    velocity = rates[..., :2] + omega * across
+    acceleration = accelerations[..., :2] + alpha * across - omega**2 * turned
     return position, velocity, acceleration

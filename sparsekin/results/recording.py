@@ -12,23 +12,8 @@ a `Recorder`, which fills a chunk of rows and writes every full chunk to a sink:
   "sparsekin[zarr]"``).  Peak memory is then the model plus a chunk, whatever the number
   of samples.
 
-Store layout (one Dataset, dimension ``time`` first):
-
-=============  ==============================  ===========================================
-variable       dimensions                      content
-=============  ==============================  ===========================================
-``t``          (time)                          sample times, s (a coordinate)
-``q``,         (time, coordinate)              x, y, angle of every body (m, rad) and their
-``qd``, ``qdd``                                derivatives; labels ``c1.x``, ``c1.angle``
-``points``     (time, point, component)        x, y, vx, vy, ax, ay of each recorded point
-``joints``     (time, joint, derivative)       value, rate, accel of each recorded joint's
-                                               own coordinate; ``joint_quantity`` (angle,
-                                               stroke, slide) and ``joint_unit`` per joint
-``forces``     (time, force)                   the columns of ``forces.csv`` (drivers'
-                                               forces and powers, joints' reactions),
-                                               labelled like them; ``force_unit`` per
-                                               column (N, N·m, W)
-=============  ==============================  ===========================================
+The store holds one Dataset, dimension ``time`` first, laid out by the table of recorded
+variables (`sparsekin.results.schema`).
 """
 
 from __future__ import annotations
@@ -41,19 +26,14 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ..engine.forces import ForceOutputs
-from ..engine.pattern import build_output_pattern, build_pattern, build_point_map, limited_elements
-from ..model.elements import COORDINATE_NAMES
-from ..model.geometry import carried_motion
+from ..engine.discretization import Discretization
+from ..engine.force_columns import ForceOutputs
 from ..model.mechanism import Mechanism
+from . import schema
+from .schema import JOINT_DERIVATIVES, POINT_COMPONENTS, TIME
 
-__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES",
-           "dataset_labels"]
+__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
 
-#: The components of a recorded point, in the order they are stored.
-POINT_COMPONENTS = ("x", "y", "vx", "vy", "ax", "ay")
-#: The derivatives of a recorded joint coordinate.
-JOINT_DERIVATIVES = ("value", "rate", "accel")
 #: A chunk holds at most this many bytes of samples (and at least one sample).
 CHUNK_BYTES = 64 * 2**20
 #: And at most this many samples.
@@ -66,7 +46,8 @@ class Selection:
 
     Parameters
     ----------
-    mechanism : Mechanism
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`).
     coordinates : bool
         Keep every body's coordinates, velocities and accelerations.
     points : None, "all" or sequence of str
@@ -76,11 +57,9 @@ class Selection:
         Joints whose own coordinate is recorded (names, ``joints[i]`` labels or indices);
         "all": every joint that has one.
     forces : "auto", None, "all" or sequence of str
-        Drivers and joints whose forces are recorded (`sparsekin.engine.forces.ForceOutputs`):
+        Drivers and joints whose forces are recorded (`sparsekin.engine.force_columns.ForceOutputs`):
         names or ``drivers[i]`` / ``joints[i]`` labels; "all": every driver and joint;
         "auto": all when the model has a mass or a load (`Mechanism.has_forces`), else none.
-    pattern : ConstraintPattern, optional
-        The mechanism's, to lay out the force columns (built if needed).
 
     Attributes
     ----------
@@ -93,11 +72,12 @@ class Selection:
         For an unknown point, joint or driver, or a joint without an own coordinate.
     """
 
-    def __init__(self, mechanism: Mechanism, coordinates: bool = True, points=None, joints=None, forces=None,
-                 pattern=None) -> None:  # fmt: skip
+    def __init__(self, discretization: Discretization, coordinates: bool = True, points=None, joints=None,
+                 forces=None) -> None:  # fmt: skip
         from ..engine.outputs import element_index
 
-        self.mechanism = mechanism
+        self.discretization = discretization
+        self.mechanism = mechanism = discretization.mechanism
         self.coordinates = bool(coordinates)
         if points is None:
             names: tuple[str, ...] = ()
@@ -131,25 +111,23 @@ class Selection:
         self.forces = None
         drivers, joints_with_forces = _force_elements(mechanism, forces)
         if drivers or joints_with_forces:
-            pattern = build_pattern(mechanism) if pattern is None else pattern
-            self.forces = ForceOutputs(mechanism, pattern, drivers, joints_with_forces)
+            self.forces = ForceOutputs(discretization, drivers, joints_with_forces)
 
     @property
     def n_force_columns(self) -> int:
         return 0 if self.forces is None else self.forces.n_columns
 
+    @property
+    def force_labels(self) -> tuple[str, ...]:
+        return () if self.forces is None else self.forces.labels
+
+    @property
+    def force_units(self) -> tuple[str, ...]:
+        return () if self.forces is None else self.forces.units
+
     def sample_shapes(self) -> dict[str, tuple[int, ...]]:
-        """The shape of one sample of each recorded variable (the time ``t`` aside)."""
-        shapes = {}
-        if self.coordinates:
-            shapes |= dict.fromkeys(("q", "qd", "qdd"), (self.mechanism.n_coordinates,))
-        if self.point_names:
-            shapes["points"] = (len(self.point_names), 6)
-        if self.joint_indices:
-            shapes["joints"] = (len(self.joint_indices), 3)
-        if self.forces is not None:
-            shapes["forces"] = (self.n_force_columns,)
-        return shapes
+        """The shape of one sample of each recorded variable (the time aside; `sparsekin.results.schema`)."""
+        return schema.sample_shapes(self)
 
     def bytes_per_sample(self) -> int:
         return 8 * (1 + sum(int(np.prod(shape)) for shape in self.sample_shapes().values()))
@@ -185,108 +163,59 @@ def _force_elements(mechanism: Mechanism, forces) -> tuple[list[int], list[int]]
     return sorted(set(chosen["drivers"])), sorted(set(chosen["joints"]))
 
 
-def dataset_labels(mechanism: Mechanism, coordinates: bool, point_names, joint_indices, force_labels=(),
-                   force_units=()) -> dict:  # fmt: skip
-    """The coordinates (labels) of the Dataset of a run that recorded these (the layout of
-    the module docstring): the same for a Zarr store and `KinematicsResult.to_xarray`."""
-    labels = {}
-    if coordinates:
-        labels["coordinate"] = [f"{name}.{c}" for name in mechanism.body_names for c in COORDINATE_NAMES]
-    if point_names:
-        labels |= {"point": list(point_names), "component": list(POINT_COMPONENTS)}
-    if joint_indices:
-        kinds = [type(mechanism.joints[k]) for k in joint_indices]
-        outputs = build_output_pattern(mechanism, joints=joint_indices)
-        labels |= {
-            "joint": [mechanism.joints[k].name or f"joints[{k}]" for k in joint_indices],
-            "derivative": list(JOINT_DERIVATIVES),
-            "joint_quantity": ("joint", [kind.output_names[0] for kind in kinds]),
-            "joint_unit": ("joint", ["rad" if angle else "m" for angle in outputs.row_is_angle]),
-        }
-    if force_labels:
-        labels |= {"force": list(force_labels), "force_unit": ("force", list(force_units))}
-    return labels
-
-
 class Recorder:
-    """Fills chunks of rows from solved samples and writes them to a sink.
+    """Stores solved samples: fills chunks of rows and writes every full chunk to a sink.
+
+    It only stores: what a sample holds (the variables of `sparsekin.results.schema` the
+    selection records) is computed before (`sparsekin.solve.observers`).
 
     Parameters
     ----------
     selection : Selection
     sink : MemorySink or ZarrSink
+    chunk_samples : int, optional
+        Samples per chunk (default: `Selection.chunk_samples`).
     """
 
-    def __init__(self, selection: Selection, sink) -> None:
+    def __init__(self, selection: Selection, sink, chunk_samples: int | None = None) -> None:
         self.selection, self.sink = selection, sink
-        mechanism = selection.mechanism
-        self.size = size = selection.chunk_samples()
+        self.size = selection.chunk_samples() if chunk_samples is None else int(chunk_samples)
         self._first = 0  # the index of the chunk's first sample
         # A memory sink's arrays hold the chunk's rows themselves (filled in place, not copied
         # again: `_chunk_rows`); for a store, the rows of one chunk.
         self._held = sink.arrays if getattr(sink, "in_place", False) else {}
-        # the rows filled sample by sample; the points are computed per chunk
-        self._shapes = {"t": ()} | {key: shape for key, shape in selection.sample_shapes().items() if key != "points"}
+        self._shapes = {TIME: ()} | selection.sample_shapes()
         self._chunk_rows()
-        # points: the frames of the bodies that carry them, and where they sit on them
-        point_map = build_point_map(mechanism)
-        located = [point_map.locate(name) for name in selection.point_names]
-        self._point_body = np.array([body for body, _ in located], dtype=np.int64)
-        self._point_local = np.array([local for _, local in located], dtype=float).reshape(-1, 2)
-        self._carriers = np.unique(self._point_body[self._point_body >= 0])
-        self._frames = [np.empty((size, self._carriers.size, 3)) for _ in range(3)]
-        if selection.joint_indices:
-            self._outputs = build_output_pattern(mechanism, joints=selection.joint_indices)
         self._rows = 0
         self.n_written = 0
         self._failed = False  # a write to the sink failed
-        self._limits = _LimitWatch(mechanism)
 
     def _chunk_rows(self) -> None:
         """The arrays the next chunk's rows go into: views of a memory sink's arrays from
         the chunk's first sample on, or arrays of one chunk."""
-        rows = {}
-        for key, shape in self._shapes.items():
-            held = self._held.get(key)
-            rows[key] = np.empty((self.size, *shape)) if held is None else held[self._first : self._first + self.size]
-        self._t = rows["t"]
-        self._q = [rows[key] for key in ("q", "qd", "qdd")] if "q" in rows else None
-        self._joints, self._forces = rows.get("joints"), rows.get("forces")
+        self._buffers = {}
+        for name, shape in self._shapes.items():
+            held = self._held.get(name)
+            self._buffers[name] = np.empty((self.size, *shape)) if held is None else held[self._first : self._first + self.size]
 
-    @property
-    def limit_crossings(self):
-        """`~sparsekin.results.kinematics.LimitState` of each element that left its ``limits``, at the
-        first sample outside."""
-        return self._limits.crossings
-
-    def add(self, t: float, coordinates, velocities, accelerations, forces=None) -> None:
-        """One solved sample (and its force columns, when the selection has some)."""
-        self.add_block(np.array([t]), coordinates[None], velocities[None], accelerations[None],
-                       None if forces is None else forces[None])  # fmt: skip
-
-    def add_block(self, times, coordinates, velocities, accelerations, forces=None) -> None:
-        """Solved samples, one per row of the arrays (the compiled loop's a block at a time):
-        copied by slices, the joints' own coordinates and the limits by one kernel call."""
-        self._limits.watch(times, coordinates)
+    def add_block(self, times, arrays: dict) -> None:
+        """Solved samples at `times` (s): `arrays` holds, by name, one row per sample of
+        every variable the selection records."""
+        if len(times) == 1 and self._rows + 1 < self.size:  # one sample of the Python loop, the chunk not full
+            row = self._rows
+            for name, buffer in self._buffers.items():
+                buffer[row] = times[0] if name == TIME else arrays[name][0]
+            self._rows += 1
+            return
         done = 0
         while done < len(times):
             row = self._rows
             m = min(self.size - row, len(times) - done)
             rows, block = slice(row, row + m), slice(done, done + m)
-            self._t[rows] = times[block]
-            states = (coordinates[block], velocities[block], accelerations[block])
-            if self._q is not None:
-                for buffer, state in zip(self._q, states):
-                    buffer[rows] = state
-            if self._carriers.size:
-                for buffer, state in zip(self._frames, states):
-                    buffer[rows] = state.reshape(m, -1, 3)[:, self._carriers]
-            if self.selection.joint_indices:
-                from ..engine.outputs import own_coordinates
-
-                self._joints[rows] = np.stack(own_coordinates(self._outputs, *states), axis=2)
-            if self._forces is not None:
-                self._forces[rows] = forces[block]
+            self._buffers[TIME][rows] = times[block]
+            for name, buffer in self._buffers.items():
+                if name != TIME:
+                    buffer[rows] = arrays[name][block]
             self._rows += m
             done += m
             if self._rows == self.size:
@@ -302,15 +231,7 @@ class Recorder:
         m = self._rows
         if m == 0 or self._failed:
             return
-        data = {"t": self._t[:m]}
-        if self._q is not None:
-            data["q"], data["qd"], data["qdd"] = (buffer[:m] for buffer in self._q)
-        if self.selection.point_names:
-            data["points"] = self._point_tracks(m)
-        if self.selection.joint_indices:
-            data["joints"] = self._joints[:m]
-        if self._forces is not None:
-            data["forces"] = self._forces[:m]
+        data = {name: buffer[:m] for name, buffer in self._buffers.items()}
         with _interrupt_deferred():  # a Ctrl-C waits for the write and its bookkeeping
             try:
                 self.sink.write(self._first, data)
@@ -323,19 +244,6 @@ class Recorder:
             self._rows = 0
             if self._held:
                 self._chunk_rows()
-
-    def _point_tracks(self, m: int) -> np.ndarray:
-        out = np.empty((m, len(self.selection.point_names), 6))
-        slot = {body: k for k, body in enumerate(self._carriers.tolist())}
-        for p, (body, local) in enumerate(zip(self._point_body.tolist(), self._point_local)):
-            if body < 0:  # a ground point
-                out[:, p, :2] = local
-                out[:, p, 2:] = 0.0
-                continue
-            frames = [buffer[:m, slot[body]] for buffer in self._frames]
-            position, velocity, acceleration = carried_motion(*frames, local)
-            out[:, p, 0:2], out[:, p, 2:4], out[:, p, 4:6] = position, velocity, acceleration
-        return out
 
     def finish(self):
         """Write what is left and close the sink; returns the sink's arrays."""
@@ -363,45 +271,6 @@ def _interrupt_deferred():
         signal.signal(signal.SIGINT, previous)
         if received:
             previous(signal.SIGINT, received[0])
-
-
-class _LimitWatch:
-    """The elements with ``limits``: their own coordinates checked at every sample recorded."""
-
-    def __init__(self, mechanism: Mechanism) -> None:
-        self.crossings: list = []
-        self.active = any(getattr(e, "limits", None) is not None
-                           for kind in ("joints", "drivers") for e in mechanism.declared(kind))  # fmt: skip
-        if not self.active:
-            return
-        self._mechanism = mechanism
-        limited = limited_elements(mechanism)
-        self._outputs = build_output_pattern(mechanism, joints=limited["joints"], drivers=limited["drivers"])
-        self._elements = [(kind, k) for kind in ("joints", "drivers") for k in limited[kind]]
-        limits = np.array([getattr(mechanism, kind)[k].limits for kind, k in self._elements], dtype=float)
-        self._low, self._high = limits[:, 0], limits[:, 1]
-        self._open = np.ones(len(self._elements), dtype=bool)  # not yet outside
-
-    def watch(self, times, coordinates) -> None:
-        """Samples at `times` (s) with `coordinates` (one row each): each element still
-        within its limits that leaves them is recorded at its first sample outside."""
-        if not self.active or not self._open.any():
-            return
-        from ..engine.outputs import LimitState, own_coordinates
-
-        rest = np.zeros_like(coordinates)
-        values = own_coordinates(self._outputs, coordinates, rest, rest)[0]
-        outside = self._open & ((values < self._low) | (values > self._high))
-        crossed = np.flatnonzero(outside.any(axis=0))
-        first = outside[:, crossed].argmax(axis=0)
-        for e, k in sorted(zip(crossed.tolist(), first.tolist()), key=lambda pair: pair[1]):  # in time order
-            kind, index = self._elements[e]
-            element = getattr(self._mechanism, kind)[index]
-            quantity = type(element).output_names[0] if kind == "joints" else element.type_name
-            unit = "rad" if self._outputs.row_is_angle[e] else "m"
-            self.crossings.append(LimitState(self._mechanism.element_label(kind, index), quantity, unit,
-                                             float(values[k, e]), element.limits, float(times[k]), False))  # fmt: skip
-        self._open[crossed] = False
 
 
 #: What the top of a Zarr store holds: a format 2 group or array (and its consolidated
@@ -438,7 +307,7 @@ class MemorySink:
     in_place = True
 
     def __init__(self, selection: Selection, n_times: int) -> None:
-        self.arrays = {"t": np.empty(n_times)} | {
+        self.arrays = {TIME: np.empty(n_times)} | {
             key: np.empty((n_times, *shape)) for key, shape in selection.sample_shapes().items()
         }
 
@@ -483,18 +352,10 @@ class ZarrSink:
     def _dataset(self, data: dict, with_labels: bool):
         import xarray as xr
 
-        dims = {"q": ("time", "coordinate"), "qd": ("time", "coordinate"), "qdd": ("time", "coordinate"),
-                "points": ("time", "point", "component"), "joints": ("time", "joint", "derivative"),
-                "forces": ("time", "force")}  # fmt: skip
-        variables = {key: (dims[key], values) for key, values in data.items() if key != "t"}
-        coords = {"t": ("time", data["t"])}
+        coords = {TIME: ("time", data[TIME])}
         if with_labels:
-            selection = self.selection
-            forces = selection.forces
-            coords |= dataset_labels(selection.mechanism, selection.coordinates, selection.point_names,
-                                     selection.joint_indices, () if forces is None else forces.labels,
-                                     () if forces is None else forces.units)  # fmt: skip
-        return xr.Dataset(variables, coords=coords)
+            coords |= schema.dataset_labels(self.selection)
+        return xr.Dataset(schema.dataset_variables(data), coords=coords)
 
     def write(self, first: int, data: dict) -> None:
         import warnings
@@ -504,7 +365,8 @@ class ZarrSink:
             warnings.simplefilter("ignore", FutureWarning)
             if not self._written:
                 n = self.selection.mechanism.n_coordinates
-                encoding = {key: {"chunks": (len(data["t"]), min(n, 2**20))} for key in ("q", "qd", "qdd") if key in data}
+                encoding = {v.name: {"chunks": (len(data[TIME]), min(n, 2**20))}
+                            for v in schema.COORDINATE_VARIABLES if v.name in data}  # fmt: skip
                 dataset.to_zarr(self.path, mode="w", zarr_format=2, encoding=encoding)
                 self._written = True
             else:
@@ -515,20 +377,7 @@ class ZarrSink:
         import zarr
 
         if not self._written:  # nothing solved: an empty store with the labels
-            self.write(0, {"t": np.empty(0), **self._empty()})
+            empty = {name: np.empty((0, *shape)) for name, shape in self.selection.sample_shapes().items()}
+            self.write(0, {TIME: np.empty(0), **empty})
         group = zarr.open_group(self.path, mode="r")
-        return {key: group[key] for key in ("t", "q", "qd", "qdd", "points", "joints", "forces") if key in group}
-
-    def _empty(self) -> dict:
-        selection = self.selection
-        n = selection.mechanism.n_coordinates
-        data = {}
-        if selection.coordinates:
-            data |= {key: np.empty((0, n)) for key in ("q", "qd", "qdd")}
-        if selection.point_names:
-            data["points"] = np.empty((0, len(selection.point_names), 6))
-        if selection.joint_indices:
-            data["joints"] = np.empty((0, len(selection.joint_indices), 3))
-        if selection.forces is not None:
-            data["forces"] = np.empty((0, selection.n_force_columns))
-        return data
+        return {name: group[name] for name in (TIME, *(v.name for v in schema.VARIABLES)) if name in group}

@@ -36,8 +36,8 @@ from .._jit import JIT
 from ..engine._force_kernels import fill_applied_forces, fill_force_outputs
 from ..engine._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
 from ..engine._lu_kernels import dense_lu_factor, dense_lu_solve, dense_lu_solve_transposed
-from ..engine.assembly import DriverLaws
-from ..engine.forces import ForceOutputArrays, no_forces
+from ..engine.discretization import Discretization
+from ..engine.force_columns import ForceOutputArrays
 from ..engine.newton import (
     CHORD_REJECTED,
     CONVERGED,
@@ -49,12 +49,18 @@ from ..engine.newton import (
     newton_verdict,
     polishes,
 )
-from ..engine.pattern import ConstraintPattern
-from ..model.laws import BUILT_IN_LAWS, LawTable, evaluate_laws
+from ..model.laws import BUILT_IN_LAWS, evaluate_laws
 from ..model.loads import LoadArrays
 from ..model.mechanism import Mechanism
+from ..results.schema import FORCES
+from .branch_guard import BranchGuard, guard_values, jumped
+from .steppers import SampleBlock, StepperStats
 
-__all__ = ["CompiledOutcome", "CompiledForces", "LoopStatus", "solve_compiled", "supports_compiled"]
+__all__ = ["CompiledOutcome", "CompiledForces", "CompiledKinematicLoop", "LoopStatus", "solve_compiled",
+           "supports_compiled"]
+
+#: The status of a sample whose step fails the branch guard (after Newton's verdicts).
+BRANCH_SUSPECT = max(CONVERGED, NOT_FINITE, STALLED, NOT_CONVERGED, SINGULAR, CHORD_REJECTED, CORRECT) + 1
 
 
 class LoopStatus(IntEnum):
@@ -70,6 +76,8 @@ class LoopStatus(IntEnum):
     NOT_CONVERGED = NOT_CONVERGED
     #: a zero or non-finite pivot, or a non-finite solution of a linear system
     SINGULAR = SINGULAR
+    #: the step to the sample failed the branch guard (`sparsekin.solve.branch_guard`)
+    BRANCH_SUSPECT = BRANCH_SUSPECT
 
 
 class CompiledOutcome(NamedTuple):
@@ -165,17 +173,17 @@ def _solved(lu, pivots, b):
 
 
 @njit(inline="always", **JIT)
-def _solve_positions(
-    primitives, indptr, indices, weights, q, turns, target, tolerance, max_iterations, chord,
-    residual, jac_data, lu, pivots, counts,
-):  # fmt: skip
+def _solve_positions(system, q, target, tolerance, max_iterations, chord, work):
     """Newton from q (ground appended), refined in place; returns (corrections, verdict).
 
-    The loop of `sparsekin.engine.newton.solve_positions` with a dense LU.  On success `lu` holds
-    the factorization of the Jacobian at the converged q (before the polishing
-    correction, which moves q by less than the tolerance).  ``counts`` accumulates
-    (factorizations, solves).
+    The loop of `sparsekin.engine.newton.solve_positions` with a dense LU; `system` is
+    ``(primitives, indptr, indices, residual weights)``, `work` ``(turns, residual,
+    jac_data, lu, pivots, counts)``.  On success `lu` holds the factorization of the
+    Jacobian at the converged q (before the polishing correction, which moves q by less
+    than the tolerance).  ``counts`` accumulates (factorizations, solves).
     """
+    primitives, indptr, indices, weights = system
+    turns, residual, jac_data, lu, pivots, counts = work
     n = lu.shape[0]
     previous_norm = np.inf
     for iteration in range(max_iterations + 1):
@@ -209,33 +217,40 @@ def _solve_positions(
 
 
 @njit(**JIT)
-def _run_time_loop(
-    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws, times, start,
-    tolerance, max_iterations, chord, coordinates, velocities, accelerations, iterations,
-    loads, load_laws, n_load_laws, force_outputs, inertial, forces,
-):  # fmt: skip
+def _run_time_loop(model, times, start, settings, out, forces, guard):
     """Samples `start` … in turn (rows before `start` are solved already); returns
-    (n_solved, status, n_factorizations, n_solves, n_restarts).  Unless `forces` is None,
-    its row k receives the force columns of sample k (`sparsekin.engine.forces`).
+    (n_solved, status, n_factorizations, n_solves, n_restarts).
+
+    `model` is ``(primitives, indptr, indices, residual weights, constant target, driven
+    rows, initial coordinates, driver laws)``; `settings` ``(tolerance, max_iterations,
+    chord)``; `out` ``(coordinates, velocities, accelerations, iterations)``, filled row
+    by row.  Unless `forces` is None — ``(loads, load laws, n_load_laws, force outputs,
+    inertial, rows)`` — its rows receive the force columns of each sample
+    (`sparsekin.engine.force_columns`); unless `guard` is None — ``(coordinate weights,
+    (defect ratio, least defect, least correction))`` — a sample whose step fails the
+    branch guard (`sparsekin.solve.branch_guard`) stops the loop as a failure would
+    (status `BRANCH_SUSPECT`).
 
     A `forces` of None is a signature of its own, in which numba prunes the force branch
     before typing it: a run without forces never compiles the force kernels."""
+    primitives, indptr, indices, weights, constant_target, driven_row, initial_coordinates, laws = model
+    tolerance, max_iterations, chord = settings
+    coordinates, velocities, accelerations, iterations = out
+    system = (primitives, indptr, indices, weights)
     n = initial_coordinates.size
     n_driven = driven_row.size
     q = np.zeros(n + 3)  # the ground appended as a body of zeros
     qd = np.zeros(n + 3)
     qdd = np.zeros(n + 3)
     applied = np.zeros(n + 3)
-    load_value = np.zeros(n_load_laws)
-    load_rate = np.zeros(n_load_laws)
-    load_acceleration = np.zeros(n_load_laws)
-    reaction_work = np.zeros((force_outputs.joint_side.size, 3))
     turns = np.zeros((n // 3 + 1, 2))  # cos and sin of each body's angle, the ground last
     predictor = np.empty(n)
     residual = np.empty(n)
     jac_data = np.zeros(indptr[n] + 1)  # one discard slot for the ground's columns
     lu = np.empty((n, n))
     pivots = np.zeros(n, dtype=np.int64)
+    counts = np.zeros(2, dtype=np.int64)  # factorizations, solves
+    work = (turns, residual, jac_data, lu, pivots, counts)
     target = constant_target.copy()
     velocity_rhs = np.zeros(n)
     target_acceleration = np.zeros(n)
@@ -244,8 +259,14 @@ def _run_time_loop(
     value = np.empty(n_driven)
     rate = np.empty(n_driven)
     acceleration = np.empty(n_driven)
-    counts = np.zeros(2, dtype=np.int64)  # factorizations, solves
+    if forces is not None:
+        loads, load_laws, n_load_laws, force_outputs, inertial, rows = forces
+        load_value = np.zeros(n_load_laws)
+        load_rate = np.zeros(n_load_laws)
+        load_acceleration = np.zeros(n_load_laws)
+        reaction_work = np.zeros((force_outputs.joint_side.size, 3))
     n_restarts = 0
+    h = 0.0
     for k in range(start, times.size):
         t = times[k]
         if k == 0:
@@ -270,10 +291,7 @@ def _run_time_loop(
             for c in range(n):
                 q[c] = predictor[c]
             use_chord = attempt == 0 and chord and k > start
-            corrections, status = _solve_positions(
-                primitives, indptr, indices, weights, q, turns, target, tolerance, max_iterations, use_chord,
-                residual, jac_data, lu, pivots, counts,
-            )  # fmt: skip
+            corrections, status = _solve_positions(system, q, target, tolerance, max_iterations, use_chord, work)
             if status == CONVERGED:
                 break
             n_restarts += use_chord
@@ -300,6 +318,11 @@ def _run_time_loop(
             velocities[k, c] = qd[c]
             accelerations[k, c] = rhs[c]
         iterations[k] = corrections
+        if guard is not None and k > 0:  # the predictor is still that of this step
+            coordinate_weights, thresholds = guard
+            if jumped(h, coordinates[k - 1], velocities[k - 1], accelerations[k - 1], coordinates[k], velocities[k],
+                      accelerations[k], predictor, coordinate_weights, thresholds):  # fmt: skip
+                return k, BRANCH_SUSPECT, counts[0], counts[1], n_restarts
 
         if forces is not None:  # Phi_q^T lam = Q - M qdd - h, with the same factorization
             for c in range(n):
@@ -313,13 +336,12 @@ def _run_time_loop(
             for multiplier in rhs:
                 if not math.isfinite(multiplier):
                     return k, SINGULAR, counts[0], counts[1], n_restarts
-            fill_force_outputs(force_outputs, jac_data, rhs, q, turns, velocity_rhs, reaction_work, forces[k])
+            fill_force_outputs(force_outputs, jac_data, rhs, q, turns, velocity_rhs, reaction_work, rows[k])
     return times.size, CONVERGED, counts[0], counts[1], n_restarts
 
 
 def solve_compiled(
-    mechanism: Mechanism,
-    pattern: ConstraintPattern,
+    discretization: Discretization,
     times: np.ndarray,
     tolerance: float,
     max_iterations: int,
@@ -331,7 +353,7 @@ def solve_compiled(
     chord: bool = True,
     start: int = 0,
     forces: CompiledForces | None = None,
-    laws: LawTable | None = None,
+    guard: BranchGuard | None = None,
 ) -> CompiledOutcome:
     """Positions, velocities and accelerations at every time, in one compiled loop.
 
@@ -342,10 +364,10 @@ def solve_compiled(
 
     Parameters
     ----------
-    mechanism : Mechanism
-        Its laws must pass `supports_compiled`.
-    pattern : ConstraintPattern
-        ``build_pattern(mechanism)``, with as many equations as coordinates.
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`): its laws
+        must pass `supports_compiled`, its constraints have as many equations as
+        coordinates.
     times : ndarray, shape (n_times,)
         Strictly increasing sample times, s.
     tolerance : float
@@ -366,11 +388,9 @@ def solve_compiled(
         of a long run starts at 1 with the last sample of the chunk before in row 0.
     forces : CompiledForces, optional
         Also the forces at each sample solved, into ``forces.rows``.
-    laws : LawTable, optional
-        The drivers' laws packed for the pattern's driven rows (``DriverLaws(mechanism,
-        pattern.driven_initial).table``, as an `~sparsekin.engine.assembly.Assembler` of
-        the pattern holds them): a run solved chunk by chunk packs them once.  Packed here
-        by default.
+    guard : BranchGuard, optional
+        Stop at a sample whose step fails the branch guard (`LoopStatus.BRANCH_SUSPECT`);
+        by default no guard.
 
     Returns
     -------
@@ -379,17 +399,17 @@ def solve_compiled(
     Examples
     --------
     >>> import numpy as np
-    >>> from sparsekin.engine.pattern import build_pattern
+    >>> from sparsekin.engine.discretization import discretize
     >>> from sparsekin.testset import task5
-    >>> mechanism = task5()
-    >>> pattern = build_pattern(mechanism)
+    >>> model = discretize(task5())
     >>> times = np.linspace(0.0, 1.0, 101)
-    >>> q, qd, qdd = (np.empty((times.size, pattern.n_coordinates)) for _ in range(3))
+    >>> q, qd, qdd = (np.empty((times.size, model.n_coordinates)) for _ in range(3))
     >>> counts = np.empty(times.size, dtype=np.int64)
-    >>> outcome = solve_compiled(mechanism, pattern, times, 1e-12, 12, q, qd, qdd, counts)
+    >>> outcome = solve_compiled(model, times, 1e-12, 12, q, qd, qdd, counts)
     >>> outcome.n_solved, outcome.status.name
     (101, 'SOLVED')
     """
+    mechanism, pattern = discretization.mechanism, discretization.constraints
     unsupported = _unsupported_law(mechanism)
     if unsupported is not None:
         kind, element, law = unsupported
@@ -408,22 +428,86 @@ def solve_compiled(
     for name, array in outputs.items():
         _check_array(array, name, (n_times, n_coordinates), np.float64)
     _check_array(iterations, "iterations", (n_times,), np.int64)
-    if laws is None:
-        laws = DriverLaws(mechanism, pattern.driven_initial).table
-    if forces is None:
-        loads, load_laws, outputs = no_forces()
-        force_arguments = (loads, load_laws, 0, outputs, True, None)
-    else:
+    laws = discretization.driver_laws.table
+    if forces is not None:
         _check_array(forces.rows, "forces.rows", (n_times, forces.rows.shape[1]), np.float64)
-        force_arguments = (forces.loads, forces.laws, int(forces.n_laws), forces.outputs, bool(forces.inertial),
-                           forces.rows)  # fmt: skip
+        forces = (forces.loads, forces.laws, int(forces.n_laws), forces.outputs, bool(forces.inertial), forces.rows)
+    model = (pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
+             pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws)  # fmt: skip
+    checked = None if guard is None else (pattern.coordinate_weights, guard_values(guard))
     n_solved, status, n_factorizations, n_solves, n_restarts = _run_time_loop(
-        pattern.primitives, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
-        pattern.residual_weights, pattern.target, pattern.driven_row, pattern.initial_coordinates, laws, times,
-        int(start), float(tolerance), int(max_iterations), bool(chord), coordinates, velocities, accelerations,
-        iterations, *force_arguments,
+        model, times, int(start), (float(tolerance), int(max_iterations), bool(chord)),
+        (coordinates, velocities, accelerations, iterations), forces, checked,
     )  # fmt: skip
     return CompiledOutcome(int(n_solved), LoopStatus(status), int(n_factorizations), int(n_solves), int(n_restarts))
+
+
+class CompiledKinematicLoop:
+    """The compiled loop as a block stepper (`sparsekin.solve.steppers.BlockStepper`).
+
+    Each `advance_block` runs the loop over the times given, from the last sample of the
+    block before (row 0 of its arrays), the branch guard checked at every sample; it
+    returns the samples solved, views of arrays it reuses.  At a sample the loop cannot
+    solve, or whose step fails the guard, it stops: `stopped` becomes True and
+    `handover` gives the last sample solved, for the Python stepper to go on from
+    (`sparsekin.solve.steppers.FallbackStepper`), which fails there again with the
+    detailed error if it must.
+
+    Parameters
+    ----------
+    discretization : Discretization
+        Square, its laws supported (`supports_compiled`).
+    options : SolveOptions
+    chunk : int
+        Most samples per block.
+    forces : CompiledForces, optional
+        The force columns to compute at each sample (``rows`` gives their number; the
+        rows are allocated here).
+    """
+
+    def __init__(self, discretization: Discretization, options, chunk: int, forces: CompiledForces | None = None):
+        self.discretization, self.options = discretization, options
+        n = discretization.n_coordinates
+        self._rows = [np.empty((chunk + 1, n)) for _ in range(3)]
+        self._iterations = np.zeros(chunk + 1, dtype=np.int64)
+        self._times = np.empty(chunk + 1)
+        self._forces = None if forces is None else forces._replace(rows=np.zeros((chunk + 1, forces.rows.shape[1])))
+        self._counts = np.zeros(2, dtype=np.int64)  # factorizations and solves
+        self._first = None  # (t, q) of the first sample: the reference of the lock-up diagnosis
+        self._last = None  # (t, q, qd, qdd) of the last sample solved
+        self.stopped = False
+
+    def advance_block(self, times: np.ndarray) -> SampleBlock:
+        start = 0 if self._last is None else 1  # row 0: the previous sample
+        stop = start + min(len(times), self._times.size - 1)
+        self._times[start:stop] = times[: stop - start]
+        if start:
+            self._times[0] = self._last[0]
+            for array, state in zip(self._rows, self._last[1:]):
+                array[0] = state
+        forces = self._forces
+        outcome = solve_compiled(
+            self.discretization, self._times[:stop], self.options.tolerance, self.options.max_iterations,
+            *(array[:stop] for array in self._rows), self._iterations[:stop], start=start,
+            forces=None if forces is None else forces._replace(rows=forces.rows[:stop]), guard=self.options.guard,
+        )  # fmt: skip
+        self._counts += (outcome.n_factorizations, outcome.n_solves)
+        solved = outcome.n_solved
+        self.stopped = solved < stop
+        if solved > start:
+            if self._first is None:
+                self._first = (self._times[0], self._rows[0][0].copy())
+            self._last = (self._times[solved - 1], *(array[solved - 1].copy() for array in self._rows))
+        rows = slice(start, solved)
+        recorded = {} if forces is None else {FORCES: forces.rows[rows]}
+        return SampleBlock(self._times[rows], *(array[rows] for array in self._rows), self._iterations[rows], recorded)
+
+    def handover(self):
+        """``((t, q, qd, qdd) of the last sample solved, (t, q) of the first)``, or None."""
+        return None if self._last is None else (self._last, self._first)
+
+    def stats(self) -> StepperStats:
+        return StepperStats(int(self._counts[0]), int(self._counts[1]), path="compiled")
 
 
 def _check_array(array, name: str, shape: tuple[int, ...], dtype) -> None:

@@ -17,7 +17,10 @@ Convergence is judged on the residual, lengths relative to the size of the model
 chain 10^4 m long converges as surely as a 1 m linkage) and angles in radians.  The loop
 itself is `sparsekin.solve.stepper.KinematicStepper` (predictor, Newton, branch guard, step
 halving, lock-up diagnosis); for small models `sparsekin.solve._compiled` runs the same loop in
-one numba call first and hands over to the stepper at any sample it cannot solve.
+one numba call first and hands over to the stepper at any sample it cannot solve.  The run
+driver of `sparsekin.solve.run` drives either (`sparsekin.solve.steppers`);
+`run_kinematics` below is the layer under the facade, on arguments checked once
+(`sparsekin.solve.options`), with the linear solver planned once (`sparsekin.solve.policy`).
 
 Linear solvers (the `linear_solver` argument; ``"auto"`` picks the fastest):
 
@@ -37,26 +40,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.assemble import start_pattern
-from ..engine.forces import ForceSolver, build_load_pattern
+from ..analysis.assemble import start_discretization
+from ..engine.discretization import Discretization, discretize
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
-from ..engine.pattern import ConstraintPattern, build_pattern, build_point_map, per_element
-from ..errors import AnalysisInterrupted, LimitWarning, SparsekinError, warn_caller
-from ..model.laws import Spline
+from ..engine.pattern import ConstraintPattern
+from ..errors import LimitWarning, warn_caller
 from ..model.mechanism import Mechanism
 from ..results.kinematics import KinematicsResult, PointMotion
-from ..results.recording import MemorySink, Recorder, Selection, ZarrSink
-from ._compiled import CompiledForces, solve_compiled, supports_compiled
-from .stepper import (
-    COMPILED_MAX_COORDINATES,
-    LINEAR_SOLVERS,
-    KinematicStepper,
-    checked_max_iterations,
-    checked_tolerance,
-    first_branch_jump,
-)
+from ..results.recording import MemorySink, Recorder, ZarrSink
+from ..results.schema import FORCES, TIME, result_fields
+from ._compiled import CompiledKinematicLoop
+from .observers import InverseDynamics, LimitWatch, RecordedVariables
+from .options import Request, SolveOptions, check_times
+from .policy import plan_linear_solver
+from .run import run
+from .stepper import KinematicStepper
+from .steppers import FallbackStepper, SampleBlock, SampleSteps, StillStepper
 
-__all__ = ["KinematicsResult", "PointMotion", "solve_kinematics"]
+__all__ = ["KinematicsResult", "PointMotion", "solve_kinematics", "run_kinematics"]
 
 
 def solve_kinematics(
@@ -88,7 +89,7 @@ def solve_kinematics(
         from the initial configuration of the model.
     tolerance : float
         Largest accepted residual: lengths relative to the size of the model, angles in
-        rad; within `sparsekin.solve.stepper.TOLERANCE_RANGE`.
+        rad; within `sparsekin.solve.options.TOLERANCE_RANGE`.
     max_iterations : int
         Most Newton corrections at one time before it converges, at least 1 (a chord
         Newton's final polishing correction, `sparsekin.engine.newton`, comes on top).
@@ -96,7 +97,7 @@ def solve_kinematics(
         How the linear systems are solved (see the module docstring).  ``"auto"`` takes
         ``"dense"`` (the compiled loop) up to `COMPILED_MAX_COORDINATES` coordinates and
         ``"refactor"`` above, unless the refactorization's fill-in exceeds
-        `~sparsekin.solve.stepper.MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every
+        `~sparsekin.solve.policy.MAX_REFACTOR_FILL`: then SuperLU with chord Newton.  Every
         choice gives the same results to rounding.
     coordinates : bool
         Keep every body's coordinates, velocities and accelerations (the default); then
@@ -179,249 +180,103 @@ def solve_kinematics(
     """
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
-    times = _checked_times(times, mechanism)
-    tolerance = checked_tolerance(tolerance)
-    max_iterations = checked_max_iterations(max_iterations)
-    if linear_solver not in LINEAR_SOLVERS:
-        raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
+    times = check_times(times, mechanism)
+    options = SolveOptions(tolerance, max_iterations, linear_solver)
     if progress is not None and not callable(progress):
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
-    if not isinstance(quasi_static, (bool, np.bool_)):
-        raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
-    if pattern is None:
-        pattern = build_pattern(mechanism)
-    else:
-        _check_pattern(pattern, mechanism)
+    request = Request(coordinates, points, joints, forces, quasi_static)
+    return run_kinematics(discretize(mechanism, pattern), times, options, request, store=store, progress=progress)
+
+
+def run_kinematics(discretization: Discretization, times: np.ndarray, options: SolveOptions = SolveOptions(),
+                   request: Request = Request(), *, store=None, progress=None) -> KinematicsResult:  # fmt: skip
+    """`solve_kinematics` on arguments checked already: the layer under the facade.
+
+    Parameters
+    ----------
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`).
+    times : ndarray
+        From `sparsekin.solve.options.check_times`.
+    options : SolveOptions
+        How to solve: tolerance, Newton corrections, linear solver, the thresholds of
+        ``"auto"`` (`sparsekin.solve.policy.Thresholds`) and the branch guard.
+    request : Request
+        What to record.
+    store, progress
+        As for `solve_kinematics`.
+
+    Returns
+    -------
+    KinematicsResult
+    """
     # Start from the drawing assembled at the first time, on its branch (issue 27: rough
     # drawings with exact lengths, copies drawn at another phase of their driver).
-    pattern = start_pattern(mechanism, pattern, float(times[0]))
-    selection = Selection(mechanism, coordinates, points, joints, forces, pattern=pattern)
-    n = pattern.n_coordinates
-    if pattern.n_equations == 0 and n == 0:  # nothing to solve: every sample is the empty configuration
-        stepper = None
-    else:
-        stepper = KinematicStepper(
-            mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern,
-            forces=selection.forces is not None,
-        )  # fmt: skip
+    discretization = start_discretization(discretization, float(times[0]))
+    selection = request.selection(discretization)
+    plan = plan_linear_solver(discretization, options.linear_solver, options.thresholds)
     sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    force_solver = None
-    if selection.forces is not None and stepper is not None:
-        force_solver = ForceSolver(pattern, build_load_pattern(mechanism), selection.forces, bool(quasi_static))
-    run = _Run(mechanism, stepper, times, Recorder(selection, sink), progress, force_solver)
-    compiled = (
-        stepper is not None
-        and (linear_solver == "dense" or (linear_solver == "auto" and n <= COMPILED_MAX_COORDINATES))
-        and pattern.n_equations == n
-        and supports_compiled(mechanism)
-    )
+    recorder = Recorder(selection, sink, request.chunk_samples)
+    pattern = discretization.constraints
+    observer = None
+    if pattern.n_equations == 0 and pattern.n_coordinates == 0:  # nothing to solve
+        stepper = StillStepper()
+    else:
+        python = KinematicStepper(discretization, options=options, forces=selection.forces is not None)
+        if selection.forces is not None:
+            observer = InverseDynamics(discretization, selection.forces, bool(request.quasi_static),
+                                       options.thresholds.min_norm_iterations)  # fmt: skip
+        if plan.loop == "compiled":
+            compiled_forces = None if observer is None else observer.compiled()
+            stepper = FallbackStepper(CompiledKinematicLoop(discretization, options, recorder.size, compiled_forces),
+                                      python)  # fmt: skip
+        else:
+            stepper = SampleSteps(python)
+    variables, limits = RecordedVariables(selection), LimitWatch(discretization)
+
+    def record(block: SampleBlock) -> None:
+        forces = block.recorded.get(FORCES)
+        if observer is not None and forces is None:
+            forces = observer(block.linearization)[None]
+        limits.watch(block.times, block.coordinates)
+        recorder.add_block(block.times, variables.block(block.coordinates, block.velocities, block.accelerations, forces))
+
+    def finish(state) -> KinematicsResult:
+        return _result(discretization, recorder, stepper.stats(), state.iterations, times.size,
+                       observer is not None and not observer.inertial)  # fmt: skip
+
     try:
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # non-finite values are checked
-            result = run.solve(compiled)
+        return run(stepper, times, record, finish, progress=progress, chunk=recorder.size)
     finally:
-        for state in run.recorder.limit_crossings:
+        for state in limits.crossings:
             warn_caller(f"{state.label} left its limits: {state.quantity} {state.value:.6g} {state.unit} at "
                         f"t = {state.time:.6g} s, outside [{state.limits[0]:g}, {state.limits[1]:g}]",
                         LimitWarning)  # fmt: skip
-    return result
 
 
-class _Run:
-    """One run: the stepper (or the compiled loop, chunk by chunk) feeding a recorder."""
+def _result(discretization, recorder: Recorder, stats, iterations, n_times: int, quasi_static: bool) -> KinematicsResult:
+    """The result of the samples recorded (it closes the recorder)."""
+    arrays = recorder.finish()
+    n_solved = arrays[TIME].shape[0]  # every sample recorded has its iterations
+    selection = recorder.selection
+    return KinematicsResult(
+        times=np.asarray(arrays[TIME]),
+        **result_fields(arrays),
+        newton_iterations=iterations[:n_solved],
+        n_factorizations=stats.n_factorizations,
+        n_solves=stats.n_solves,
+        complete=n_solved == n_times,
+        point_map=discretization.points,
+        mechanism=discretization.mechanism,
+        n_subdivisions=stats.n_subdivisions,
+        redundant_equations=stats.redundant_equations,
+        n_refactorizations=stats.n_refactorizations,
+        linear_solver=stats.path,
+        recorded_points=selection.point_names,
+        recorded_joints=selection.joint_indices,
+        force_labels=selection.force_labels,
+        force_units=selection.force_units,
+        quasi_static=quasi_static,
+        store=getattr(recorder.sink, "path", None),
+    )
 
-    def __init__(self, mechanism, stepper: KinematicStepper | None, times: np.ndarray, recorder: Recorder,
-                 progress, force_solver: ForceSolver | None = None) -> None:  # fmt: skip
-        self.mechanism, self.stepper, self.times, self.recorder = mechanism, stepper, times, recorder
-        self.progress, self.force_solver = progress, force_solver
-        self.iterations = np.zeros(times.size, dtype=np.int64)
-        self.compiled_counts = np.zeros(2, dtype=np.int64)  # factorizations and solves of the compiled loop
-        self.path = stepper.path if stepper is not None else "none"
-        self._first = None  # (t, q) of the first sample: the reference of the lock-up diagnosis
-        self._last = None  # (t, q, qd, qdd) of the last sample solved by the compiled loop
-        self._result = None
-
-    def solve(self, compiled: bool) -> KinematicsResult:
-        """Solve every sample; on any error the samples recorded so far are kept (in the
-        store too) and become the ``result`` of the error (`AnalysisInterrupted` on Ctrl-C)."""
-        stepper, times = self.stepper, self.times
-        try:
-            if stepper is None:
-                empty = np.zeros(0)
-                no_forces = np.zeros(self.recorder.selection.n_force_columns)
-                for k in range(times.size):
-                    self.recorder.add(times[k], empty, empty, empty, no_forces)
-                return self.result()
-            k = self._solve_compiled() if compiled else 0
-            if k == 0:
-                self.iterations[0] = stepper.start(times[0])
-                self._record(0)
-                k = 1
-            elif k < times.size:
-                stepper.resume(*self._last, first=self._first)
-            for k in range(k, times.size):
-                self.iterations[k] = stepper.advance(times[k])
-                self._record(k)
-        except BaseException as error:
-            result = self._result_after(error)
-            if isinstance(error, KeyboardInterrupt) and result is not None:
-                raise AnalysisInterrupted(result) from None
-            if isinstance(error, SparsekinError):
-                error.result = result
-            raise
-        return self.result()
-
-    def _result_after(self, error: BaseException) -> KinematicsResult | None:
-        """The samples recorded before `error`, or None (with a note on `error`) if they
-        cannot be written: the error that stopped the run is the one raised."""
-        try:
-            return self.result()
-        except Exception as failure:  # best effort: `error` is the one raised
-            error.add_note(f"the samples solved before this error could not be kept: {failure!r}")
-            return None
-
-    def _record(self, k: int) -> None:
-        stepper = self.stepper
-        forces = None if self.force_solver is None else self.force_solver.evaluate(stepper)
-        self.recorder.add(self.times[k], stepper.coordinates, stepper.velocities, stepper.accelerations, forces)
-        if self.progress is not None:
-            self.progress(k + 1, self.times.size)
-
-    def _solve_compiled(self) -> int:
-        """Run the compiled loop chunk by chunk; the samples it solved that pass the branch guard.
-
-        Each chunk starts from the last sample of the one before (row 0 of its arrays), so
-        that the progress is reported and an interrupt is taken between chunks.
-        """
-        stepper, times = self.stepper, self.times
-        size = min(self.recorder.size, times.size)
-        n = stepper.pattern.n_coordinates
-        rows = [np.empty((size + 1, n)) for _ in range(3)]
-        iterations = np.zeros(size + 1, dtype=np.int64)
-        chunk_times = np.empty(size + 1)
-        forces = None
-        if self.force_solver is not None:
-            solver = self.force_solver
-            forces = CompiledForces(solver.loads.arrays, solver.loads.laws, solver.loads.n_laws, solver.outputs.arrays(),
-                                    solver.inertial, np.zeros((size + 1, solver.outputs.n_columns)))  # fmt: skip
-        done = 0
-        while done < times.size:
-            start = 0 if done == 0 else 1  # row 0: the previous sample
-            m = min(size + 1 - start, times.size - done)
-            chunk_times[start : start + m] = times[done : done + m]
-            if start:
-                chunk_times[0] = self._last[0]
-                for array, state in zip(rows, self._last[1:]):
-                    array[0] = state
-            stop = start + m
-            outcome = solve_compiled(
-                stepper.mechanism, stepper.pattern, chunk_times[:stop], stepper.tolerance, stepper.max_iterations,
-                rows[0][:stop], rows[1][:stop], rows[2][:stop], iterations[:stop], start=start,
-                forces=None if forces is None else forces._replace(rows=forces.rows[:stop]),
-                laws=stepper.assembler.laws.table,
-            )  # fmt: skip
-            self.compiled_counts += (outcome.n_factorizations, outcome.n_solves)
-            solved = first_branch_jump(chunk_times, *rows, stepper.pattern.coordinate_weights, outcome.n_solved)
-            new = solved - start
-            if new > 0:
-                self.iterations[done : done + new] = iterations[start:solved]
-                self.recorder.add_block(chunk_times[start:solved], *(array[start:solved] for array in rows),
-                                        None if forces is None else forces.rows[start:solved])  # fmt: skip
-                if done == 0:
-                    self._first = (chunk_times[0], rows[0][0].copy())
-                self._last = (chunk_times[solved - 1], *(array[solved - 1].copy() for array in rows))
-                done += new
-                if self.progress is not None:
-                    self.progress(done, times.size)
-            if solved < stop:  # the Python loop takes over (and diagnoses)
-                self.path = "compiled+dense"
-                return done
-        self.path = "compiled"
-        return done
-
-    def result(self) -> KinematicsResult:
-        """The result of the samples recorded (once: it closes the recorder)."""
-        if self._result is not None:
-            return self._result
-        arrays = self.recorder.finish()
-        n_solved = arrays["t"].shape[0]  # every sample recorded has its iterations
-        stepper, mechanism = self.stepper, self.mechanism
-        selection = self.recorder.selection
-        counts = (0, 0, 0) if stepper is None else (stepper.n_factorizations, stepper.n_solves, stepper.n_refactorizations)
-        path = self.path if self.path.startswith("compiled") or stepper is None else stepper.path
-        self._result = KinematicsResult(
-            times=np.asarray(arrays["t"]),
-            coordinates=arrays.get("q"),
-            velocities=arrays.get("qd"),
-            accelerations=arrays.get("qdd"),
-            newton_iterations=self.iterations[:n_solved],
-            n_factorizations=counts[0] + int(self.compiled_counts[0]),
-            n_solves=counts[1] + int(self.compiled_counts[1]),
-            complete=n_solved == self.times.size,
-            point_map=build_point_map(mechanism),
-            mechanism=mechanism,
-            n_subdivisions=0 if stepper is None else stepper.n_subdivisions,
-            redundant_equations=() if stepper is None else tuple(stepper.diagnosis.label(r) for r in stepper.redundant_rows),
-            n_refactorizations=counts[2],
-            linear_solver=path,
-            recorded_points=selection.point_names,
-            point_tracks=arrays.get("points"),
-            recorded_joints=selection.joint_indices,
-            joint_tracks=arrays.get("joints"),
-            force_labels=() if selection.forces is None else selection.forces.labels,
-            force_units=() if selection.forces is None else selection.forces.units,
-            force_tracks=arrays.get("forces"),
-            quasi_static=self.force_solver is not None and not self.force_solver.inertial,
-            store=getattr(self.recorder.sink, "path", None),
-        )
-        return self._result
-
-
-def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
-    try:
-        array = np.array(times, dtype=float)  # a copy, C-contiguous: the compiled loop reads it
-    except (TypeError, ValueError):
-        raise ValueError(f"`times` must be an array of numbers, got {type(times).__name__}.") from None
-    if array.ndim != 1 or array.size == 0:
-        raise ValueError(f"`times` must be a non-empty 1-D array, got shape {array.shape}.")
-    if not np.all(np.isfinite(array)):
-        raise ValueError("`times` must be finite.")
-    if np.any(np.diff(array) <= 0.0):
-        raise ValueError("`times` must be strictly increasing.")
-    for kind in ("drivers", "loads"):
-        for element in mechanism.declared(kind):
-            laws = element.laws()
-            if kind == "drivers":
-                names = element.law_fields
-            else:  # a load's components: its value, or value[c] of a force's (fx, fy)
-                names = ("value",) if len(laws) == 1 else tuple(f"value[{c}]" for c in range(len(laws)))
-            for name, law in zip(names, laws):
-                if isinstance(law, Spline):
-                    first, last = law.time_range
-                    if array[0] < first or array[-1] > last:
-                        raise ValueError(
-                            f"`times` span [{array[0]:g}, {array[-1]:g}] s but the {name} of {kind[:-1]} "
-                            f"{element.describe()!r}, a spline, is defined on [{first:g}, {last:g}] s."
-                        )
-    return array
-
-
-def _check_pattern(pattern, mechanism: Mechanism) -> None:
-    """`pattern` must be that of a mechanism with the bodies, equations and drawing of `mechanism`."""
-    if not isinstance(pattern, ConstraintPattern):
-        got = type(pattern).__name__
-        raise ValueError(f"`pattern` must be a ConstraintPattern (build_pattern), got {got}.")
-    if (pattern.n_bodies, pattern.n_equations) != (mechanism.n_bodies, mechanism.n_equations):
-        why = (f"it has {pattern.n_bodies} bodies and {pattern.n_equations} equations, `mechanism` "
-               f"{mechanism.n_bodies} and {mechanism.n_equations}")  # fmt: skip
-    else:
-        counts = np.concatenate([per_element(mechanism, kind, lambda element: element.n_equations)
-                                 for kind in ("joints", "drivers")])  # fmt: skip
-        if counts.size + 1 != pattern.element_first_row.size or not np.array_equal(
-            np.diff(pattern.element_first_row), counts
-        ):  # fmt: skip
-            why = "its joints and drivers have other numbers of equations"
-        elif not np.array_equal(pattern.initial_coordinates, mechanism.frames().ravel()):
-            why = "its bodies are drawn elsewhere"
-        else:
-            return
-    raise ValueError(f"`pattern` must be the ConstraintPattern of a mechanism like `mechanism`: {why}.")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..engine.assembly import Assembler
+from ..engine.discretization import discretize
 from ..engine.pattern import build_pattern
 from ..errors import ModelError
 from ..model.mechanism import Mechanism
@@ -84,7 +85,8 @@ def pose_model(result, time: float) -> Mechanism:
 def _check_faithful(pattern, model: Mechanism, coordinates: np.ndarray, time: float) -> None:
     """The posed model places every point of every equation where the original did, and
     its drawing satisfies its equations at t = 0."""
-    posed_pattern = build_pattern(model)
+    posed_model = discretize(model)
+    posed_pattern = posed_model.constraints
     scale = pattern.length_scale
     for original, now in zip(pattern.primitives, posed_pattern.primitives):
         if "local_i" not in original._fields:  # combinations of coordinates: no points
@@ -102,7 +104,7 @@ def _check_faithful(pattern, model: Mechanism, coordinates: np.ndarray, time: fl
                 raise ModelError(f"the pose at t = {time:g} s cannot be drawn faithfully: the {type(original).__name__} "
                                  f"equations place a point {np.max(gap):.3g} m away from where the run has it",
                                  element="pose")  # fmt: skip
-    assembler = Assembler(model, posed_pattern)
+    assembler = Assembler(posed_model)
     assembler.set_time(0.0)
     norm = assembler.fill_residual_jacobian(posed_pattern.initial_coordinates)
     if not norm <= FAITHFUL_TOLERANCE:

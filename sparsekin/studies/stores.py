@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results.recording import dataset_labels
+from ..results import schema
+from ..results.motion import Motion
 from .variants import VariantDesign, VariantSet
 
 #: A variant's outcome: every sample solved; stopped at a singular configuration (a lock-up,
@@ -21,12 +22,8 @@ from .variants import VariantDesign, VariantSet
 STATUSES = ("complete", "singular", "no_convergence", "invalid")
 #: Most bytes of one chunk of the Zarr store.
 CHUNK_BYTES = 64 * 2**20
-#: The recorded arrays, their dimensions after (variant, time), and the dtype of the
-#: statuses (as long as the longest).
-_ARRAY_KEYS = ("q", "qd", "qdd", "points", "joints", "forces")
+#: The dtype of the statuses (as long as the longest).
 STATUS_DTYPE = f"<U{max(map(len, STATUSES))}"
-_DIMENSIONS = {"q": ("coordinate",), "qd": ("coordinate",), "qdd": ("coordinate",),
-               "points": ("point", "component"), "joints": ("joint", "derivative"), "forces": ("force",)}  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +71,14 @@ class SweepResult:
         ``c1.x``, ``c1.y``, ``c1.angle``, ...: the columns of `coordinates`.
     labels : dict
         The labels of the dimensions of `to_xarray`'s Dataset, those of a run's
-        (`sparsekin.results.recording.dataset_labels`).
+        (`sparsekin.results.schema.dataset_labels`).
+    motion : Motion or None
+        The same recorded motion with the accessors of a run's result
+        (`sparsekin.results.motion.Motion`: ``motion.point("K").velocity``,
+        ``motion.driver_force("motor").force``, ``motion.joint("boom")``), every array with
+        the variant first, shape (n_variants, n_times, ...), NaN after a variant's last
+        solved sample.  When the sweep varies the geometry it holds the recorded points,
+        joints and forces only (no one drawing to derive others from the coordinates).
     """
 
     variants: VariantSet
@@ -100,6 +104,7 @@ class SweepResult:
     wall_time: float = 0.0
     coordinate_labels: tuple[str, ...] = ()
     labels: dict = field(default_factory=dict, repr=False)
+    motion: Motion | None = field(default=None, repr=False)
 
     @property
     def n_variants(self) -> int:
@@ -117,7 +122,7 @@ class SweepResult:
                 f'point "{name}" was not recorded (recorded: {", ".join(self.recorded_points) or "none"})'
             )
         p = self.recorded_points.index(name)
-        return np.asarray(self.point_tracks[:, :, p, :2])
+        return np.asarray(self.point_tracks[..., p, :2])
 
     def to_xarray(self):
         """The results as an `xarray.Dataset` (the layout of the store: see `sweep`)."""
@@ -131,9 +136,7 @@ class SweepResult:
         return layout.dataset(arrays, self.status, self.t_stop, self.t_failure)
 
     def _arrays(self) -> dict:
-        pairs = (("q", self.coordinates), ("qd", self.velocities), ("qdd", self.accelerations),
-                 ("points", self.point_tracks), ("joints", self.joint_tracks), ("forces", self.force_tracks))  # fmt: skip
-        return {key: value for key, value in pairs if value is not None}
+        return schema.result_arrays(self)
 
 
 def write_variants_csv(result: SweepResult, path) -> Path:
@@ -199,7 +202,7 @@ class _ZarrOutput:
         self.group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
 
     def write(self, first: int, stop: int, block: dict) -> None:
-        for key in (*_ARRAY_KEYS, "status", "t_stop", "t_failure"):
+        for key in (*(v.name for v in schema.VARIABLES), "status", "t_stop", "t_failure"):
             if key in self.group and key in block:
                 self.group[key][first:stop] = block[key]
 
@@ -207,7 +210,7 @@ class _ZarrOutput:
         import zarr
 
         group = zarr.open_group(self.path, mode="r", zarr_format=2)
-        return {key: group[key] for key in _ARRAY_KEYS if key in group}
+        return {v.name: group[v.name] for v in schema.VARIABLES if v.name in group}
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,9 +228,9 @@ class _Layout:
         """The sweep's `xarray.Dataset` (see `sweep`)."""
         import xarray as xr
 
-        coords = {"variant": np.arange(self.n_variants), "t": ("time", self.times),
+        coords = {"variant": np.arange(self.n_variants), schema.TIME: ("time", self.times),
                   "parameter": list(self.columns), **self.labels}  # fmt: skip
-        variables = {key: (("variant", "time", *_DIMENSIONS[key]), value) for key, value in arrays.items()}
+        variables = schema.dataset_variables(arrays, leading=("variant", "time"))
         variables |= {
             "parameters": (("variant", "parameter"), self.parameters),
             "status": ("variant", status),
@@ -239,9 +242,7 @@ class _Layout:
 
 def _layout(design: VariantDesign, times: np.ndarray, selection) -> _Layout:
     """The arrays and labels of the sweep's results: the labels of one run's
-    (`dataset_labels`), with the variant and parameter dimensions in front."""
+    (`sparsekin.results.schema.dataset_labels`), with the variant and parameter dimensions in front."""
     columns, parameters = design.table()
-    forces = selection.forces
-    labels = dataset_labels(selection.mechanism, selection.coordinates, selection.point_names, selection.joint_indices,
-                            () if forces is None else forces.labels, () if forces is None else forces.units)  # fmt: skip
+    labels = schema.dataset_labels(selection)
     return _Layout(design.n_variants, times, columns, parameters, selection.sample_shapes(), labels)

@@ -57,6 +57,8 @@ import numpy as np
 
 from ..errors import ConvergenceError, ModelError, SingularJacobianError
 from ..model.mechanism import Mechanism
+from ..results.motion import Motion
+from ..results.schema import COORDINATE_VARIABLES, result_arrays, result_fields
 from .stores import (
     STATUS_DTYPE,
     STATUSES,
@@ -121,19 +123,20 @@ def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarr
     ``qdd``, ``points``, ``joints``), each of shape (stop - first, n_times, ...), NaN
     after a variant's last solved sample.
     """
-    from ..engine.pattern import build_pattern
+    from ..engine.discretization import discretize
     from ..results.recording import Selection
     from ..solve.kinematics import solve_kinematics
 
     n, n_times = stop - first, times.size
     mechanism = design.mechanism
-    selection = Selection(mechanism, options["coordinates"], options["points"], options["joints"], options["forces"])
+    nominal = discretize(mechanism)
+    selection = Selection(nominal, options["coordinates"], options["points"], options["joints"], options["forces"])
     shapes = selection.sample_shapes()
     arrays = {key: np.full((n, n_times, *shape), np.nan) for key, shape in shapes.items()}
     status = np.full(n, "", dtype=STATUS_DTYPE)
     t_stop, t_failure = np.full(n, np.nan), np.full(n, np.nan)
     messages = [""] * n
-    shared = None if design.geometry_varies else build_pattern(mechanism)
+    shared = None if design.geometry_varies else nominal.constraints
     for row, k in enumerate(range(first, stop)):
         result, notes = None, []
         with warnings.catch_warnings(record=True) as caught:
@@ -156,11 +159,9 @@ def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarr
         if result is not None and result.n_times:
             m = result.n_times
             t_stop[row] = result.times[-1]
-            for key, source in (("q", result.coordinates), ("qd", result.velocities),
-                                ("qdd", result.accelerations), ("points", result.point_tracks),
-                                ("joints", result.joint_tracks), ("forces", result.force_tracks)):  # fmt: skip
-                if key in arrays:
-                    arrays[key][row, :m] = source
+            for name, source in result_arrays(result).items():
+                if name in arrays:
+                    arrays[name][row, :m] = source
     return {"status": status, "t_stop": t_stop, "t_failure": t_failure, "messages": messages, **arrays}
 
 
@@ -252,27 +253,23 @@ def sweep(
     except ImportError:
         raise ImportError(DISTRIBUTED_EXTRA) from None
     from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
-    from ..results.recording import Selection
-    from ..solve.kinematics import _checked_times
-    from ..solve.stepper import LINEAR_SOLVERS, checked_max_iterations, checked_tolerance
+    from ..engine.discretization import discretize
+    from ..solve.options import Request, SolveOptions, check_times
 
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
     variants = vary if isinstance(vary, VariantSet) else VariantSet(vary)
     design = variants.bind(mechanism)
-    times = _checked_times(times, mechanism)
+    times = check_times(times, mechanism)
     if progress is not None and not callable(progress):
         raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
     if variants_per_task is not None and (isinstance(variants_per_task, bool) or int(variants_per_task) < 1):
         raise ValueError(f"`variants_per_task` must be a whole number >= 1, got {variants_per_task!r}.")
     # every argument a task would refuse is refused here, before a cluster starts
-    tolerance = checked_tolerance(DEFAULT_TOLERANCE if tolerance is None else tolerance)
-    max_iterations = checked_max_iterations(NEWTON_MAXITER if max_iterations is None else max_iterations)
-    if linear_solver not in LINEAR_SOLVERS:
-        raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
-    if not isinstance(quasi_static, (bool, np.bool_)):
-        raise ValueError(f"`quasi_static` must be True or False, got {quasi_static!r}.")
-    selection = Selection(mechanism, coordinates, points, joints, forces)
+    checked = SolveOptions(DEFAULT_TOLERANCE if tolerance is None else tolerance,
+                           NEWTON_MAXITER if max_iterations is None else max_iterations, linear_solver)  # fmt: skip
+    tolerance, max_iterations = checked.tolerance, checked.max_iterations
+    selection = Request(coordinates, points, joints, forces, quasi_static).selection(discretize(mechanism))
     chosen = selection.forces
     options = dict(coordinates=bool(coordinates), points=selection.point_names or None,
                    joints=list(selection.joint_indices) or None, linear_solver=linear_solver,
@@ -316,14 +313,24 @@ def sweep(
     arrays = output.close()
     return SweepResult(
         variants=variants, columns=layout.columns, parameters=layout.parameters, status=status, t_stop=t_stop,
-        t_failure=t_failure, messages=tuple(messages), times=times, coordinates=arrays.get("q"),
-        velocities=arrays.get("qd"), accelerations=arrays.get("qdd"), point_tracks=arrays.get("points"),
-        recorded_points=selection.point_names, joint_tracks=arrays.get("joints"),
-        recorded_joints=selection.joint_labels, force_tracks=arrays.get("forces"),
-        force_labels=() if chosen is None else chosen.labels, force_units=() if chosen is None else chosen.units,
+        t_failure=t_failure, messages=tuple(messages), times=times, **result_fields(arrays),
+        recorded_points=selection.point_names, recorded_joints=selection.joint_labels,
+        force_labels=selection.force_labels, force_units=selection.force_units,
         store=output.path, n_tasks=len(ranges), wall_time=wall_time,
         coordinate_labels=tuple(layout.labels.get("coordinate", ())), labels=layout.labels,
+        motion=_sweep_motion(selection, times, arrays, status, design.geometry_varies),
     )  # fmt: skip
+
+
+def _sweep_motion(selection, times: np.ndarray, arrays: dict, status: np.ndarray, geometry_varies: bool) -> Motion:
+    """The sweep's recorded motion with the variant first (see `SweepResult.motion`)."""
+    fields = result_fields(arrays)
+    if geometry_varies:  # each variant has its own drawing: nothing derived from the coordinates
+        fields |= {v.attribute: None for v in COORDINATE_VARIABLES}
+    return Motion(times=times, complete=bool(np.all(status == "complete")), point_map=selection.discretization.points,
+                  mechanism=selection.mechanism, recorded_points=selection.point_names,
+                  recorded_joints=selection.joint_indices, force_labels=selection.force_labels,
+                  force_units=selection.force_units, **fields)  # fmt: skip
 
 
 def default_worker_count() -> int:

@@ -1,0 +1,174 @@
+"""How the linear systems of a run are solved: `plan_linear_solver`, the one ``"auto"`` rule.
+
+``linear_solver="auto"`` picks, from the size of the model and the fill-in of its
+factorization, the fastest path measured (benchmarks/RESULTS.md, docs/design-notes.md):
+
+* up to `COMPILED_MAX_COORDINATES` coordinates, the compiled dense loop
+  (`sparsekin.solve._compiled`), when the model's laws are all built in and it has as many
+  equations as coordinates; otherwise the Python loop on a dense LU;
+* above, a refactorization on the fixed pattern (`RefactorSolver`), ordered by METIS from
+  `MIN_METIS_COORDINATES` coordinates on when `pymetis` is installed, its first order tiled
+  from a short chain for a long repeated chain (`MIN_TILED_COORDINATES`);
+* and when that refactorization's L and U hold more than `MAX_REFACTOR_FILL` entries per
+  Jacobian entry, its factorization reused across samples (`ReusingSolver`, path ``"reuse"``).
+
+The plan is a value (`SolverPlan`): the facade, the stepper and the benchmark harness all
+ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).
+
+>>> from sparsekin.engine.discretization import discretize
+>>> from sparsekin.testset import task5, lattice
+>>> plan_linear_solver(discretize(task5()), "auto").loop
+'compiled'
+>>> plan = plan_linear_solver(discretize(lattice(6, 8)), "auto")
+>>> plan.loop, plan.solver, plan.ordering
+('python', 'refactor', 'colamd')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..analysis.rank import SMALLEST_TALL_LU
+from ..engine.discretization import Discretization
+from ..engine.krylov import ReusingSolver
+from ..engine.linalg import DenseSolver, RefactorSolver, SuperLUSolver
+from ..engine.multipliers import MIN_NORM_ITERATIONS
+from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed
+from ._compiled import supports_compiled
+
+__all__ = [
+    "COMPILED_MAX_COORDINATES",
+    "LINEAR_SOLVERS",
+    "MAX_REFACTOR_FILL",
+    "MIN_METIS_COORDINATES",
+    "SolverPlan",
+    "Thresholds",
+    "plan_linear_solver",
+]
+
+#: The `linear_solver` names.
+LINEAR_SOLVERS = ("auto", "superlu", "refactor", "dense")
+#: ``linear_solver="auto"`` runs the compiled dense loop (`sparsekin.solve_kinematics`) or
+#: the dense path up to this many coordinates and the refactorization path above: the
+#: crossover measured on the test set (benchmarks/RESULTS.md, "Crossover").
+COMPILED_MAX_COORDINATES = 120
+#: ``linear_solver="auto"`` refactors at every sample while L and U hold at most this
+#: many entries per entry of the Jacobian.  With more fill-in (meshes rather than chains)
+#: a factorization costs tens of solves, and the run goes on reusing it across samples
+#: (`sparsekin.engine.krylov.ReusingSolver`: GMRES preconditioned by the held
+#: factorization, path ``"reuse"``); docs/design-notes.md gives the measured fill ratios.
+MAX_REFACTOR_FILL = 8.0
+#: ``linear_solver="auto"`` orders the refactorization's fresh factorizations by METIS's
+#: nested dissection from this many coordinates on, when `pymetis` is installed (the
+#: ``meshes`` extra): on the lattice at 10^4 bodies (3·10^4 coordinates) it and COLAMD
+#: give the same fill, at 10^5 METIS's refactorization is twice as fast
+#: (docs/design-notes.md, "Fill-reducing column order").
+MIN_METIS_COORDINATES = 30_000
+
+_SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """The sizes at which a run changes path, each measured (see the module constants).
+
+    Tests and studies of the paths pass other values here instead of changing modules.
+
+    Attributes
+    ----------
+    compiled_max_coordinates : int
+        `COMPILED_MAX_COORDINATES`.
+    max_refactor_fill : float
+        `MAX_REFACTOR_FILL`.
+    min_metis_coordinates : int
+        `MIN_METIS_COORDINATES`.
+    min_tiled_coordinates : int
+        `sparsekin.engine.ordering.MIN_TILED_COORDINATES`: a long repeated chain's first
+        pivot order tiled from a short chain from this many coordinates on.
+    smallest_tall_lu : int
+        `sparsekin.analysis.rank.SMALLEST_TALL_LU`: the redundant equations of an
+        overconstrained model found by a sparse LU of the tall Jacobian from this many
+        coordinates on (a dense analysis below).
+    min_norm_iterations : int
+        `sparsekin.engine.multipliers.MIN_NORM_ITERATIONS`: conjugate-gradient iterations for
+        the minimum-norm multipliers before the augmented LU takes over.
+    """
+
+    compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
+    max_refactor_fill: float = MAX_REFACTOR_FILL
+    min_metis_coordinates: int = MIN_METIS_COORDINATES
+    min_tiled_coordinates: int = MIN_TILED_COORDINATES
+    smallest_tall_lu: int = SMALLEST_TALL_LU
+    min_norm_iterations: int = MIN_NORM_ITERATIONS
+
+
+@dataclass(frozen=True)
+class SolverPlan:
+    """How a run solves its linear systems (`plan_linear_solver`).
+
+    Attributes
+    ----------
+    loop : {"compiled", "python"}
+        The compiled dense loop first (it hands over to the Python loop at a sample it
+        cannot solve), or the Python loop all the way.
+    solver : {"dense", "refactor", "superlu"}
+        The linear solver of the Python loop.
+    ordering : {"colamd", "metis"}
+        A refactorization's fill-reducing order.
+    chord : bool
+        Chord Newton after the first sample (every path but ``"superlu"``).
+    reuse_fill : float or None
+        Reuse the refactorization across samples once its fill-in exceeds this many
+        entries per Jacobian entry (``"auto"`` only); None: never.
+    thresholds : Thresholds
+    """
+
+    loop: str
+    solver: str
+    ordering: str = "colamd"
+    chord: bool = True
+    reuse_fill: float | None = None
+    thresholds: Thresholds = field(default_factory=Thresholds)
+
+    def make_solver(self):
+        """A fresh linear solver of the plan."""
+        if self.solver == "refactor":
+            return RefactorSolver(ordering=self.ordering)
+        return _SOLVER_CLASSES[self.solver]()
+
+    def reuses(self, linear_solver, nnz: int) -> bool:
+        """Whether the run should go on reusing `linear_solver`'s factorization across samples:
+        a refactorization with more fill-in than `reuse_fill` per entry of a Jacobian of
+        `nnz` entries."""
+        return (self.reuse_fill is not None and isinstance(linear_solver, RefactorSolver)
+                and linear_solver.nnz_factors > self.reuse_fill * nnz)  # fmt: skip
+
+    def reusing(self, linear_solver):
+        """`linear_solver` wrapped to reuse its factorization, which it holds already."""
+        return ReusingSolver(linear_solver, factored=True)
+
+
+def plan_linear_solver(discretization: Discretization, linear_solver: str = "auto",
+                       thresholds: Thresholds | None = None) -> SolverPlan:  # fmt: skip
+    """The plan of a run of `discretization` with the `linear_solver` asked for (one of
+    `LINEAR_SOLVERS`, validated by the caller: `sparsekin.solve.options.SolveOptions`)."""
+    thresholds = Thresholds() if thresholds is None else thresholds
+    pattern = discretization.constraints
+    n = pattern.n_coordinates
+    auto = linear_solver == "auto"
+    solver = ("dense" if n <= thresholds.compiled_max_coordinates else "refactor") if auto else linear_solver
+    compiled = (
+        solver == "dense"
+        and pattern.n_equations == n
+        and (n > 0 or pattern.n_equations > 0)
+        and supports_compiled(discretization.mechanism)
+    )
+    metis = auto and n >= thresholds.min_metis_coordinates and metis_installed()
+    return SolverPlan(
+        loop="compiled" if compiled else "python",
+        solver=solver,
+        ordering="metis" if metis else "colamd",
+        chord=solver != "superlu",
+        reuse_fill=thresholds.max_refactor_fill if auto else None,
+        thresholds=thresholds,
+    )
