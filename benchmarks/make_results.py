@@ -50,7 +50,7 @@ def load(path: Path) -> tuple[dict, dict, dict]:
     document = json.loads(path.read_text())
     steps: dict = defaultdict(dict)
     setups: dict = {}
-    others, large, sweeps, forces, startup, overconstrained = [], [], [], [], [], []
+    others, large, sweeps, forces, startup, overconstrained, hubs = [], [], [], [], [], [], []
     for record in document["benchmarks"]:
         info = record["extra_info"]
         if record["name"].startswith("test_time_step"):
@@ -68,11 +68,13 @@ def load(path: Path) -> tuple[dict, dict, dict]:
             startup.append(info)
         elif record["name"].startswith("test_overconstrained"):
             overconstrained.append(info)
+        elif record["name"].startswith("test_hub_against_chain"):
+            hubs.append(info)
         else:
             others.append(record)
     document["others"], document["large"], document["sweeps"] = others, large, sweeps
     document["forces"], document["startup"] = forces, startup
-    document["overconstrained"] = overconstrained
+    document["overconstrained"], document["hubs"] = overconstrained, hubs
     return steps, setups, document
 
 
@@ -192,6 +194,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_overconstrained(document["overconstrained"])]
     if MESH_LU.exists():
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
+    if document.get("hubs"):
+        lines += ["", *_hubs(document["hubs"])]
     if document["others"]:
         lines += [
             "",
@@ -223,6 +227,26 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _hubs(records: list[dict]) -> list[str]:
+    """The table of `test_hub_topology.py`: legs on one crankshaft against the same legs in a chain."""
+    lines = [
+        "## Many legs on one body against the same legs in a chain (`test_hub_topology.py`)",
+        "",
+        "Jansen legs whose cranks are welded to one crankshaft body (a hub) or each to the previous",
+        "one (a chain): the same bodies and equations. Time per step: the median of 5 rounds of 20",
+        "steps of `KinematicStepper`, both in the same run (target: hub / chain ≤ 1.5).",
+        "",
+        "| legs | bodies | hub / step | chain / step | hub / chain | paths |",
+        "|---|---|---|---|---|---|",
+    ]
+    for info in records:
+        hub, chain = info["hub"], info["chain"]
+        lines.append(f"| {info['legs']:,} | {hub['bodies']:,} | {_seconds(hub['seconds_per_step'])} | "
+                     f"{_seconds(chain['seconds_per_step'])} | {info['ratio']:.2f} | "
+                     f"{hub['linear_solver']}, {chain['linear_solver']} |")
+    return lines
 
 
 def _overconstrained(records: list[dict]) -> list[str]:

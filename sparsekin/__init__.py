@@ -133,6 +133,7 @@ __all__ = [
     "analyse_jacobian",
     "check_model",
     "load_model",
+    "pose_model",
     "save_model",
     "solve_kinematics",
     "SweepResult",
@@ -149,7 +150,8 @@ __version__ = "0.1.0"
 _LAZY = {"sweep": "studies.sweeps", "VariantSet": "studies.variants", "SweepResult": "studies.stores",
          "workspace": "studies.workspaces", "Workspace": "studies.workspaces",
          "check_model": "analysis.check", "ModelReport": "analysis.check",
-         "analyse_jacobian": "analysis.rank", "JacobianAnalysis": "analysis.rank"}  # fmt: skip
+         "analyse_jacobian": "analysis.rank", "JacobianAnalysis": "analysis.rank",
+         "pose_model": "solve.poses"}  # fmt: skip
 
 
 def __getattr__(name: str):

@@ -33,6 +33,7 @@ def test_the_model_format_names_every_kind_and_its_keys():
 #: Pages whose Python code runs here, and the modules it needs beyond the core.
 PAGES_WITH_CODE = {
     "tutorial.md": ("matplotlib", "PIL"),
+    "tutorial-linkage.md": ("matplotlib",),
     "how-to/lock-up-and-redundancy.md": (),
     "how-to/inverse-kinematics.md": (),
     "how-to/linear-solver.md": (),

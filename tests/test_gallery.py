@@ -15,6 +15,9 @@ References, each written here from the geometry of the file, never from the solv
 
 * rotating rectangles: every rectangle's centre and angle from the closed form of the
   lattice's opening, and Poisson's ratio from it.
+* Jansen's leg (link lengths on a drawing rounded to whole units): every joint from circle
+  intersections (tests/jansen.py); the Strandbeest: every foot of its twelve legs from the
+  same, shifted by its throw (mirrored for the mirrored legs).
 
 (Task 5 is checked against ADAMS in test_task5.py, the planetary gear train against
 Willis' formula in test_elements.py; the rotating squares and the lattice against their
@@ -310,3 +313,29 @@ def test_rotating_rectangles_open_as_their_closed_form_with_their_poisson_ratio(
     # central differences of ln(size) in time: error O(dt²) relative to the ratio's own curvature
     np.testing.assert_allclose(size.poisson_ratio[inner], ratio[inner], rtol=2e-2)
     assert ratio.max() < -4.0  # strongly auxetic over the whole run, never -1
+
+
+# ---------------------------------------------------------------------- Jansen's leg
+def test_jansen_leg_walks_the_path_of_its_link_lengths():
+    from jansen import jansen_points
+
+    mechanism = load_model(EXAMPLES / "jansen_leg.toml")
+    times = np.linspace(0.0, mechanism.analysis.t_end, mechanism.analysis.steps)
+    result = solve_kinematics(mechanism, times)
+    drawn = math.atan2(mechanism.points["A"][1], mechanism.points["A"][0])  # the crank's drawn direction
+    reference = jansen_points(drawn + times)
+    for name in ("G", "F"):
+        np.testing.assert_allclose(result.point(name).position, reference[name], rtol=0, atol=1e-9)
+
+
+def test_strandbeest_feet_are_the_leg_s_shifted_by_their_throws():
+    from jansen import jansen_points
+
+    mechanism = load_model(EXAMPLES / "strandbeest.toml")
+    times = np.linspace(0.0, mechanism.analysis.t_end, 25)
+    result = solve_kinematics(mechanism, times)
+    drawn = math.atan2(4.0, 14.0)  # the leg's crank pin drawn at (14, 4)
+    for k in range(6):
+        foot = jansen_points(drawn + times + 2.0 * math.pi / 3.0 * (k % 3))["G"]
+        np.testing.assert_allclose(result.point(f"r{k}.G").position, foot, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(result.point(f"l{k}.G").position, foot * [-1.0, 1.0], rtol=0, atol=1e-9)

@@ -60,6 +60,8 @@ GALLERY_TITLES = {
     "lattice": "Lattice of parallelograms (a grid repeat)",
     "rotating_squares": "Rotating squares (an auxetic metamaterial)",
     "rotating_rectangles": "Rotating rectangles",
+    "jansen_leg": "Theo Jansen's leg from its link lengths",
+    "strandbeest": "A Strandbeest: twelve legs from one drawn leg",
 }
 #: Lattice metamaterials: drawn whole and animated without labels, with the figure of
 #: their size against their opening (`sparsekin.plots.metamaterials.plot_lattice_size`):

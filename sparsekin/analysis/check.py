@@ -16,12 +16,11 @@ from scipy import sparse
 
 from ..engine.assembly import Assembler
 from ..engine.discretization import discretize
-from ..engine.linalg import SingularMatrix, SuperLUSolver
-from ..engine.newton import NoConvergence, solve_positions
 from ..engine.outputs import LimitState, limit_states, own_coordinates
 from ..engine.pattern import build_output_pattern
-from ..engine.reduced import CONSISTENCY_TOLERANCE, ReducedSystem
+from ..engine.reduced import CONSISTENCY_TOLERANCE
 from ..model.mechanism import Mechanism
+from .assemble import ASSEMBLY_TOLERANCE, AssemblyFailed, assemble, point_moves, reduced_system
 from .describe import (
     coordinate_label,
     describe_motion,
@@ -29,16 +28,12 @@ from .describe import (
     motion_summary,
     row_preference,
 )
-from .notices import actuator_directions, law_offsets, notice_lines, unjoined_point_lines
+from .notices import actuator_directions, hub_lines, law_offsets, notice_lines, unjoined_point_lines
 from .rank import SMALLEST_TALL_LU, JacobianAnalysis, analyse_jacobian
 from .rigidity import counts_line, describe_redundant, listed_redundant
 
 __all__ = ["ModelReport", "RedundantEquation", "FreeMotion", "check_model", "format_report"]
 
-#: Newton corrections allowed when assembling the model in `check_model`.
-ASSEMBLY_MAXITER = 20
-#: Convergence tolerance of the assembly: lengths relative to the model size, angles in rad.
-ASSEMBLY_TOLERANCE = 1e-12
 #: Most names of massless bodies in a report.
 LISTED_MASSLESS = 6
 
@@ -139,6 +134,14 @@ class ModelReport:
         For each repeat that leaves parts out of some copies (a grid's open boundaries,
         ``copies = {…}``): one line saying how many, ``repeat[0]: 20 elements on the
         open boundary or restricted to some copies``.
+    moves : tuple of (str, float)
+        The named points that the assembly moved from the drawing, the largest move
+        first (at most `sparsekin.analysis.assemble.MOST_LISTED_MOVES`), m; `n_moved` how
+        many moved (-1: too many points to locate).
+    lengths : tuple of str
+        One line per body with `lengths`: each stated length and its drawn distance.
+    hubs : tuple of str
+        A line when bodies carry many others (`sparsekin.analysis.notices.hub_lines`).
     """
 
     name: str
@@ -166,6 +169,10 @@ class ModelReport:
     actuator_directions: tuple[str, ...] = ()
     unjoined_points: tuple[str, ...] = ()
     left_out: tuple[str, ...] = ()
+    moves: tuple[tuple[str, float], ...] = ()
+    n_moved: int = 0
+    lengths: tuple[str, ...] = ()
+    hubs: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -268,6 +275,7 @@ def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = 
     weights = pattern.residual_weights
     preference = row_preference(mechanism, pattern)
     drawn = pattern.initial_coordinates.copy()
+    moves, n_moved, hubs = (), 0, ()
     if pattern.n_equations == 0:  # nothing to assemble: every coordinate is free
         analysis = analyse_jacobian(sparse.csr_array((0, pattern.n_coordinates)))
         assembled, coordinates, assembly = True, drawn, f"nothing to assemble at t = {time:g} s: no equation"
@@ -286,7 +294,11 @@ def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = 
             analysis = analyse_jacobian(assembler.jacobian, row_preference=left_out, tall_lu_from=tall_lu_from)
         else:
             analysis = first
+        if assembled and moved > ASSEMBLY_TOLERANCE:
+            found = point_moves(mechanism, drawn, coordinates)
+            moves, n_moved = ((), -1) if found is None else (tuple(found[0]), found[1])
         raw_residual = assembler.residual
+        hubs = hub_lines(discretization, assembler.jacobian) if assembled else ()
         residual = raw_residual * weights
     n_joint_equations = int(pattern.element_first_row[len(mechanism.joints)])
     consistent = np.abs(residual[analysis.redundant_rows]) <= CONSISTENCY_TOLERANCE
@@ -333,6 +345,10 @@ def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = 
         n_loads=mechanism.n_loads,
         gravity=mechanism.gravity,
         has_forces=mechanism.has_forces,
+        moves=moves,
+        n_moved=n_moved,
+        hubs=hubs,
+        lengths=tuple(_lengths_line(where, stated) for where, stated in mechanism.shapes.lengths),
         left_out=tuple(f"{c.label}: {n} element{'s' * (n != 1)} on the open boundary or restricted to some copies"
                        for c in mechanism.copies if (n := c.n_left_out())),
         name=mechanism.name,
@@ -352,6 +368,11 @@ def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = 
     )
 
 
+def _lengths_line(where: str, stated) -> str:
+    """``bodies.crank: O–A 15 (drawn 15.13)``: a body's stated lengths, with the drawn distances."""
+    return f"{where}: " + ", ".join(f"{a}–{b} {length:.10g} (drawn {drawn:.6g})" for a, b, length, drawn in stated)
+
+
 def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
     """The first `LISTED_MASSLESS` moving bodies without a mass, and how many there are."""
     names = [body.name for body in mechanism.own("bodies") if not body.mass]
@@ -365,27 +386,14 @@ def _massless_bodies(mechanism: Mechanism) -> tuple[tuple[str, ...], int]:
 
 
 def _assemble(mechanism, pattern, assembler, time, drawn, analysis):
-    """Newton–Raphson on the equations that are not redundant, the free coordinates held.
-
-    Returns (converged, coordinates, words).  After convergence, one more correction
-    brings the residual to the rounding floor, so that the rank analysis at the result
-    is not blurred by a residual just below the tolerance.
-    """
-    kept = np.setdiff1d(np.arange(pattern.n_equations), analysis.redundant_rows)
-    held = analysis.free_coordinates
-    system = ReducedSystem(assembler, kept, held, drawn[held])
-    solver = SuperLUSolver()
-    coordinates = drawn.copy()
+    """The path from the drawing onto the equations that are not redundant, the free
+    coordinates held (`sparsekin.analysis.assemble`).  Returns (converged, coordinates, words)."""
+    system = reduced_system(assembler, analysis, drawn)
     try:
-        corrections = solve_positions(system, solver, coordinates, ASSEMBLY_TOLERANCE, ASSEMBLY_MAXITER)
-        coordinates -= solver.solve(system.residual)
-    except SingularMatrix:
-        return False, drawn, (
-            f"cannot assemble at t = {time:g} s: the Jacobian is singular after "
-            f"{solver.n_factorizations - 1} Newton corrections"
-        )
-    except NoConvergence as failure:
+        assembly = assemble(system, drawn, pattern.coordinate_weights, tolerance=ASSEMBLY_TOLERANCE)
+    except AssemblyFailed as failure:
         weighted = np.abs(system.residual) * system.weights
+        kept = system.rows
         worst = int(kept[np.argmax(weighted[: kept.size])]) if kept.size else -1
         where = equation_label(mechanism, pattern, worst) if worst >= 0 else "no equation"
         return False, drawn, (
@@ -393,11 +401,13 @@ def _assemble(mechanism, pattern, assembler, time, drawn, analysis):
             f"({failure.reason}; residual {np.max(weighted, initial=0.0):.3g} at the last iterate, relative "
             f"to the model size; largest in {where})"
         )
-    norm = system.fill_residual_jacobian(coordinates)
-    moved = float(np.max(np.abs(coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
-    return True, coordinates, (
-        f"assembled at t = {time:g} s in {corrections} Newton correction{'s' * (corrections != 1)} "
-        f"from the drawing: largest residual {norm:.2g}, largest change of a coordinate "
+    moved = float(np.max(np.abs(assembly.coordinates - drawn) * pattern.coordinate_weights, initial=0.0))
+    how = "as drawn"
+    if assembly.steps:
+        how = (f"in {assembly.corrections} Newton correction{'s' * (assembly.corrections != 1)} over "
+               f"{assembly.steps} step{'s' * (assembly.steps != 1)} from the drawing, on its branch")
+    return True, assembly.coordinates, (
+        f"assembled at t = {time:g} s {how}: largest residual {assembly.residual:.2g}, largest change of a coordinate "
         f"{moved:.2g} (lengths relative to the model size, {pattern.length_scale:.4g} m; angles in rad)"
     )
 
@@ -425,6 +435,7 @@ def format_report(report: ModelReport) -> str:
         f"condition number of the scaled Jacobian (on its rank): {_number(analysis.condition)}",
     ]
     lines[1:1] = report.left_out
+    lines[3 + len(report.left_out) : 3 + len(report.left_out)] = _assembly_lines(report)
     lines.append(counts_line(report.n_coordinates, report.n_equations, report.rank))
     if report.redundant:
         lines.append(f"redundant equations ({len(report.redundant)}):")
@@ -454,6 +465,22 @@ def format_report(report: ModelReport) -> str:
     lines += notice_lines(report)
     lines.append("verdict: " + ("sound" if report.sound else "; ".join(report.problems)))
     return "\n".join(lines)
+
+
+def _assembly_lines(report: ModelReport) -> list[str]:
+    """The points the assembly moved (the largest first) and the link lengths stated."""
+    lines = []
+    if report.n_moved < 0:
+        lines.append("points moved from the drawing: too many points to list")
+    elif report.moves:
+        shown = ", ".join(f"{name} {distance:.3g} m" for name, distance in report.moves)
+        more = f" … ({report.n_moved - len(report.moves)} more)" if report.n_moved > len(report.moves) else ""
+        lines.append(f"points moved from the drawing ({report.n_moved}), the largest first: {shown}{more}")
+    if report.lengths:
+        lines.append(f"link lengths (exact; the other distances are drawn), m: {len(report.lengths)} bod"
+                     + ("ies" if len(report.lengths) != 1 else "y"))
+        lines += [f"  {line}" for line in report.lengths]
+    return lines
 
 
 def _masses_line(report: ModelReport) -> str:

@@ -19,13 +19,15 @@ import math
 import numpy as np
 
 from ..engine.discretization import DriverLaws
+from ..engine.linalg import RefactorSolver, SingularMatrix
+from ..engine.ordering import hub_coordinates, hub_last_ordering
 from ..engine.pattern import ConstraintPattern
 from ..model.elements import DistanceDriver, Revolute, Translational, TranslationalDriver, shown_point
 from ..model.mechanism import Mechanism
 from ..model.shared_points import unjoined_points
 from .describe import driven_labels
 
-__all__ = ["law_offsets", "actuator_directions", "unjoined_point_lines", "notice_lines"]
+__all__ = ["law_offsets", "actuator_directions", "unjoined_point_lines", "hub_lines", "notice_lines"]
 
 #: Most drivers listed by `law_offsets` and `actuator_directions` (a report stays short
 #: for a model of thousands of actuators).
@@ -34,6 +36,9 @@ LISTED_NOTICES = 8
 #: lengths (`ConstraintPattern.residual_weights`), rad for angles: well above the
 #: rounding of a drawn value, well below any deliberate offset.
 OFFSET_TOLERANCE = 1e-9
+#: Factors of more nonzeros than this many times the Jacobian's fill in heavily (the value
+#: of `sparsekin.solve.stepper.MAX_REFACTOR_FILL`, beyond which a run reuses its factors).
+HEAVY_FILL = 8.0
 
 
 def law_offsets(mechanism: Mechanism, pattern: ConstraintPattern, time: float = 0.0) -> tuple[str, ...]:
@@ -139,6 +144,36 @@ def unjoined_point_lines(mechanism: Mechanism) -> tuple[str, ...]:
     return tuple(lines)
 
 
+def hub_lines(discretization, jacobian) -> tuple[str, ...]:
+    """One line when bodies carry many attachments (a hub: a crankshaft, a frame): which,
+    and how much the factors of `jacobian` fill in with the order the run takes for them
+    (`sparsekin.engine.ordering.hub_last_ordering`); a warning with a way out when that is
+    heavy."""
+    mechanism, pattern = discretization.mechanism, discretization.constraints
+    hub = hub_coordinates(pattern)
+    if not hub.size or pattern.n_equations != pattern.n_coordinates:
+        return ()
+    bodies = np.unique(hub // 3)
+    names = ", ".join(mechanism.body_name(int(b)) for b in bodies[:LISTED_NOTICES])
+    names += " …" if bodies.size > LISTED_NOTICES else ""
+    entries = int(np.bincount(pattern.indices, minlength=pattern.n_coordinates)[hub].max())
+    ordering = hub_last_ordering(discretization)
+    solver = RefactorSolver()
+    if ordering is not None:
+        solver.suggest(*ordering)
+    try:
+        solver.factor(jacobian)
+    except SingularMatrix:
+        return ()
+    fill = solver.nnz_factors / max(pattern.nnz, 1)
+    carried = f"hub: {names} carr{'y' if bodies.size > 1 else 'ies'} many bodies (up to {entries} Jacobian entries in a column)"
+    if ordering is not None and fill <= HEAVY_FILL:
+        return (f"{carried}; the run eliminates it last: factors {fill:.3g}× the Jacobian",)
+    why = "" if ordering is not None else " (the run cannot eliminate it last: it is not held by joints to the ground alone)"
+    return ((f"warning: {carried}{why}; the factors fill in {fill:.3g}× the Jacobian, and each step costs about as "
+             "much more: attach the copies one to the next (a chain), or pin the hub to the ground directly"),)
+
+
 def notice_lines(report) -> list[str]:
     """The lines of the three notices in ``sparsekin check``'s report."""
     lines = []
@@ -150,6 +185,7 @@ def notice_lines(report) -> list[str]:
     if report.actuator_directions:
         lines.append("actuators (a growing driven value):")
         lines += [f"  {line}" for line in report.actuator_directions]
+    lines += list(report.hubs)
     if report.unjoined_points:
         lines.append(f"warning: points carried by bodies no joint connects there ({len(report.unjoined_points)}):")
         lines += [f"  {line}" for line in report.unjoined_points]

@@ -18,6 +18,7 @@ from .run import solve_for_command
 from .settings import (
     DEFAULT_OUTPUT_ROOT,
     RunSettings,
+    add_label_argument,
     add_time_arguments,
     parse_point_names,
     resolve_times,
@@ -51,6 +52,7 @@ def add_animate_command(subparsers) -> None:
     parser.add_argument("--duration", type=float, metavar="D",
                         help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
     parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
+    add_label_argument(parser)
     parser.set_defaults(handler=animate_command)
 
 
@@ -138,7 +140,8 @@ def _write_animation(result: KinematicsResult, path: Path, arguments, trace, sto
 
     if path.suffix.lower() == ".png":
         at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
-        save_frame(result, path, at, trace=trace, stopped=stopped)
+        save_frame(result, path, at, trace=trace, stopped=stopped, labels=arguments.labels)
         return f"frame at t = {result.times[-1] if at is None else at:g} s"
-    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped)
+    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped,
+                   labels=arguments.labels)  # fmt: skip
     return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"

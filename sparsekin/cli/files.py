@@ -88,12 +88,15 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
             draw_mechanism,
             plot_actuators,
             plot_driver_forces,
+            plot_paths_together,
             plot_point_motion,
             plot_point_paths,
         )
 
-        written += plot_point_motion(result, settings.point_names, directory)
+        written += plot_point_motion(result, settings.point_names, directory, abscissa=settings.abscissa)
         written += plot_point_paths(result, settings.point_names, directory)
+        if len(settings.point_names) > 1:
+            written.append(plot_paths_together(result, settings.point_names, directory / "paths.png"))
         written += plot_driver_forces(result, directory)  # from the recorded forces, without the coordinates
         if result.coordinates is None:
             report("note: actuators.png and mechanism.png need every body's coordinates: give --coordinates")
@@ -103,7 +106,7 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
         if mechanism.n_bodies > MAX_DRAWN_BODIES:
             shown = [mechanism.body_names[k] for k in range(MAX_DRAWN_BODIES)]
             report(f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of {mechanism.n_bodies} bodies")
-        written.append(draw_mechanism(mechanism, result, directory, bodies=shown))
+        written.append(draw_mechanism(mechanism, result, directory, bodies=shown, labels=settings.labels))
     return written
 
 

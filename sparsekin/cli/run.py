@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
 import warnings
 from pathlib import Path
@@ -31,6 +32,7 @@ from .settings import (
     RunSettings,
     add_folder_argument,
     add_force_arguments,
+    add_label_argument,
     add_time_arguments,
     resolve_run_settings,
 )
@@ -67,6 +69,13 @@ def add_run_command(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
+    add_label_argument(parser)
+    parser.add_argument("--abscissa", metavar="DRIVER",
+                        help="plot the motion figures of --plot against the value this driver drives (a crank "
+                        "angle, a stroke) instead of time")  # fmt: skip
+    parser.add_argument("--save-pose", nargs=2, metavar=("T", "OUT.toml"),
+                        help="also write a model drawn at the solved pose at time T (s), its laws shifted so that "
+                        "it starts there: a rough drawing becomes an exact one with T = 0")  # fmt: skip
     parser.set_defaults(handler=run_command)
 
 
@@ -80,6 +89,7 @@ def run_command(arguments: argparse.Namespace) -> int:
         `main` reports them.
     """
     timeline = _Timeline()
+    pose_time = _pose_time(arguments)
     mechanism = load_model(arguments.model)
     timeline.read = time.perf_counter()
     settings = resolve_run_settings(arguments, mechanism)
@@ -105,9 +115,56 @@ def run_command(arguments: argparse.Namespace) -> int:
                 f"{settings.directory}: {', '.join(path.name for path in written)}")
         return EXIT_INTERRUPTED
     timeline.solved = time.perf_counter()
+    _note_heavy_fill(mechanism, result)
     written = write_outputs(mechanism, result, settings)
+    if pose_time is not None:
+        written.append(_save_pose(result, pose_time, Path(arguments.save_pose[1]), arguments.model))
     print(_summary(mechanism, result, timeline, written))
     return EXIT_SUCCESS
+
+
+def _note_heavy_fill(mechanism: Mechanism, result: KinematicsResult) -> None:
+    """One note when a hub (a body many others are attached to) left the factors heavy: the
+    run then reused its factorization across samples (path "reuse")."""
+    if result.linear_solver != "reuse" or not mechanism.copies:
+        return
+    from ..engine.ordering import hub_coordinates
+    from ..engine.pattern import build_pattern
+
+    hub = hub_coordinates(build_pattern(mechanism))
+    if hub.size:
+        names = ", ".join(sorted({mechanism.body_name(int(b)) for b in hub[:12] // 3}))
+        report(f"note: the factors filled in heavily around {names}, which many bodies are attached to (the run "
+               "reused its factorization across samples): attach the copies one to the next (a chain), and see "
+               "sparsekin check")
+
+
+def _pose_time(arguments: argparse.Namespace) -> float | None:
+    """The T of ``--save-pose T OUT.toml``, checked; None without it."""
+    if arguments.save_pose is None:
+        return None
+    try:
+        value = float(arguments.save_pose[0])
+    except ValueError:
+        raise CommandError(f"--save-pose: expected a time T (s), got {arguments.save_pose[0]!r}") from None
+    if not math.isfinite(value):
+        raise CommandError(f"--save-pose: expected a finite time T (s), got {arguments.save_pose[0]!r}")
+    return value
+
+
+def _save_pose(result: KinematicsResult, pose_time: float, path: Path, model_path: Path) -> Path:
+    """Write the model drawn at the pose at `pose_time` (`sparsekin.solve.poses.pose_model`)."""
+    from ..model.modelfile import save_model
+    from ..solve.poses import pose_model
+
+    try:
+        model = pose_model(result, pose_time)
+    except ValueError as error:
+        raise CommandError(f"--save-pose: {error}") from None
+    except ModelError as error:
+        raise (error if error.file else error.in_file(str(model_path))) from None
+    save_model(model, path)
+    return path
 
 
 class _Timeline:

@@ -61,6 +61,10 @@ class RunSettings:
         The drivers and joints whose forces are written to ``forces.csv`` (or the store).
     quasi_static : bool
         Forces without the inertial forces.
+    labels : {"all", "joints", "none"}
+        What ``mechanism.png`` labels.
+    abscissa : str or None
+        The driver whose value the motion figures are plotted against (None: time).
     """
 
     times: np.ndarray
@@ -74,6 +78,8 @@ class RunSettings:
     notes: tuple[str, ...] = ()
     forces: str | tuple[str, ...] | None = None
     quasi_static: bool = False
+    labels: str = "all"
+    abscissa: str | None = None
 
 
 def add_time_arguments(parser, samples: str = "number of samples") -> None:
@@ -168,7 +174,29 @@ def resolve_run_settings(arguments: argparse.Namespace, mechanism: Mechanism) ->
     return RunSettings(
         times, tuple(point_names), directory, getattr(arguments, "plot", False), joint_indices, coordinates,
         getattr(arguments, "format", "csv"), getattr(arguments, "quiet", False), tuple(notes), forces, quasi_static,
+        getattr(arguments, "labels", "all"), _abscissa(arguments, mechanism),
     )  # fmt: skip
+
+
+def add_label_argument(parser) -> None:
+    """``--labels none|joints|all`` (of ``run --plot`` and ``animate``)."""
+    parser.add_argument("--labels", choices=("none", "joints", "all"), default="all",
+                        help="what the drawings of the mechanism label: every point and body (all, the default), "
+                        "the points where joints are (joints), or nothing (none)")  # fmt: skip
+
+
+def _abscissa(arguments: argparse.Namespace, mechanism: Mechanism) -> str | None:
+    """The driver of ``--abscissa DRIVER``, checked; None without it."""
+    driver = getattr(arguments, "abscissa", None)
+    if driver is None:
+        return None
+    from ..engine.outputs import element_index
+
+    try:
+        element_index(mechanism, "drivers", driver)
+    except KeyError as error:
+        raise CommandError(f"--abscissa: {error.args[0]}") from None
+    return driver
 
 
 def resolve_times(arguments: argparse.Namespace, mechanism: Mechanism) -> np.ndarray:

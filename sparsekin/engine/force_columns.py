@@ -28,7 +28,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..model.geometry import to_local
 from ..model.mechanism import Mechanism
 from . import _force_kernels
 from .columns import Resolver
@@ -176,7 +175,7 @@ def _reaction_geometry(discretization, joints: tuple[int, ...]):
         side_is_first[where] = first != ground
         carrier_body = (first if carrier == 0 else second)
         point_body[where] = carrier_body
-        point_local[where] = to_local(resolver.frames[carrier_body], point[chosen])
+        point_local[where] = mechanism.local_points(carrier_body, point[chosen], resolver.frames)
     return side, side_is_first, point_body, point_local
 
 

@@ -28,9 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.geometry import to_local
 from ..model.laws import LawTable, fill_laws
-from ..model.loads import MassArrays, pack_loads
+from ..model.loads import LoadArrays, MassArrays, pack_loads
 from ..model.mechanism import Mechanism
 from .columns import Resolver
 from .force_columns import ForceOutputArrays  # noqa: F401 (compiled kernels cached before the split name it here)
@@ -75,7 +74,7 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
     for kind, indices, columns in element_columns(mechanism, "loads", first_law[:-1], resolver):
         blocks += kind.loads(columns)
     table, others, n_laws = pack_element_laws(mechanism, "loads")
-    arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
+    arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames, mechanism.shapes)
     return LoadPattern(arrays, table, others, n_laws)
 
 
@@ -94,6 +93,6 @@ def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
             mass[bodies], inertia[bodies] = body.mass or 0.0, body.inertia or 0.0
             if body.com is not None:
                 com[bodies] = copies.reference_positions([body.com], ks)[:, 0]
-    return MassArrays(mass, inertia, np.ascontiguousarray(to_local(resolver.frames[:n], com)))
+    return MassArrays(mass, inertia, np.ascontiguousarray(mechanism.local_points(np.arange(n), com, resolver.frames)))
 
 

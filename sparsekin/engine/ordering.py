@@ -34,6 +34,9 @@ from .discretization import Discretization, discretize
 
 __all__ = [
     "tiled_ordering",
+    "hub_last_ordering",
+    "hub_coordinates",
+    "HUB_DEGREE",
     "fill_reducing_column_order",
     "fill_reducing_row_order",
     "metis_installed",
@@ -46,6 +49,8 @@ MIN_TILED_COORDINATES = 30_000
 #: Copies of each unit in the short chain besides the first and the last: a whole cycle of
 #: varied units (at most this many), or one.
 MAX_MIDDLE_COPIES = 64
+#: A coordinate with more Jacobian entries than this is a hub's: many bodies attached to one.
+HUB_DEGREE = 48
 #: Parts of the column graph of at most this many columns are not dissected further (they
 #: keep their breadth-first order): below about this size a separator saves less fill than
 #: it costs in balance (docs/design-notes.md, "Fill-reducing column order").
@@ -118,6 +123,60 @@ def tiled_ordering(discretization: Discretization, t: float = 0.0):
     perm_r[pivot_coordinate] = perm_c
     if np.any(perm_r < 0):  # two equations pivoted on one coordinate: not a permutation
         return None
+    return perm_r, perm_c
+
+
+def hub_coordinates(pattern) -> np.ndarray:
+    """The three coordinates of every body that many others are attached to (a crankshaft,
+    a frame, a hub): one of its columns of the Jacobian has more than `HUB_DEGREE` entries."""
+    degree = np.bincount(pattern.indices, minlength=pattern.n_coordinates)
+    bodies = np.flatnonzero((degree > HUB_DEGREE).reshape(-1, 3).any(axis=1))
+    return (3 * bodies[:, None] + np.arange(3)).ravel()
+
+
+def hub_last_ordering(discretization: Discretization, t: float = 0.0):
+    """``(perm_r, perm_c)`` (as `tiled_ordering`'s) that eliminates a hub's coordinates last;
+    None without a hub, or when the hub's own equations do not pivot on it.
+
+    A hub is a body many others are attached to: its coordinates' columns are nearly dense.
+    SuperLU's COLAMD with partial pivoting may pivot on them early, after which every later
+    copy fills in against them (1000 legs welded to one crankshaft ran 30–50× slower per
+    step than the same legs welded one to the next).  Here the equations that involve only
+    hub coordinates (the hub's joint to the ground, its driver) are pivoted on them, last;
+    the rest of the Jacobian, without the hub's columns, is ordered by SuperLU (COLAMD) at
+    the start of its constraints (`~ConstraintPattern.initial_coordinates`).  The hub's
+    columns then fill only their own rows of L (three per hub body), and the matrix is block
+    triangular: no other fill.
+    """
+    pattern = discretization.constraints
+    if pattern.n_equations != pattern.n_coordinates or not pattern.n_equations:
+        return None
+    hub = np.zeros(pattern.n_coordinates, dtype=bool)
+    hub[hub_coordinates(pattern)] = True
+    if not hub.any():
+        return None
+    assembler = Assembler(discretization)
+    assembler.set_time(t)
+    assembler.fill_residual_jacobian(pattern.initial_coordinates)
+    jacobian = assembler.jacobian
+    row_of_entry = np.repeat(np.arange(pattern.n_equations), np.diff(pattern.indptr))
+    hub_only = np.bincount(row_of_entry[~hub[pattern.indices]], minlength=pattern.n_equations) == 0
+    if hub_only.sum() != hub.sum():
+        return None
+    from scipy.sparse.linalg import splu  # here: a hub's run, not every run
+
+    perm_r = np.empty(pattern.n_coordinates, dtype=np.int64)
+    perm_c = np.empty(pattern.n_equations, dtype=np.int64)
+    first = 0
+    for rows, columns in ((~hub_only, ~hub), (hub_only, hub)):
+        block = jacobian[np.flatnonzero(rows)][:, np.flatnonzero(columns)]
+        try:
+            lu = splu(block.T.tocsc(), permc_spec="COLAMD")
+        except RuntimeError:  # singular without the hub: SuperLU orders the whole
+            return None
+        perm_c[rows] = first + lu.perm_c
+        perm_r[columns] = first + lu.perm_r
+        first += block.shape[0]
     return perm_r, perm_c
 
 

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.geometry import to_local
 from ..model.laws import LawPacker, LawTable
 from ..model.mechanism import Mechanism
 from ..model.primitives import PackedEquations, Primitives, pack
@@ -265,7 +264,7 @@ def build_pattern(mechanism: Mechanism) -> ConstraintPattern:
     n_joints = joint_counts.size
     blocks = _blocks(mechanism, "joints", element_first_row[:n_joints], resolver, "equations")
     blocks += _blocks(mechanism, "drivers", element_first_row[n_joints:-1], resolver, "equations")
-    packed: PackedEquations = pack(blocks, n_equations, resolver.frames)
+    packed: PackedEquations = pack(blocks, n_equations, resolver.frames, mechanism.shapes)
 
     first_driven = int(element_first_row[n_joints])
     driven_row = np.arange(first_driven, n_equations, dtype=np.int64)
@@ -313,7 +312,7 @@ def build_output_pattern(mechanism: Mechanism, joints=None, drivers=None) -> Out
     blocks = _blocks(mechanism, "joints", row_of_joint, resolver, "outputs")
     blocks += _blocks(mechanism, "drivers", row_of_driver, resolver, "outputs")
     n_rows = int(has_output.sum())
-    packed = pack(blocks, n_rows, resolver.frames)
+    packed = pack(blocks, n_rows, resolver.frames, mechanism.shapes)
     return OutputPattern(
         n_rows, packed.primitives, packed.indptr, packed.indices, row_of_joint, row_of_driver, packed.row_is_angle
     )
@@ -338,7 +337,7 @@ def _selected_outputs(mechanism: Mechanism, joints, drivers) -> OutputPattern:
         for element_kind, group in _by_kind(elements).items():
             selected_rows = rows[kind][[indices[g] for g in group]]
             blocks += element_kind.outputs(ObjectColumns([elements[g] for g in group], selected_rows, resolver))
-    packed = pack(blocks, n_rows, resolver.frames)
+    packed = pack(blocks, n_rows, resolver.frames, mechanism.shapes)
     return OutputPattern(n_rows, packed.primitives, packed.indptr, packed.indices, rows["joints"], rows["drivers"],
                          packed.row_is_angle)  # fmt: skip
 
@@ -398,7 +397,7 @@ class PointMap:
             return -1, position
         if self._frames is None:
             self._frames = mechanism.frames()
-        return body, to_local(self._frames[body : body + 1], position[None])[0]
+        return body, mechanism.local_points(np.array([body]), position[None], self._frames)[0]
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """``(body, local)`` of every point, shapes (n_points,) and (n_points, 2)."""

@@ -26,6 +26,11 @@ class Body:
     For forces: its `mass` (kg, default 0), its `inertia` about its centre of mass
     (kg·m², default 0) and its centre of mass `com` (a point name or (x, y), drawn;
     default the frame origin).
+
+    `lengths`: exact distances between some of its points, ``((P, Q, length), ...)`` (m);
+    the drawing then only approximates them: the body takes the local positions of its
+    points nearest (least squares) to the drawing that meet them
+    (`sparsekin.model.lengths`).  Distances it does not state come from the drawing.
     """
 
     name: str
@@ -35,8 +40,9 @@ class Body:
     mass: float | None = None
     inertia: float | None = None
     com: PointRef | None = None
+    lengths: tuple[tuple[str, str, float], ...] = ()
 
-    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com"))
+    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com", "lengths"))
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
@@ -48,6 +54,35 @@ class Body:
                 _set(self, field_name, _validate.non_negative_float(getattr(self, field_name), field_name))
         if self.com is not None:
             _set(self, "com", _validate.point_reference(self.com, "com"))
+        if self.lengths != ():
+            _set(self, "lengths", _checked_lengths(self.lengths, self.points))
+
+
+def _checked_lengths(lengths, points: tuple[str, ...]) -> tuple[tuple[str, str, float], ...]:
+    """`lengths` as ``((P, Q, length), ...)``: P and Q two different points of the body,
+    each pair once, the length a number > 0."""
+    if isinstance(lengths, (str, bytes, Mapping)) or not _validate.is_sequence(lengths):
+        raise ModelError(f"expected a list of [P, Q, length], got {type(lengths).__name__}", element="lengths")
+    checked, seen = [], set()
+    for index, entry in enumerate(lengths):
+        where = f"lengths[{index}]"
+        if isinstance(entry, (str, bytes)) or not _validate.is_sequence(entry) or len(entry) != 3:
+            raise ModelError(f"expected [P, Q, length], got {entry!r}", element=where)
+        first, second = (_validate.name(entry[k], f"{where}[{k}]") for k in (0, 1))
+        for k, point in enumerate((first, second)):
+            if point not in points:
+                raise ModelError(f'"{point}" is not one of the body\'s points ({_validate.known_list(list(points))})',
+                                 element=f"{where}[{k}]")
+        if first == second:
+            raise ModelError(f'expected two different points, got "{first}" twice', element=where)
+        if frozenset((first, second)) in seen:
+            raise ModelError(f"the distance {first}–{second} is given twice", element=where)
+        seen.add(frozenset((first, second)))
+        length = _validate.finite_float(entry[2], f"{where}[2]")
+        if not length > 0.0:
+            raise ModelError(f"expected a length > 0, got {length!r}", element=f"{where}[2]")
+        checked.append((first, second, length))
+    return tuple(checked)
 
 
 def _point_pair(name: str, value: object) -> tuple[float, float]:

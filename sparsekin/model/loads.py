@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import to_local
+from .lengths import NO_SHAPES
 
 __all__ = [
     "PointForce",
@@ -115,7 +115,7 @@ class LoadArrays(NamedTuple):
 _KINDS = (PointForce, BodyTorque, SpringDamper)
 
 
-def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray) -> LoadArrays:
+def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray, shapes=None) -> LoadArrays:
     """Pack the load blocks of a mechanism, with its masses and gravity, for the kernels.
 
     Parameters
@@ -126,6 +126,9 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray) -> LoadA
         m/s².
     frames : ndarray, shape (n_bodies + 1, 3)
         Drawn frames of the bodies, the ground last.
+    shapes : BodyShapes, optional
+        The bodies with `lengths`: their points sit where their shape puts them
+        (`sparsekin.model.lengths`).
     """
     blocks = list(blocks)
     merged = {kind: _merged([b for b in blocks if type(b) is kind], kind) for kind in _KINDS}
@@ -134,18 +137,20 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray) -> LoadA
     return LoadArrays(
         masses=masses,
         gravity=np.asarray(gravity, dtype=float).reshape(2),
-        force=PointForceArrays(_ints(f.body), _local(frames, f.body, f.point), _ints(f.law)),
+        force=PointForceArrays(_ints(f.body), _local(frames, f.body, f.point, shapes), _ints(f.law)),
         torque=TorqueArrays(_ints(t.body), _ints(t.law)),
         spring=SpringArrays(
-            _ints(s.body_i), _ints(s.body_j), _local(frames, s.body_i, s.point_i), _local(frames, s.body_j, s.point_j),
+            _ints(s.body_i), _ints(s.body_j), _local(frames, s.body_i, s.point_i, shapes),
+            _local(frames, s.body_j, s.point_j, shapes),
             _floats(s.stiffness), _floats(free_length), _floats(s.damping),
         ),
     )  # fmt: skip
 
 
-def _local(frames: np.ndarray, body: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """The points in the drawn frames of their bodies, shape (k, 2)."""
-    return np.ascontiguousarray(to_local(frames[body], points))
+def _local(frames: np.ndarray, body: np.ndarray, points: np.ndarray, shapes=None) -> np.ndarray:
+    """The points in the drawn frames of their bodies (their shapes' places on bodies with
+    lengths), shape (k, 2)."""
+    return np.ascontiguousarray((shapes or NO_SHAPES).local_points(frames, body, points))
 
 
 _INDEX_FIELDS = ("law", "body", "body_i", "body_j")

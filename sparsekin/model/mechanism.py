@@ -43,6 +43,7 @@ from .elements import (
     PointRef,
 )
 from .elements.base import _Element
+from .lengths import NO_SHAPES, BodyShapes, body_shapes
 from .units import Copies, Cycle, ElementList, PointTable, Repeat, Step, _same_name_message, find_copy
 
 __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
@@ -111,6 +112,7 @@ class Mechanism:
     _body_index: dict[str, int] = field(init=False, repr=False, compare=False)
     _joint_index: dict[str, int] = field(init=False, repr=False, compare=False)
     _copies: list[Copies] = field(init=False, repr=False, compare=False)
+    _shapes: BodyShapes = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
@@ -153,6 +155,7 @@ class Mechanism:
         if self._copies:  # the whole model: own elements, then the copies'
             for kind in ("bodies", "joints", "drivers", "loads"):
                 _set(self, kind, ElementList(kind, getattr(self, kind), self._copies))
+        _set(self, "_shapes", body_shapes(self) if any(b.lengths for b in self.declared("bodies")) else NO_SHAPES)
 
     def _lay_out_copies(self) -> None:
         """Where each repeat's copies start among the bodies, joints and drivers."""
@@ -230,6 +233,18 @@ class Mechanism:
             drivers=tuple(self.drivers), name=self.name, analysis=self.analysis, loads=tuple(self.loads),
             gravity=self.gravity,
         )  # fmt: skip
+
+    @property
+    def shapes(self) -> BodyShapes:
+        """The local positions of the points of the bodies with `lengths`
+        (`sparsekin.model.lengths`); empty (false) when no body has lengths."""
+        return self._shapes
+
+    def local_points(self, bodies: np.ndarray, points: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
+        """Where the points that start at `points` (k, 2, drawn) sit in the frames of `bodies`
+        (k,): their drawn local coordinates, or their body's shape where it has lengths.
+        `frames`: the drawn frames (n_bodies (+ 1), 3), if at hand."""
+        return self._shapes.local_points(self.frames() if frames is None else frames, bodies, points)
 
     @property
     def copies(self) -> tuple[Copies, ...]:

@@ -195,7 +195,7 @@ _COINCIDENCE_COLUMNS = np.array([0, 2, 3, 5, 1, 2, 4, 5])
 _COINCIDENCE_ROW_OFFSETS = np.array([0, 0, 0, 0, 1, 1, 1, 1])
 
 
-def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
+def pack(blocks, n_rows: int, frames: np.ndarray, shapes=None) -> PackedEquations:
     """Pack the blocks of a system of `n_rows` equations for the kernels.
 
     Parameters
@@ -205,6 +205,9 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
     n_rows : int
     frames : ndarray, shape (n_bodies + 1, 3)
         Drawn frames ``(x, y, angle)`` of the bodies, the ground last (zeros).
+    shapes : BodyShapes, optional
+        The bodies with `lengths` (`sparsekin.model.lengths`): their points sit where their
+        shape puts them, not where they are drawn.
 
     Returns
     -------
@@ -241,7 +244,14 @@ def pack(blocks, n_rows: int, frames: np.ndarray) -> PackedEquations:
         indices, indptr = indices.astype(np.int32), indptr.astype(np.int32)
     ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
 
-    local = LocalCoordinates(frames)
+    drawn_local = LocalCoordinates(frames)
+
+    def local(frame, points, turn_only=False):
+        out = drawn_local(frame, points, turn_only)
+        if shapes and not turn_only:
+            shapes.correct(frame, points, out)
+        return out
+
     primitives = Primitives(
         CoincidenceArrays(
             _ints(c.body_i), _ints(c.body_j), local(c.body_i, c.point_i), local(c.body_j, c.point_j), _ints(c.row),

@@ -604,6 +604,8 @@ class Copies:
                 points=tuple(self.point_name(k, p) for p in unit_element.points),
                 com=None if unit_element.com is None else self.point_name(k, unit_element.com),
                 angle=angle,
+                lengths=tuple((self.point_name(k, a), self.point_name(k, b), length)
+                              for a, b, length in unit_element.lengths),
             )
         declaration = type(unit_element)
         changes = {}

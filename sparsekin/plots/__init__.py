@@ -36,7 +36,14 @@ from __future__ import annotations
 from .animation import Animation, animate, frame_times, interpolate_coordinates, save_frame
 from .canvas import Canvas
 from .configuration import draw_configuration
-from .figures import draw_mechanism, plot_actuators, plot_driver_forces, plot_point_motion, plot_point_paths
+from .figures import (
+    draw_mechanism,
+    plot_actuators,
+    plot_driver_forces,
+    plot_paths_together,
+    plot_point_motion,
+    plot_point_paths,
+)
 from .labels import Label, place_labels
 from .metamaterials import LatticeSize, lattice_size, plot_lattice_size
 from .studies import plot_stop_times, plot_sweep_paths, plot_workspace
@@ -44,6 +51,7 @@ from .studies import plot_stop_times, plot_sweep_paths, plot_workspace
 __all__ = [
     "plot_point_motion",
     "plot_point_paths",
+    "plot_paths_together",
     "plot_actuators",
     "plot_driver_forces",
     "draw_mechanism",

@@ -11,7 +11,7 @@ import numpy as np
 from ..results.kinematics import KinematicsResult
 from .canvas import SYMBOL_SCALE
 from .common import _dress, _new_figure, _require
-from .configuration import _Drawer, _extent, _freeze_limits
+from .configuration import _Drawer, _extent, _freeze_limits, label_choice
 from .labels import LABEL_BOX
 
 #: Frames per second of an animation, by file type.  A GIF stores frame durations in
@@ -113,7 +113,7 @@ def interpolate_coordinates(result: KinematicsResult, times) -> np.ndarray:
 
 
 def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = None, duration: float | None = None,
-            labels: bool = True, stopped: str | None = None, bodies=None) -> Animation:  # fmt: skip
+            labels: bool | str = True, stopped: str | None = None, bodies=None) -> Animation:  # fmt: skip
     """Write an animation of `result`: a GIF (Pillow) or an MP4 (imageio-ffmpeg), by suffix.
 
     Each frame is `draw_configuration` at the frame's time, with the paths of the traced
@@ -138,8 +138,9 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
         Frames per second (default 20 for a GIF, 30 for an MP4; at most 50 for a GIF).
     duration : float, optional
         Length of the clip, s (default: the time span of the analysis, real time).
-    labels : bool
-        Label the points and the bodies (default True).
+    labels : {"all", "joints", "none"} or bool
+        Label the points and the bodies (``"all"`` or True, the default), the points where
+        joints are, or nothing (`draw_configuration`).
     stopped : str, optional
         The mark of an analysis that stopped, written on the last frame (default
         "analysis stopped after t = … s" when ``result.complete`` is False).
@@ -178,7 +179,7 @@ def animate(result: KinematicsResult, path, *, trace=(), fps: float | None = Non
     return Animation(path, times, fps, times.size / fps + hold, scene.limits, bool(stopped))
 
 
-def save_frame(result: KinematicsResult, path, time: float | None = None, *, trace=(), labels: bool = True,
+def save_frame(result: KinematicsResult, path, time: float | None = None, *, trace=(), labels: bool | str = True,
                stopped: str | None = None, bodies=None) -> Path:  # fmt: skip
     """Write one frame of the animation of `result` as a PNG file.
 
@@ -207,12 +208,12 @@ def save_frame(result: KinematicsResult, path, time: float | None = None, *, tra
 class _Scene:
     """The figure of an animation: fixed axes, and what changes from frame to frame."""
 
-    def __init__(self, result: KinematicsResult, trace, times: np.ndarray, labels: bool, stopped: str | None,
+    def __init__(self, result: KinematicsResult, trace, times: np.ndarray, labels: bool | str, stopped: str | None,
                  bodies=None):  # fmt: skip
         if result.coordinates is None:
             raise ValueError("`result` has no coordinates to draw: solve with coordinates=True (the default)")
         mechanism = result.mechanism
-        self.times, self.labels, self.stopped = times, labels, stopped
+        self.times, self.labels, self.stopped = times, label_choice(labels), stopped
         self.drawer = _Drawer(mechanism, bodies)
         self.coordinates = interpolate_coordinates(result, times)
         self.trace_names = tuple(trace)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..model.geometry import rotate, to_global, to_local
+from ..model.geometry import rotate, to_global
 from ..model.mechanism import GROUND, Mechanism
 
 #: Size of symbols (joints, ground marks, one-point bodies) relative to the model's extent.
@@ -69,7 +69,7 @@ class Canvas:
         if body == GROUND:
             return start
         index = self._mechanism.body_index(body)
-        local = to_local(self._drawn[index : index + 1], start[None])
+        local = self._mechanism.local_points(np.array([index]), start[None], self._drawn)
         return to_global(self._now[index : index + 1], local)[0]
 
     def drawn_point(self, reference) -> np.ndarray:

@@ -9,14 +9,18 @@ import math
 import numpy as np
 
 from ..engine.pattern import build_point_map
+from ..model.elements import Joint
 from ..model.geometry import rotate
 from ..model.mechanism import GROUND, Mechanism
 from .canvas import SYMBOL_SCALE, Canvas
 from .labels import Label, place_labels
 
+#: What a drawing labels: every point and body, the points where joints are, or nothing.
+LABEL_CHOICES = ("all", "joints", "none")
+
 
 def draw_configuration(axes, mechanism: Mechanism, coordinates, *, size: float | None = None,
-                       labels: bool = True, bodies=None) -> list:  # fmt: skip
+                       labels: bool | str = True, bodies=None) -> list:  # fmt: skip
     """Draw `mechanism` at `coordinates` on matplotlib `axes`: bodies, elements, labels.
 
     If the axes scale themselves (matplotlib's default), their limits are first set to
@@ -31,8 +35,10 @@ def draw_configuration(axes, mechanism: Mechanism, coordinates, *, size: float |
         ``(x, y, angle)`` of every body frame, as in `KinematicsResult.coordinates`.
     size : float, optional
         Size of the symbols, m (default: `SYMBOL_SCALE` times the extent of the points).
-    labels : bool
-        Label every named point and every body (default True).
+    labels : {"all", "joints", "none"} or bool
+        Label every named point and every body (``"all"`` or True, the default), only the
+        points where joints are (``"joints"``: the pins, not the markers and bodies of a
+        crowded machine), or nothing (``"none"`` or False).
     bodies : sequence of str, optional
         Draw only these bodies, their points, and the joints and drivers between them
         and the ground: a part of a large mechanism (default: all).
@@ -42,6 +48,7 @@ def draw_configuration(axes, mechanism: Mechanism, coordinates, *, size: float |
     list of matplotlib.artist.Artist
         Everything drawn, to be removed before the next frame of an animation.
     """
+    labels = label_choice(labels)
     drawer = _Drawer(mechanism, bodies)
     coordinates = np.asarray(coordinates, dtype=float)
     if size is None:
@@ -72,6 +79,16 @@ class _Drawer:
         self.point_body, self.point_local = point_body[shown], point_local[shown]
         self.kept_places: dict[tuple[str, str], int] = {}
         self.texts: dict | None = None  # label artists kept from frame to frame (animations)
+        self._joint_points: set[str] | None = None
+
+    @property
+    def joint_points(self) -> set[str]:
+        """The names of the points where the joints drawn are (their point fields)."""
+        if self._joint_points is None:
+            self._joint_points = {name for joint in self.elements if isinstance(joint, Joint)
+                                  for field_name in type(joint).point_fields
+                                  for name in _names(getattr(joint, field_name))}  # fmt: skip
+        return self._joint_points
 
     def _index(self, name: str) -> int:
         try:
@@ -103,7 +120,7 @@ class _Drawer:
         """Global positions of the named points, shape (n_configurations, n_points, 2)."""
         return _point_positions(self.point_body, self.point_local, coordinates)
 
-    def draw(self, axes, coordinates: np.ndarray, size: float, labels: bool = True, extra_obstacles=()) -> list:
+    def draw(self, axes, coordinates: np.ndarray, size: float, labels: str = "all", extra_obstacles=()) -> list:
         before = set(axes.get_children())
         positions = dict(zip(self.names, self.positions(coordinates[None])[0]))
         canvas = Canvas(axes, self.mechanism, coordinates, size)
@@ -114,18 +131,37 @@ class _Drawer:
             body = bodies[index]
             if body.name not in canvas.drawn_bodies:
                 _draw_body(canvas, body, positions, coordinates[3 * index : 3 * index + 3])
-        if labels:
+        if labels != "none":
             if axes.get_autoscale_on():
                 _fit_limits(axes)
             for segment in extra_obstacles:
                 canvas.segments.append(segment)
-            wanted = [Label(name, position, 0.6 * size, "point") for name, position in positions.items()]
-            wanted += [Label(name, anchor, 0.0, "body", along) for name, (anchor, along) in canvas.body_labels.items()]
+            named = positions if labels == "all" else {n: p for n, p in positions.items() if n in self.joint_points}
+            wanted = [Label(name, position, 0.6 * size, "point") for name, position in named.items()]
+            if labels == "all":
+                wanted += [Label(name, anchor, 0.0, "body", along)
+                           for name, (anchor, along) in canvas.body_labels.items()]  # fmt: skip
             placed = place_labels(axes, wanted, canvas.segments, canvas.discs, kept=self.kept_places,
                                   texts=self.texts)  # fmt: skip
             self.kept_places = {(label.kind, label.text): choice for label, choice in placed}
         kept = set(self.texts.values()) if self.texts else set()
         return [artist for artist in axes.get_children() if artist not in before and artist not in kept]
+
+
+def label_choice(labels: bool | str) -> str:
+    """``"all"``, ``"joints"`` or ``"none"`` from a `labels` argument (True is "all", False "none")."""
+    if labels is True or labels is False:
+        return "all" if labels else "none"
+    if labels not in LABEL_CHOICES:
+        raise ValueError(f"`labels` must be one of {', '.join(map(repr, LABEL_CHOICES))} or a bool, got {labels!r}.")
+    return labels
+
+
+def _names(value) -> list[str]:
+    """The point names in a point field's value (a name, (x, y), a list of either, None)."""
+    if value is None or (not isinstance(value, str) and isinstance(value[0], float)):
+        return []
+    return [value] if isinstance(value, str) else [v for v in value if isinstance(v, str)]
 
 
 def _element_bodies(element) -> set[str]:

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..engine.outputs import element_index
+from ..engine.pattern import build_output_pattern
 from ..model.mechanism import Mechanism
 from ..results.kinematics import KinematicsResult
 from .common import _dress, _file_safe, _new_figure, _save
@@ -23,11 +25,13 @@ MOTION_PANELS = (
 COMPONENT_COLOURS = {"x": "tab:orange", "y": "tab:blue"}
 #: Panels of the actuator figure: the quantity and its unit.
 ACTUATOR_PANELS = (("stroke", "stroke (m)"), ("speed", "speed (m/s)"), ("acceleration", "acceleration (m/s²)"))
+#: Paths in one figure up to this many have a legend.
+LEGEND_ENTRIES = 12
 #: Time marks along a path figure: the path is split into this many equal time intervals.
 PATH_TIME_MARKS = 10
 
 
-def plot_point_motion(result: KinematicsResult, point_names, directory) -> list[Path]:
+def plot_point_motion(result: KinematicsResult, point_names, directory, *, abscissa: str | None = None) -> list[Path]:
     """Plot the position, velocity and acceleration of points against time, x and y.
 
     Parameters
@@ -38,13 +42,17 @@ def plot_point_motion(result: KinematicsResult, point_names, directory) -> list[
         The points, one figure each.
     directory : str or Path
         Existing folder where the files ``point_<name>.png`` are written.
+    abscissa : str, optional
+        A driver (its name or ``"drivers[i]"``): plot against the value it drives (a crank
+        angle, in degrees for an angle; a stroke, m) instead of time.
 
     Returns
     -------
     list of Path
         The files written, in the order of `point_names`.
     """
-    return [_plot_one_point(result, name, Path(directory)) for name in point_names]
+    axis = _abscissa(result, abscissa)
+    return [_plot_one_point(result, name, Path(directory), axis) for name in point_names]
 
 
 def plot_point_paths(result: KinematicsResult, point_names, directory) -> list[Path]:
@@ -69,7 +77,36 @@ def plot_point_paths(result: KinematicsResult, point_names, directory) -> list[P
     return [_plot_one_path(result, name, Path(directory)) for name in point_names]
 
 
-def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory, *, bodies=None) -> Path:
+def plot_paths_together(result: KinematicsResult, point_names, path) -> Path:
+    """Plot the paths of several points in one figure, y against x (equal scales): a
+    coupler curve beside the others, every foot of a walking machine.
+
+    Each path has its colour, its start marked by a circle; written to `path` (PNG).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    figure, axes = _new_figure((7.0, 6.0))
+    for k, name in enumerate(point_names):
+        position = result.point(name).position
+        colour = f"C{k % 10}"
+        axes.plot(position[:, 0], position[:, 1], color=colour, linewidth=1.3, label=name)
+        axes.plot(*position[0], "o", color=colour, markersize=5)
+    axes.set_aspect("equal", adjustable="datalim")
+    axes.margins(0.1)
+    axes.grid(True, alpha=0.4)
+    if len(point_names) <= LEGEND_ENTRIES:
+        axes.legend(loc="best", fontsize=8)
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.set_title(f"paths of {len(point_names)} points (circles: t = {result.times[0]:g} s)")
+    return _save(figure, Path(path))
+
+
+def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory, *, bodies=None,
+                   labels: bool | str = True) -> Path:  # fmt: skip
     """Draw the mechanism at the first sample of `result` into ``<directory>/mechanism.png``.
 
     The drawing is `draw_configuration`'s: bodies as polygons or segments through their
@@ -87,6 +124,8 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory, *,
         Existing folder where ``mechanism.png`` is written.
     bodies : sequence of str, optional
         Draw only these bodies (`draw_configuration`).
+    labels : {"all", "joints", "none"} or bool
+        What is labelled (`draw_configuration`).
 
     Returns
     -------
@@ -95,7 +134,7 @@ def draw_mechanism(mechanism: Mechanism, result: KinematicsResult, directory, *,
     """
     figure, axes = _new_figure((8.0, 7.0))
     _dress(axes, f"{mechanism.name} at t = {result.times[0]:g} s")
-    draw_configuration(axes, mechanism, result.coordinates[0], bodies=bodies)
+    draw_configuration(axes, mechanism, result.coordinates[0], bodies=bodies, labels=labels)
     return _save(figure, Path(directory) / "mechanism.png")
 
 
@@ -176,19 +215,31 @@ def plot_driver_forces(result: KinematicsResult, directory) -> list[Path]:
     return [_save(figure, Path(directory) / "forces.png")]
 
 
-def _plot_one_point(result: KinematicsResult, name: str, directory: Path) -> Path:
+def _abscissa(result: KinematicsResult, driver: str | None) -> tuple[np.ndarray, str]:
+    """The values along the x axis of a motion figure and their label: time, or a driver's value."""
+    if driver is None:
+        return result.times, "time t (s)"
+    index = element_index(result.mechanism, "drivers", driver)
+    value = result.driver(index).value
+    if build_output_pattern(result.mechanism, drivers=[index]).row_is_angle[0]:
+        return np.degrees(value), f"{driver} (degrees)"
+    return value, f"{driver} (m)"
+
+
+def _plot_one_point(result: KinematicsResult, name: str, directory: Path, abscissa=None) -> Path:
     motion = result.point(name)
+    along, along_label = abscissa if abscissa is not None else (result.times, "time t (s)")
     figure, panels = _new_figure((7.0, 8.0), rows=3)
     for axes, (field_name, quantity, label) in zip(panels, MOTION_PANELS):
         values = getattr(motion, field_name)
         for column, component in enumerate(COMPONENT_COLOURS):
-            axes.plot(result.times, values[:, column], color=COMPONENT_COLOURS[component], linewidth=1.5,
+            axes.plot(along, values[:, column], color=COMPONENT_COLOURS[component], linewidth=1.5,
                       label=component)  # fmt: skip
         axes.set_title(f"Point {name}: {quantity}")
         axes.set_ylabel(label)
         axes.grid(True, alpha=0.4)
     panels[0].legend(loc="best", fontsize=9)
-    panels[-1].set_xlabel("time t (s)")
+    panels[-1].set_xlabel(along_label)
     return _save(figure, directory / f"point_{_file_safe(name)}.png")
 
 

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.assemble import start_discretization
 from ..engine.discretization import Discretization, discretize
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
@@ -209,6 +210,9 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
     -------
     KinematicsResult
     """
+    # Start from the drawing assembled at the first time, on its branch (issue 27: rough
+    # drawings with exact lengths, copies drawn at another phase of their driver).
+    discretization = start_discretization(discretization, float(times[0]))
     selection = request.selection(discretization)
     plan = plan_linear_solver(discretization, options.linear_solver, options.thresholds)
     sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)

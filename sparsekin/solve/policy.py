@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 
 from ..analysis.rank import SMALLEST_TALL_LU
 from ..engine.discretization import Discretization
-from ..engine.multipliers import MIN_NORM_ITERATIONS
 from ..engine.krylov import ReusingSolver
 from ..engine.linalg import DenseSolver, RefactorSolver, SuperLUSolver
+from ..engine.multipliers import MIN_NORM_ITERATIONS
 from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed
 from ._compiled import supports_compiled
 

@@ -41,14 +41,20 @@ from ..engine.discretization import Discretization
 from ..engine.linalg import SingularMatrix
 from ..engine.linearization import Linearization
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER, Factorizer, NoConvergence, solve_positions
-from ..engine.ordering import tiled_ordering
+from ..engine.ordering import hub_last_ordering, tiled_ordering
 from ..engine.pattern import build_pattern
 from ..engine.reduced import ReducedSystem
 from ..errors import ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from .branch_guard import guard_values, jumped
 from .options import TOLERANCE_RANGE, SolveOptions
-from .policy import COMPILED_MAX_COORDINATES, LINEAR_SOLVERS, MAX_REFACTOR_FILL, MIN_METIS_COORDINATES, plan_linear_solver
+from .policy import (
+    COMPILED_MAX_COORDINATES,
+    LINEAR_SOLVERS,
+    MAX_REFACTOR_FILL,
+    MIN_METIS_COORDINATES,
+    plan_linear_solver,
+)
 from .step_control import StepAbandoned, StepControl, StepRejected, march
 from .steppers import StepperStats
 
@@ -258,14 +264,18 @@ class KinematicStepper:
         self._factored = False
 
     def _suggest_ordering(self, t: float) -> None:
-        """A chain of many repeated units: the refactorization's first pivot order tiled from
-        a short chain (`sparsekin.engine.ordering`), not from SuperLU on the whole chain."""
+        """The refactorization's first pivot order (`sparsekin.engine.ordering`): a hub's
+        coordinates eliminated last when many bodies ride on one; for a chain of many
+        repeated units, tiled from a short chain rather than SuperLU's on the whole chain."""
         suggest = getattr(self.linear_solver, "suggest", None)  # a RefactorSolver's
-        if (suggest is not None and self.mechanism.copies and self.system is self.assembler
+        if suggest is None or self.system is not self.assembler:
+            return
+        ordering = hub_last_ordering(self.discretization, t)  # many bodies on one: the hub last (issue 27)
+        if (ordering is None and self.mechanism.copies
                 and self.pattern.n_coordinates >= self.options.thresholds.min_tiled_coordinates):  # fmt: skip
             ordering = tiled_ordering(self.discretization, t)
-            if ordering is not None:
-                suggest(*ordering)
+        if ordering is not None:
+            suggest(*ordering)
 
     def advance(self, t: float) -> int:
         """Solve the sample at time `t` (s, after the current one) from the current sample.
