@@ -61,6 +61,7 @@ from .errors import (
 from .model.composites import Cylinder
 from .model.elements import (
     AbsoluteDriver,
+    Actuator,
     DistanceDriver,
     Force,
     Gear,
@@ -70,6 +71,7 @@ from .model.elements import (
     Revolute,
     Rigid,
     RotationalDriver,
+    RotationalSpring,
     Spring,
     Torque,
     Translational,
@@ -86,6 +88,7 @@ from .solve.stepper import KinematicStepper
 __all__ = [
     "GROUND",
     "AbsoluteDriver",
+    "Actuator",
     "AnalysisInterrupted",
     "Analysis",
     "Body",
@@ -119,6 +122,7 @@ __all__ = [
     "Revolute",
     "Rigid",
     "RotationalDriver",
+    "RotationalSpring",
     "SingularConfigurationError",
     "SingularJacobianError",
     "SparsekinError",
