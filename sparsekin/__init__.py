@@ -82,6 +82,7 @@ from .model.mechanism import GROUND, Analysis, Body, Mechanism
 from .model.modelfile import load_model, save_model
 from .model.units import Cycle, OnCopies, Repeat, Step, Unit
 from .results.kinematics import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
+from .solve.dynamics import solve_dynamics
 from .solve.kinematics import solve_kinematics
 from .solve.stepper import KinematicStepper
 
@@ -138,6 +139,7 @@ __all__ = [
     "check_model",
     "load_model",
     "save_model",
+    "solve_dynamics",
     "solve_kinematics",
     "SweepResult",
     "VariantSet",

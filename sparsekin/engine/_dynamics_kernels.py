@@ -317,6 +317,14 @@ def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, col
 
 
 @njit(**JIT)
+def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
+    """``value`` on the diagonal of rows ``first .. first + count − 1``."""
+    for k in range(count):
+        _put(rows, cols, vals, start + k, first + k, first + k, value)
+    return start + count
+
+
+@njit(**JIT)
 def kinetic_potential_elastic(masses, gravity, spring, torsion, q, qd, turns):
     """Kinetic energy ½ qdᵀ M qd, gravitational potential −Σ m g · r_com, and the elastic
     energy of springs ½ k (L − L0)² and rotational springs ½ k (Δθ − θ0)², J."""

@@ -8,7 +8,7 @@ Forward dynamics solves, at each time,
 with Q gravity and the loads (actuators along joints included) and h the centripetal
 terms.  An implicit step linearises them into the *saddle* matrix
 
-    S = [[a M + b C_t + c K_t, Phi_q^T], [Phi_q, 0]],   C_t = df/dqd,  K_t = df/dq,
+    S = [[a M + b C_t + c K_t, Phi_q^T], [Phi_q, -r I]],   C_t = df/dqd,  K_t = df/dq,
 
 whose pattern is known before the first step: every body's 3×3 mass block, a 6×6 block
 for each pair of bodies that a constraint primitive or a spring couples, and the
@@ -21,6 +21,9 @@ projection); generalized-alpha takes ``(1, gamma'/beta', 1/beta')``, its scaled 
 (`sparsekin.solve.dynamics`).
 
 Redundant equations are left out of the saddle (``kept_rows``): their multipliers are 0.
+A small ``r`` (only in an iteration matrix: the residual stays exact) keeps S regular where
+Φq loses rank for an instant (a chain of parallelograms with its bars aligned): Newton's
+multiplier updates there stay bounded, as in a least-squares step.
 """
 
 from __future__ import annotations
@@ -155,7 +158,7 @@ class DynamicSystem:
         arrays = self.loads.arrays
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
-                 + 2 * pattern.nnz)  # fmt: skip
+                 + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
         if self.actuators is not None:
             count += kernels.hessian_entries(self.actuators.primitives)
         self._rows = np.zeros(count, dtype=np.int64)
@@ -220,7 +223,7 @@ class DynamicSystem:
         kernels.add_transposed_product(p.indptr, p.indices, values, multipliers, out)
         return out
 
-    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> None:
+    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
         self._load(coordinates, velocities, accelerations)
         arrays, p = self.loads.arrays, self.pattern
         rows, cols, vals = self._rows, self._cols, self._vals
@@ -238,13 +241,16 @@ class DynamicSystem:
             np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
             e = kernels.fill_primitive_hessians(self.actuators.primitives, self._q, self._turns,
                                                 self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
-        kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
-                                         rows, cols, vals, e)  # fmt: skip
+        e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
+                                             rows, cols, vals, e)  # fmt: skip
+        kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
 
-    def fill_matrix(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float):
-        """S = [[a M + b C_t + c K_t, Phi_qᵀ], [Phi_q, 0]] at the state given, Phi_q from the
-        last `fill_constraints` (at the same coordinates); returns `matrix`."""
-        self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+    def fill_matrix(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
+                    regularization: float = 0.0):  # fmt: skip
+        """S = [[a M + b C_t + c K_t, Phi_qᵀ], [Phi_q, −regularization · I]] at the state
+        given, Phi_q from the last `fill_constraints` (at the same coordinates); returns
+        `matrix`."""
+        self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c, regularization)
         kernels.scatter_add(self._vals, self.saddle.slots, self._data)
         return self.matrix
 
