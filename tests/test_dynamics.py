@@ -216,3 +216,13 @@ def test_max_step_without_dynamics_is_refused(tmp_path, capsys):
     status = main(["run", str(EXAMPLES / "task5_dynamics.toml"), "--max-step", "0.01", "--out", str(tmp_path)])
     assert status != 0
     assert "--max-step is for forward dynamics" in capsys.readouterr().err
+
+
+def test_an_actuator_takes_its_share_of_the_inverse_dynamics_force():
+    """A kinematic run with an actuator along a driven joint: the driver holds the motion with
+    the actuator's force less (the actuator's work counted once, by the load)."""
+    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
+    helped = dataclasses.replace(mechanism, loads=[*mechanism.loads, sk.Actuator("actuator1", 150.0)])
+    times = np.linspace(0.0, 0.5, 6)
+    alone, with_actuator = (sk.solve_kinematics(m, times).driver_force("cylinder1").force for m in (mechanism, helped))
+    np.testing.assert_allclose(with_actuator, alone - 150.0, rtol=0, atol=1e-8 * np.abs(alone).max())

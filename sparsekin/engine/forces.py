@@ -60,6 +60,7 @@ from ..model.laws import LawPacker, LawTable, fill_laws
 from ..model.loads import LoadArrays, MassArrays, pack_loads
 from ..model.mechanism import Mechanism
 from . import _force_kernels
+from .actuators import ActuatorForces, build_actuators
 from .columns import Resolver
 from .pattern import ConstraintPattern, element_columns, pack_element_laws, per_element
 
@@ -105,12 +106,15 @@ class LoadPattern:
     other_laws : list of (int, Law)
         Laws that are not built in, evaluated in Python (the compiled loop refuses them).
     n_laws : int
+    actuators : ActuatorForces or None
+        The actuators along joints (`sparsekin.engine.actuators`), if any.
     """
 
     arrays: LoadArrays
     laws: LawTable
     other_laws: list
     n_laws: int
+    actuators: ActuatorForces | None = None
 
     def evaluate(self, t: float, values: np.ndarray, rates: np.ndarray, accelerations: np.ndarray) -> None:
         """The value of every load law at time `t` (s) into `values` (N or N·m)."""
@@ -130,7 +134,7 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
         blocks += kind.loads(columns)
     table, others, n_laws = pack_element_laws(mechanism, "loads")
     arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
-    return LoadPattern(arrays, table, others, n_laws)
+    return LoadPattern(arrays, table, others, n_laws, build_actuators(mechanism, n_laws, resolver))
 
 
 def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
@@ -353,6 +357,9 @@ class ForceSolver:
         self.loads.evaluate(stepper.time, *self._laws)
         _force_kernels.fill_applied_forces(self.loads.arrays, q, qd, qdd, turns, self._laws[0], self.inertial,
                                            self._b)  # fmt: skip
+        if self.loads.actuators is not None:  # actuators along joints (forward-dynamics loads)
+            self.loads.actuators.fill(q, turns)
+            self.loads.actuators.add_forces(self._laws[0], self._b)
         self._solve_multipliers(stepper, self._b[:-3])
         _force_kernels.fill_force_outputs(
             self.outputs.arrays(assembler.csr_positions), assembler.values, self.multipliers, q, turns,

@@ -32,17 +32,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.loads import actuator_blocks
 from ..model.mechanism import Mechanism
-from ..model.primitives import pack
 from . import _dynamics_kernels as kernels
 from . import _force_kernels, _kernels
 from .assembly import Assembler
-from .columns import Resolver
-from .forces import LoadPattern, build_load_pattern
-from .pattern import ConstraintPattern, element_columns, per_element
+from .forces import build_load_pattern
+from .pattern import ConstraintPattern
 
-__all__ = ["SaddlePattern", "DynamicSystem", "build_actuators"]
+__all__ = ["SaddlePattern", "DynamicSystem"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,22 +87,6 @@ def _saddle_index(index: np.ndarray, n: int) -> np.ndarray:
     return np.where(index < n, index, np.where(index < n + 3, -1, index - 3))
 
 
-def build_actuators(mechanism: Mechanism, loads: LoadPattern, resolver: Resolver | None = None):
-    """The coordinates the joint actuators push along, as a packed system of equations
-    whose row r is load law r (rows of other laws are empty), or None without actuators."""
-    if not any(load.type_name == "actuator" for load in mechanism.declared("loads")):
-        return None
-    resolver = Resolver(mechanism) if resolver is None else resolver
-    counts = per_element(mechanism, "loads", lambda load: load.n_laws)
-    first_law = np.zeros(counts.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=first_law[1:])
-    blocks = []
-    for kind, _, columns in element_columns(mechanism, "loads", first_law[:-1], resolver):
-        if kind.type_name == "actuator":
-            blocks += kind.loads(columns)
-    return pack(actuator_blocks(blocks), loads.n_laws, resolver.frames)
-
-
 class DynamicSystem:
     """Residual of the equations of motion and the saddle matrix of a mechanism, in place.
 
@@ -135,9 +116,8 @@ class DynamicSystem:
 
         self.pattern = pattern
         self.assembler = Assembler(mechanism, pattern) if assembler is None else assembler
-        resolver = Resolver(mechanism)
-        self.loads = build_load_pattern(mechanism, resolver)
-        self.actuators = build_actuators(mechanism, self.loads, resolver)
+        self.loads = build_load_pattern(mechanism)
+        self.actuators = self.loads.actuators
         n, m = pattern.n_coordinates, pattern.n_equations
         self.n = n
         self.kept_rows = np.arange(m, dtype=np.int64) if kept_rows is None else np.asarray(kept_rows, dtype=np.int64)
@@ -150,17 +130,13 @@ class DynamicSystem:
         self._turns = np.zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
         self._multipliers = np.zeros(m)
-        if self.actuators is not None:
-            a = self.actuators
-            self._actuator_value = np.zeros(a.indptr.size - 1)
-            self._actuator_jac = np.zeros(int(a.indptr[-1]) + 1)
-            self._actuator_weights = np.zeros(a.indptr.size - 1)
+        self._actuator_weights = np.zeros(n_laws)
         arrays = self.loads.arrays
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
         if self.actuators is not None:
-            count += kernels.hessian_entries(self.actuators.primitives)
+            count += kernels.hessian_entries(self.actuators.equations.primitives)
         self._rows = np.zeros(count, dtype=np.int64)
         self._cols = np.zeros(count, dtype=np.int64)
         self._vals = np.zeros(count)
@@ -195,11 +171,6 @@ class DynamicSystem:
         self._q[:-3], self._qd[:-3], self._qdd[:-3] = coordinates, velocities, accelerations
         _kernels.fill_body_turns(self._q, self._turns)
 
-    def _fill_actuators(self) -> None:
-        a = self.actuators
-        _kernels.fill_residual_jacobian(a.primitives, self._q, self._turns, np.zeros(self._actuator_value.size),
-                                        np.ones(self._actuator_value.size), self._actuator_value, self._actuator_jac)  # fmt: skip
-
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
         self._load(coordinates, velocities, accelerations)
@@ -207,9 +178,8 @@ class DynamicSystem:
                                            self.law_values, True, self._applied)  # fmt: skip
         out[:] = self._applied[:-3]
         if self.actuators is not None:
-            self._fill_actuators()
-            a = self.actuators
-            kernels.add_transposed_product(a.indptr, a.indices, self._actuator_jac, self.law_values, out)
+            self.actuators.fill(self._q, self._turns)
+            self.actuators.add_forces(self.law_values, out)
         return out
 
     def residual(self, coordinates, velocities, accelerations, multipliers, out: np.ndarray) -> np.ndarray:
@@ -237,9 +207,8 @@ class DynamicSystem:
         e = kernels.fill_primitive_hessians(p.primitives, self._q, self._turns, multipliers, c, d, hessian,
                                             rows, cols, vals, e)  # fmt: skip
         if self.actuators is not None:
-            self._fill_actuators()
             np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
-            e = kernels.fill_primitive_hessians(self.actuators.primitives, self._q, self._turns,
+            e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
                                                 self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
         e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
                                              rows, cols, vals, e)  # fmt: skip
@@ -270,11 +239,8 @@ class DynamicSystem:
         arrays = self.loads.arrays
         power = kernels.applied_power(arrays, self._qd, self._turns, self.law_values)
         if self.actuators is not None:
-            self._fill_actuators()
-            a = self.actuators
-            rates = self._actuator_weights
-            kernels.fill_row_products(a.indptr, a.indices, self._actuator_jac, velocities, rates)  # ds/dt
-            power += float(self.law_values @ rates)
+            self.actuators.fill(self._q, self._turns)
+            power += self.actuators.power(self.law_values, velocities)
         rows = self.pattern.driven_row
         power -= float(multipliers[rows] @ self.assembler.velocity_rhs[rows])  # a driver's force is −λ
         dissipated = kernels.damping_power(arrays.spring, arrays.torsion, self._qd, self._q, self._turns)
