@@ -46,7 +46,8 @@ from ..engine import _dynamics_kernels, _force_kernels, _kernels
 from ..engine.linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from ..engine.pattern import ConstraintPattern, build_pattern, build_point_map
 from ..engine.saddle import DynamicSystem
-from ..errors import AnalysisInterrupted, ConvergenceError, ModelError, SparsekinError
+from ..errors import (AnalysisInterrupted, ConvergenceError, ModelError, RedundantConstraintWarning, SparsekinError,
+                      warn_caller)
 from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult, Energy
 from ..results.recording import MemorySink, Recorder, Selection, ZarrSink
@@ -437,7 +438,19 @@ class GeneralizedAlphaStepper:
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
         self.redundant_rows = analyse_jacobian(assembler.jacobian).redundant_rows
+        if self.redundant_rows.size:
+            labels = self.redundant_labels
+            shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
+            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); their "
+                        "multipliers are zero: the forces of a redundant set are not unique", RedundantConstraintWarning)  # fmt: skip
         return np.setdiff1d(everything, self.redundant_rows)
+
+    @property
+    def redundant_labels(self) -> tuple[str, ...]:
+        """The equations left out as redundant, in words (``joints[3] (revolute …) x``)."""
+        from ..analysis.describe import equation_label
+
+        return tuple(equation_label(self.mechanism, self.pattern, int(r)) for r in self.redundant_rows)
 
     def _make_solver(self, size: int):
         name = self._linear_solver_name
@@ -664,7 +677,7 @@ class _DynamicRun:
             point_map=build_point_map(mechanism),
             mechanism=mechanism,
             n_subdivisions=stepper.n_subdivisions,
-            redundant_equations=tuple(str(r) for r in stepper.redundant_rows.tolist()),
+            redundant_equations=stepper.redundant_labels,
             n_refactorizations=0 if solver is None else solver.n_refactorizations,
             linear_solver=getattr(stepper, "path", "none"),
             recorded_points=selection.point_names,
