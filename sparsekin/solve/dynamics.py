@@ -62,9 +62,12 @@ __all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve
 DEFAULT_TOLERANCE = 1e-10
 #: A correction below this multiple of the rounding of q (relative) cannot be improved.
 ROUNDING = 8.0 * np.finfo(float).eps
-#: A freshly factored Newton that stops contracting within this multiple of that floor has
-#: converged as far as the matrix's conditioning allows (near singular configurations).
-STALL = 1e5
+#: A freshly factored Newton that stops contracting within STALL · √n times that floor has
+#: converged as far as the matrix's conditioning allows: near singular configurations (the
+#: N-four-bar at its flat crossings stalls at 4e-12), and on long chains, whose corrections
+#: stall higher with their size (N-four-bar, 10^4 bodies: ~1e-11 at some steps; 10^5
+#: bodies: 3e-10 to 8e-10 at every step).
+STALL = 1e4
 #: Most Newton corrections in one step.
 MAX_ITERATIONS = 12
 #: A correction of modified Newton must be at most this fraction of the one before, or
@@ -304,14 +307,15 @@ class GeneralizedAlphaStepper:
         weights = self.pattern.coordinate_weights
         rhs = np.zeros(system.size)
         force = np.zeros(n)
-        last, fresh, rate, settled = math.inf, False, CONTRACTION, False
+        last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
         # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
         bound = tol / gamma_prime
         for iteration in range(MAX_ITERATIONS + 1):
             phi_norm = system.fill_constraints(q)
             floor = ROUNDING * (1.0 + _dynamics_kernels.weighted_norm(q, weights))
-            if settled and phi_norm <= max(bound, floor):
+            stall = STALL * math.sqrt(n) * floor
+            if settled and phi_norm <= max(bound, floor, stalled):
                 break
             if iteration == MAX_ITERATIONS:
                 raise _StepFailed(f"no convergence in {MAX_ITERATIONS} corrections")
@@ -341,10 +345,10 @@ class GeneralizedAlphaStepper:
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
                 if fresh:
-                    if correction <= STALL * floor:
+                    if correction <= stall:
                         settled = True  # stalled at the rounding floor of an ill-conditioned matrix
                         self.n_stalls += 1
-                        floor *= STALL
+                        stalled = stall
                     else:
                         raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
