@@ -435,13 +435,12 @@ class GeneralizedAlphaStepper:
         everything = np.arange(m, dtype=np.int64)
         if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
             return everything
-        from ..analysis.rank import analyse_jacobian
         from ..engine.assembly import Assembler
 
         assembler = Assembler(self.mechanism, pattern)
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = analyse_jacobian(assembler.jacobian).redundant_rows
+        self.redundant_rows = _redundant_rows(assembler.jacobian)
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
@@ -486,6 +485,33 @@ class GeneralizedAlphaStepper:
             q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
         raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
                          f"{system.fill_constraints(q):.3g} (relative) after {2 * MAX_ITERATIONS} corrections")  # fmt: skip
+
+
+def _redundant_rows(jacobian) -> np.ndarray:
+    """Equations to leave out so that the others are independent.
+
+    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
+    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
+    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
+    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
+    exactly singular matrix; the dense path keeps small dynamic models, which often have
+    as many equations as coordinates, away from it.)
+    """
+    m, n = jacobian.shape
+    if n > REDUNDANCY_CHECK_COORDINATES:
+        from ..analysis.rank import analyse_jacobian
+
+        return analyse_jacobian(jacobian).redundant_rows
+    from scipy.linalg import qr
+
+    rows = jacobian.toarray()
+    scale = np.abs(rows).max(axis=1)
+    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
+    r, pivots = qr(rows.T, mode="r", pivoting=True)
+    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
+    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
+    rank = int(np.sum(diagonal > tolerance))
+    return np.sort(pivots[rank:]).astype(np.int64)
 
 
 def _positive(value, name: str) -> float:
