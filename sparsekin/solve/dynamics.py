@@ -68,6 +68,10 @@ ROUNDING = 8.0 * np.finfo(float).eps
 #: stall higher with their size (N-four-bar, 10^4 bodies: ~1e-11 at some steps; 10^5
 #: bodies: 3e-10 to 8e-10 at every step).
 STALL = 1e4
+#: The same for a held factorization, whose corrections' ratio is noise below NOISE · √n
+#: times the floor (it would otherwise be refactored for nothing: a 10^4-body chain did
+#: so at every second step).
+NOISE = 1e2
 #: Most Newton corrections in one step.
 MAX_ITERATIONS = 12
 #: A correction of modified Newton must be at most this fraction of the one before, or
@@ -344,19 +348,19 @@ class GeneralizedAlphaStepper:
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
-                if fresh:
-                    if correction <= stall:
-                        settled = True  # stalled at the rounding floor of an ill-conditioned matrix
-                        self.n_stalls += 1
-                        stalled = stall
-                    else:
-                        raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
+                if correction <= (stall if fresh else NOISE * stall / STALL):
+                    # at the rounding floor of the (ill-conditioned) matrix: the ratio of two
+                    # corrections there is noise, not a slow contraction
+                    settled = True
+                    self.n_stalls += 1
+                    stalled = stall
+                elif fresh:
+                    raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
                     self._factored = False  # a fresh matrix at the next iterate
             else:
                 fresh = False
             last = correction
-        system.residual(q, v, a, lam, force)  # a converged step: f at the final state (for the record only)
         self._project_velocities(q, v, lam, coefficients, h)
         pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
         power = system.powers(q, v, lam)
