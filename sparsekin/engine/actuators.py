@@ -13,29 +13,27 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.loads import actuator_blocks
-from ..model.mechanism import Mechanism
 from ..model.primitives import pack
 from . import _dynamics_kernels, _kernels
-from .columns import Resolver
-from .pattern import element_columns, per_element
 
 __all__ = ["ActuatorForces", "build_actuators"]
 
 
-def build_actuators(mechanism: Mechanism, n_laws: int, resolver: Resolver | None = None) -> ActuatorForces | None:
-    """The joint actuators of `mechanism` (row r of their packed coordinates is load law r;
-    rows of other laws are empty), or None without actuators.  `n_laws`: the load laws."""
-    if not any(load.type_name == "actuator" for load in mechanism.declared("loads")):
-        return None
-    resolver = Resolver(mechanism) if resolver is None else resolver
-    counts = per_element(mechanism, "loads", lambda load: load.n_laws)
-    first_law = np.zeros(counts.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=first_law[1:])
-    blocks = []
-    for kind, _, columns in element_columns(mechanism, "loads", first_law[:-1], resolver):
-        if kind.type_name == "actuator":
-            blocks += kind.loads(columns)
-    return ActuatorForces(pack(actuator_blocks(blocks), n_laws, resolver.frames))
+def build_actuators(blocks, n_laws: int, frames: np.ndarray) -> ActuatorForces | None:
+    """The joint actuators among a mechanism's load blocks (row r of their packed
+    coordinates is load law r; rows of other laws are empty), or None without actuators.
+
+    Parameters
+    ----------
+    blocks : list
+        Every load block of the mechanism (`sparsekin.engine.forces.build_load_pattern`).
+    n_laws : int
+        The load laws.
+    frames : ndarray, shape (n_bodies + 1, 3)
+        Drawn frames, the ground last.
+    """
+    coordinates = actuator_blocks(blocks)
+    return ActuatorForces(pack(coordinates, n_laws, frames)) if coordinates else None
 
 
 class ActuatorForces:

@@ -134,7 +134,7 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
         blocks += kind.loads(columns)
     table, others, n_laws = pack_element_laws(mechanism, "loads")
     arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames)
-    return LoadPattern(arrays, table, others, n_laws, build_actuators(mechanism, n_laws, resolver))
+    return LoadPattern(arrays, table, others, n_laws, build_actuators(blocks, n_laws, resolver.frames))
 
 
 def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:
