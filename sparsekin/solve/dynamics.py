@@ -167,7 +167,9 @@ class GeneralizedAlphaStepper:
         Largest integration step, s.
     integrator : GeneralizedAlpha
     tolerance : float
-        Newton tolerance (lengths relative to the model size, angles in rad).
+        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error a step
+        leaves (lengths relative to the model size per second, rad/s) and the constraint
+        residual (relative lengths, rad).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         ``"auto"``: dense LU up to `DENSE_MAX_SIZE` unknowns, `RefactorSolver` above.
     pattern : ConstraintPattern, optional
@@ -175,12 +177,19 @@ class GeneralizedAlphaStepper:
     Attributes
     ----------
     state : DynamicState
-        After `start`: the current state (its arrays are the stepper's own, valid until
-        the next `advance`).
+        After `start`: the current state, one value (each step makes new arrays: a
+        recorder may keep them).
     system : DynamicSystem
-    n_steps, n_subdivisions, n_newton : int
-        Steps accepted, step halvings, Newton corrections.
+    n_steps, n_subdivisions, n_newton, n_stalls : int
+        Steps accepted, step halvings, Newton corrections, Newton iterations accepted at
+        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`).
     redundant_rows : ndarray of int
+        Equations left out as redundant (`redundant_labels` in words).
+
+    Notes
+    -----
+    The protocol a run driver needs is `start`, `advance` and `state`; `solve_dynamics`
+    records each output sample from `state` (`_DynamicRun`).
     """
 
     def __init__(self, mechanism: Mechanism, max_step: float, *, integrator: GeneralizedAlpha | None = None,
@@ -394,7 +403,7 @@ class GeneralizedAlphaStepper:
         system, n, kept = self.system, self.system.n, self.system.kept_rows
         weights = self.assembler.weights[kept]
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
-        bound = max(self.tolerance * h * scale, ROUNDING * STALL * scale)
+        bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
         drift = system.velocity_drift(v)[kept]
         if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
             return
@@ -578,7 +587,7 @@ def solve_dynamics(
     rho_inf : float
         Numerical damping of generalized-α, in [0, 1] (1: none).
     tolerance : float
-        Newton tolerance: lengths relative to the model size, angles in rad.
+        Newton and projection tolerance (`GeneralizedAlphaStepper`).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
     coordinates, points, joints, forces, store, progress
         As for `sparsekin.solve_kinematics`.

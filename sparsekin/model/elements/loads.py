@@ -231,6 +231,9 @@ class Actuator(Load):
         kinds = {type(joint) for joint in joints.elements}
         if len(kinds) == 1:
             return [JointActuator(loads.rows, coordinate) for coordinate in kinds.pop().outputs(joints)]
+        if hasattr(joints, "copies"):
+            raise NotImplementedError("the actuators of a repeated unit act on joints of several kinds; give each kind "
+                                      "its own unit or write them out")  # fmt: skip
         blocks = []  # actuators along joints of several kinds: one group per kind
         for kind in kinds:
             chosen = np.array([type(joint) is kind for joint in joints.elements])
