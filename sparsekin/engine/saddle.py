@@ -93,9 +93,11 @@ class DynamicSystem:
     Parameters
     ----------
     mechanism : Mechanism
-    pattern : ConstraintPattern, optional
+    pattern : ConstraintPattern
     kept_rows : ndarray of int, optional
         The equations in the saddle (default all); the others are redundant.
+    assembler : Assembler, optional
+        The constraints' assembler, if already made.
 
     Attributes
     ----------
@@ -129,7 +131,6 @@ class DynamicSystem:
         self._q, self._qd, self._qdd = np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3)
         self._turns = np.zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
-        self._multipliers = np.zeros(m)
         self._actuator_weights = np.zeros(n_laws)
         arrays = self.loads.arrays
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
