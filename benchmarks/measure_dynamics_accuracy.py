@@ -20,13 +20,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-import sparsekin as sk  # noqa: E402
-from dynamics_reference import (  # noqa: E402
+from dynamics_reference import (
     ANDREWS_REFERENCE_ANGLES,
     andrews_angles_from_bodies,
     n_four_bar_b0,
 )
-from sparsekin.testset import n_four_bar  # noqa: E402
+
+import sparsekin as sk
+from sparsekin.testset import n_four_bar
 
 
 def a02(loops: int, steps, rho: float, t_end: float) -> None:

@@ -23,8 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import sparsekin as sk
 from dynamics_reference import (
     ANDREWS_REFERENCE_ANGLES,
     andrews_angles_from_bodies,
@@ -33,6 +31,8 @@ from dynamics_reference import (
     pendulum_period,
     pendulum_point,
 )
+
+import sparsekin as sk
 from sparsekin.testset import n_four_bar
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -95,7 +95,7 @@ def test_n_four_bar_keeps_every_crank_on_the_exact_motion_through_singular_cross
     assert np.sum(np.diff(np.floor(motion.angle / np.pi)) != 0) == 5
     np.testing.assert_allclose(cranks - motion.angle[:, None], 0.0, atol=1e-3)
     assert np.ptp(cranks, axis=1).max() <= 1e-9  # every crank at the same angle throughout
-    position, velocity = n_four_bar_b0(times, n_loops=4)
+    position, _ = n_four_bar_b0(times, n_loops=4)
     b0 = result.point("B0")
     assert np.abs(b0.position - position).max() <= 1e-3
     assert result.energy.drift_position.max() <= 1e-9

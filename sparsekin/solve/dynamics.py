@@ -46,8 +46,14 @@ from ..engine import _dynamics_kernels, _force_kernels, _kernels
 from ..engine.linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
 from ..engine.pattern import ConstraintPattern, build_pattern, build_point_map
 from ..engine.saddle import DynamicSystem
-from ..errors import (AnalysisInterrupted, ConvergenceError, ModelError, RedundantConstraintWarning, SparsekinError,
-                      warn_caller)
+from ..errors import (
+    AnalysisInterrupted,
+    ConvergenceError,
+    ModelError,
+    RedundantConstraintWarning,
+    SparsekinError,
+    warn_caller,
+)
 from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult, Energy
 from ..results.recording import MemorySink, Recorder, Selection, ZarrSink
