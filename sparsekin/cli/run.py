@@ -11,6 +11,7 @@ from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
+from ..solve.dynamics import solve_dynamics
 from ..solve.kinematics import solve_kinematics
 from .common import (
     EXIT_INTERRUPTED,
@@ -67,7 +68,30 @@ def add_run_command(subparsers) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
+    add_dynamics_arguments(parser)
     parser.set_defaults(handler=run_command)
+
+
+def add_dynamics_arguments(parser) -> None:
+    """``--dynamics`` and ``--max-step``: integrate the equations of motion (forward dynamics)."""
+    parser.add_argument("--dynamics", action="store_true", default=None,
+                        help='integrate the equations of motion under the masses, gravity and loads (as [analysis] '
+                        'type = "dynamics"); also writes energy.csv')
+    parser.add_argument("--max-step", type=float, metavar="H",
+                        help="largest integration step of --dynamics, s (default: [analysis].max_step, else the "
+                        "output interval)")
+
+
+def is_dynamics(arguments: argparse.Namespace, mechanism: Mechanism) -> bool:
+    """Whether the command integrates the equations of motion: ``--dynamics`` or the model's
+    ``[analysis] type``; ``--max-step`` alone is a mistake."""
+    dynamics = bool(getattr(arguments, "dynamics", None)) or mechanism.analysis.type == "dynamics"
+    max_step = getattr(arguments, "max_step", None)
+    if max_step is not None and not dynamics:
+        raise CommandError('--max-step is for forward dynamics: give --dynamics (or [analysis] type = "dynamics")')
+    if max_step is not None and not max_step > 0.0:
+        raise CommandError(f"--max-step must be a positive number of seconds, got {max_step!r}")
+    return dynamics
 
 
 def run_command(arguments: argparse.Namespace) -> int:
@@ -90,9 +114,11 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         report(f"note: {note}")
+    dynamics = is_dynamics(arguments, mechanism)
     try:
         with _Progress(settings, timeline) as progress:
-            result = solve_for_command(mechanism, settings, arguments.model, progress)
+            result = solve_for_command(mechanism, settings, arguments.model, progress,
+                                       dynamics=dynamics, max_step=getattr(arguments, "max_step", None))  # fmt: skip
     except ConvergenceError as error:
         written = write_outputs(mechanism, error.result, settings)
         report(f"analysis stopped: {error}")
@@ -132,9 +158,10 @@ class _Progress(ProgressBar):
         super().__call__(done, total)
 
 
-def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress) -> KinematicsResult:
-    """`solve_kinematics` recording what `settings` asks for, with its argument and model
-    errors reported against the file.
+def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress, *,
+                      dynamics: bool = False, max_step: float | None = None) -> KinematicsResult:  # fmt: skip
+    """`solve_kinematics` (or with `dynamics`, `solve_dynamics` with `max_step`) recording what
+    `settings` asks for, with its argument and model errors reported against the file.
 
     Warnings (redundant equations left out, limits left) are printed as one line each.  On
     the first run after an install, says that the kernels compile (`announce_compilation`).
@@ -148,6 +175,13 @@ def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: P
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
+                if dynamics:
+                    return solve_dynamics(
+                        mechanism, settings.times, max_step, coordinates=settings.coordinates,
+                        points=settings.point_names if record else None,
+                        joints=settings.joint_indices if record else None, forces=settings.forces, store=store,
+                        progress=progress,
+                    )  # fmt: skip
                 return solve_kinematics(
                     mechanism, settings.times, coordinates=settings.coordinates,
                     points=settings.point_names if record else None, joints=settings.joint_indices if record else None,

@@ -25,7 +25,9 @@ class Body:
 
     For forces: its `mass` (kg, default 0), its `inertia` about its centre of mass
     (kg·m², default 0) and its centre of mass `com` (a point name or (x, y), drawn;
-    default the frame origin).
+    default the frame origin).  For forward dynamics: its initial `velocity` ``(vx, vy,
+    angular velocity)`` of the frame origin (m/s, rad/s; default at rest), made
+    consistent with the constraints by the smallest mass-weighted change.
     """
 
     name: str
@@ -35,8 +37,9 @@ class Body:
     mass: float | None = None
     inertia: float | None = None
     com: PointRef | None = None
+    velocity: tuple[float, float, float] | None = None
 
-    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com"))
+    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com", "velocity"))
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
@@ -48,6 +51,11 @@ class Body:
                 _set(self, field_name, _validate.non_negative_float(getattr(self, field_name), field_name))
         if self.com is not None:
             _set(self, "com", _validate.point_reference(self.com, "com"))
+        if self.velocity is not None:
+            velocity = self.velocity
+            if isinstance(velocity, str) or not _validate.is_sequence(velocity) or len(velocity) != 3:
+                raise ModelError(f"expected [vx, vy, angular velocity], got {velocity!r}", element="velocity")
+            _set(self, "velocity", tuple(_validate.finite_float(v, f"velocity[{k}]") for k, v in enumerate(velocity)))
 
 
 def _point_pair(name: str, value: object) -> tuple[float, float]:
