@@ -262,3 +262,45 @@ def test_redundant_equations_are_left_out_and_change_nothing():
     assert np.abs(plain.coordinates[-1] - plain.coordinates[0]).max() > 1.0  # the tower fell
     np.testing.assert_allclose(moved.reshape(times.size, -1), plain.coordinates, rtol=0, atol=1e-9)
     assert redundant.energy.drift_position.max() <= 1e-10
+
+
+def test_energy_and_drift_are_recorded_variables_streamed_bit_for_bit(pendulum, tmp_path):
+    """The energy balance and drift are rows of the schema: a run streamed to Zarr holds
+    them labelled, equal to the run in memory."""
+    xarray = pytest.importorskip("xarray", reason='the Zarr test needs "sparsekin[zarr]"')
+    from sparsekin.results.schema import DRIFT_TERMS, ENERGY_TERMS
+
+    times = np.linspace(0.0, 0.2, 21)
+    memory = sk.solve_dynamics(pendulum, times, max_step=1e-3)
+    streamed = sk.solve_dynamics(pendulum, times, max_step=1e-3, store=tmp_path / "run.zarr")
+    for name in (*ENERGY_TERMS, "drift_position", "drift_velocity"):
+        np.testing.assert_array_equal(getattr(streamed.energy, name), getattr(memory.energy, name))
+    dataset = xarray.open_zarr(tmp_path / "run.zarr")
+    assert list(dataset["energy"].coords["energy_term"].values) == list(ENERGY_TERMS)
+    assert list(dataset["drift"].coords["drift_term"].values) == list(DRIFT_TERMS)
+    np.testing.assert_array_equal(memory.to_xarray()["energy"].values, dataset["energy"].values)
+    assert memory.energy.balance[0] == 0.0
+
+
+def test_the_saddle_plan_changes_the_linear_solver_not_the_motion(pendulum):
+    from sparsekin.engine.discretization import discretize
+    from sparsekin.solve.dynamics import run_dynamics
+    from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
+    from sparsekin.solve.policy import Thresholds
+
+    times = np.linspace(0.0, 0.2, 21)
+    dense = run_dynamics(discretize(pendulum), times, SolveOptions(1e-10), DynamicsOptions(1e-3), Request(energy=True))
+    sparse_options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+    sparse = run_dynamics(discretize(pendulum), times, sparse_options, DynamicsOptions(1e-3), Request(energy=True))
+    assert (dense.linear_solver, sparse.linear_solver) == ("dense", "refactor")
+    # the same integrator to the Newton tolerance (1e-10 relative, 1 m pendulum)
+    np.testing.assert_allclose(sparse.coordinates, dense.coordinates, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("keywords", "message"), [
+    ({"rho_inf": 1.5}, r"`rho_inf` must be a number in \[0, 1\], got 1.5"),
+    ({"max_step": 0.0}, "`max_step` must be a positive number, got 0.0"),
+])
+def test_dynamics_options_are_checked_once(pendulum, keywords, message):
+    with pytest.raises(ValueError, match=message):
+        sk.solve_dynamics(pendulum, [0.0, 0.1], **keywords)

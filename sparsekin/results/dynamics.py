@@ -1,19 +1,23 @@
-"""The result of a forward-dynamics run: the kinematic result, plus energy and drift."""
+"""The result of a forward-dynamics run: a `Motion` with its run's statistics, energy and drift."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from .kinematics import KinematicsResult
+from .motion import Motion
+from .schema import DRIFT_TERMS, DRIFT_UNITS, ENERGY_TERMS
+from .stats import RunStatsFields
 
 __all__ = ["Energy", "DynamicsResult", "ENERGY_COLUMNS"]
 
-#: The columns of ``energy.csv`` after ``t``, in order, with their units.
-ENERGY_COLUMNS = (("kinetic", "J"), ("potential", "J"), ("elastic", "J"), ("dissipated", "J"), ("work", "J"),
-                  ("balance", "J"), ("drift_position", "1"), ("drift_velocity", "1/s"))  # fmt: skip
+#: The columns of ``energy.csv`` after ``t``, in order, with their units: the recorded
+#: variables ``energy`` and ``drift`` of `sparsekin.results.schema`.
+ENERGY_COLUMNS = (*((term, "J") for term in ENERGY_TERMS),
+                  *((f"drift_{term}", unit) for term, unit in zip(DRIFT_TERMS, DRIFT_UNITS)))  # fmt: skip
 
 
 class Energy(NamedTuple):
@@ -44,12 +48,16 @@ class Energy(NamedTuple):
 
 
 @dataclass(frozen=True, eq=False)
-class DynamicsResult(KinematicsResult):
-    """`KinematicsResult`'s accessors on a motion integrated under forces, with `energy`.
+class DynamicsResult(Motion, RunStatsFields):
+    """A motion integrated under forces: `Motion`'s accessors, the run's statistics
+    (`RunStatsFields`, as `KinematicsResult`), and `energy`.
 
     Attributes
     ----------
-    energy : Energy
+    energy_tracks : ndarray, shape (n_times, 6), or None
+        The recorded variable ``energy`` (`sparsekin.results.schema.ENERGY_TERMS`, J).
+    drift_tracks : ndarray, shape (n_times, 2), or None
+        The recorded variable ``drift`` (position, velocity).
     n_steps : int
         Integration steps taken (accepted).
     rho_inf : float
@@ -57,13 +65,25 @@ class DynamicsResult(KinematicsResult):
         numerical damping).
     """
 
-    energy: Energy | None = None
-    n_steps: int = 0
-    rho_inf: float = 1.0
+    energy_tracks: np.ndarray | None = field(default=None, kw_only=True)
+    drift_tracks: np.ndarray | None = field(default=None, kw_only=True)
+    n_steps: int = field(default=0, kw_only=True)
+    rho_inf: float = field(default=1.0, kw_only=True)
+
+    @property
+    def energy(self) -> Energy | None:
+        """The energy balance and drift, one array per term (`Energy`); None if not recorded."""
+        if self.energy_tracks is None or self.drift_tracks is None:
+            return None
+        energy, drift = np.asarray(self.energy_tracks), np.asarray(self.drift_tracks)
+        return Energy(*(np.ascontiguousarray(energy[:, c]) for c in range(len(ENERGY_TERMS))),
+                      *(np.ascontiguousarray(drift[:, c]) for c in range(len(DRIFT_TERMS))))  # fmt: skip
 
     def __repr__(self) -> str:
-        text = super().__repr__()
-        if self.energy is not None and self.energy.balance.size:
-            worst = float(np.max(np.abs(self.energy.balance)))
-            text += f"\nintegrated in {self.n_steps} steps (rho_inf = {self.rho_inf:g}); largest energy error {worst:.3g} J"
+        text = KinematicsResult.__repr__(self)  # the same summary of the motion and the path
+        energy = self.energy
+        if energy is not None and energy.balance.size:
+            worst = float(np.max(np.abs(energy.balance)))
+            text += (f"\nintegrated in {self.n_steps} steps (rho_inf = {self.rho_inf:g}); "
+                     f"largest energy error {worst:.3g} J")
         return text

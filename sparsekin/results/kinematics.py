@@ -7,20 +7,20 @@ forces, tables) is `sparsekin.results.motion.Motion`; the counters and the path 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..engine.outputs import LimitState, element_index, limit_states, own_coordinates  # noqa: F401 (re-exported)
 from .motion import CoordinateMotion, DriverForce, Motion, PointMotion, Reaction
-from .stats import RunStats
+from .stats import RunStats, RunStatsFields
 
 __all__ = ["KinematicsResult", "Motion", "RunStats", "PointMotion", "CoordinateMotion", "DriverForce", "Reaction",
            "LimitState", "element_index", "own_coordinates", "limit_states"]
 
 
 @dataclass(frozen=True, eq=False)
-class KinematicsResult(Motion):
+class KinematicsResult(Motion, RunStatsFields):
     """Positions, velocities and accelerations of every body at every time, and how they were solved.
 
     A `Motion` (its accessors: `point`, `joint`, `driver`, `driver_force`, `reaction`,
@@ -52,20 +52,6 @@ class KinematicsResult(Motion):
         ``"superlu"``, or ``"none"`` for a model with nothing to solve (no body, no equation).
     """
 
-    newton_iterations: np.ndarray = field(kw_only=True)
-    n_factorizations: int = field(kw_only=True)
-    n_solves: int = field(kw_only=True)
-    n_subdivisions: int = field(default=0, kw_only=True)
-    redundant_equations: tuple[str, ...] = field(default=(), kw_only=True)
-    n_refactorizations: int = field(default=0, kw_only=True)
-    linear_solver: str = field(default="superlu", kw_only=True)
-
-    @property
-    def stats(self) -> RunStats:
-        """The run's counters and path."""
-        return RunStats(self.newton_iterations, self.n_factorizations, self.n_solves, self.n_subdivisions,
-                        self.redundant_equations, self.n_refactorizations, self.linear_solver)  # fmt: skip
-
     def __repr__(self) -> str:
         """A summary, like xarray's: the model, the samples, the path and what was
         recorded with its shape (not the arrays themselves)."""
@@ -73,7 +59,7 @@ class KinematicsResult(Motion):
         span = f"t = {times[0][0]:g} … {times[1][0]:g} s" if self.n_times else "no sample"
         state = "complete" if self.complete else "stopped early"
         lines = [
-            f"<KinematicsResult {self.mechanism.name!r}: {self.n_times} samples, {span}, {state}>",
+            f"<{type(self).__name__} {self.mechanism.name!r}: {self.n_times} samples, {span}, {state}>",
             (f"  model:        {_count(self.mechanism.n_bodies, 'body', 'bodies')}, "
              f"{_count(len(self.mechanism.joints), 'joint')}, {_count(len(self.mechanism.drivers), 'driver')}"),
             (f"  path:         {self.linear_solver}: {self.n_factorizations} factorizations, {self.n_solves} solves, "

@@ -60,11 +60,16 @@ class Selection:
         Drivers and joints whose forces are recorded (`sparsekin.engine.force_columns.ForceOutputs`):
         names or ``drivers[i]`` / ``joints[i]`` labels; "all": every driver and joint;
         "auto": all when the model has a mass or a load (`Mechanism.has_forces`), else none.
+    energy : bool
+        Record the energy balance and the constraint drift of each sample (forward
+        dynamics: `sparsekin.results.schema` variables ``energy`` and ``drift``).
 
     Attributes
     ----------
     forces : ForceOutputs or None
         The force columns, if any.
+    records_energy : bool
+        `energy`.
 
     Raises
     ------
@@ -73,12 +78,13 @@ class Selection:
     """
 
     def __init__(self, discretization: Discretization, coordinates: bool = True, points=None, joints=None,
-                 forces=None) -> None:  # fmt: skip
+                 forces=None, *, energy: bool = False) -> None:  # fmt: skip
         from ..engine.outputs import element_index
 
         self.discretization = discretization
         self.mechanism = mechanism = discretization.mechanism
         self.coordinates = bool(coordinates)
+        self.records_energy = bool(energy)
         if points is None:
             names: tuple[str, ...] = ()
         elif isinstance(points, str) and points == "all":

@@ -30,8 +30,13 @@ The initial state: the drawing assembled at t0 by the smallest weighted change;
 velocities, the bodies' `velocity` made consistent by the smallest mass-weighted change
 (one solve of [[M, Φqᵀ], [Φq, 0]]); accelerations and multipliers from the same matrix.
 
-`GeneralizedAlphaStepper` is the algorithm with its state (`start`, `advance`, `state`);
-`solve_dynamics` validates, records and returns a `DynamicsResult`.
+`GeneralizedAlphaStepper` is the algorithm with its state, a `sparsekin.solve.steppers.Stepper`
+(`start`, `advance`, `linearization`, `stats`; `state` and `recorded` besides);
+`solve_dynamics` validates once (`SolveOptions`, `DynamicsOptions`, `Request` of
+`sparsekin.solve.options`) and `run_dynamics` records through the run driver
+(`sparsekin.solve.run`): the same pipeline as the kinematics, with the driver forces and
+reactions made from the integrator's λ (`ForceOutputs.fill`) and the energy balance and
+drift as recorded variables (`sparsekin.results.schema`).
 """
 
 from __future__ import annotations
@@ -42,26 +47,27 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..engine import _dynamics_kernels, _force_kernels, _kernels
-from ..engine.linalg import DenseSolver, RefactorSolver, SingularMatrix, SuperLUSolver
-from ..engine.discretization import discretize
+from ..engine import _dynamics_kernels, _kernels
+from ..engine.discretization import Discretization, discretize
+from ..engine.linalg import SingularMatrix, SuperLUSolver
+from ..engine.linearization import Linearization
+from ..engine.newton import NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
 from ..engine.saddle import DynamicSystem
-from ..errors import (
-    AnalysisInterrupted,
-    ConvergenceError,
-    ModelError,
-    RedundantConstraintWarning,
-    SparsekinError,
-    warn_caller,
-)
+from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, warn_caller
 from ..model.mechanism import Mechanism
-from ..results.dynamics import DynamicsResult, Energy
-from ..results.recording import MemorySink, Recorder, Selection, ZarrSink
+from ..results.dynamics import DynamicsResult
+from ..results.recording import MemorySink, Recorder, ZarrSink
+from ..results.schema import DRIFT, ENERGY
+from .kinematics import recorded_result
 from .observers import RecordedVariables
-from .options import check_times
+from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
+from .policy import LINEAR_SOLVERS, plan_saddle_solver
+from .run import run
+from .steppers import SampleBlock, SampleSteps, StepperStats
 
-__all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "LINEAR_SOLVERS"]
+__all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
+           "LINEAR_SOLVERS"]
 
 #: Default Newton tolerance: the velocity error left by Newton's last correction (lengths
 #: relative to the model size per second, rad/s) and the constraint residual (relative
@@ -81,8 +87,8 @@ STALL = 1e4
 #: times the floor (it would otherwise be refactored for nothing: a 10^4-body chain did
 #: so at every second step).
 NOISE = 1e2
-#: Most Newton corrections in one step.
-MAX_ITERATIONS = 12
+#: Most Newton corrections in one step (`SolveOptions.max_iterations`, the kinematics' default).
+MAX_ITERATIONS = NEWTON_MAXITER
 #: A correction of modified Newton must be at most this fraction of the one before, or
 #: the matrix is refactored at the current iterate.
 CONTRACTION = 0.3
@@ -97,9 +103,6 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
-#: Largest saddle size solved densely with ``linear_solver="auto"``.
-DENSE_MAX_SIZE = 400
-LINEAR_SOLVERS = ("auto", "dense", "superlu", "refactor")
 #: Models up to this many coordinates are always searched for redundant equations at the
 #: start (larger ones when they have at least as many equations as coordinates).
 REDUNDANCY_CHECK_COORDINATES = 3000
@@ -118,8 +121,7 @@ class GeneralizedAlpha:
     rho_inf: float = 0.9
 
     def __post_init__(self) -> None:
-        if isinstance(self.rho_inf, bool) or not isinstance(self.rho_inf, (int, float)) or not 0.0 <= self.rho_inf <= 1.0:
-            raise ValueError(f"`rho_inf` must be a number in [0, 1], got {self.rho_inf!r}.")
+        checked_rho_inf(self.rho_inf)
 
     @property
     def coefficients(self) -> tuple[float, float, float, float]:
@@ -171,20 +173,31 @@ class GeneralizedAlphaStepper:
 
     Parameters
     ----------
-    mechanism : Mechanism
+    model : Mechanism or Discretization
     max_step : float
-        Largest integration step, s.
+        Largest integration step, s (or ``dynamics.max_step``).
     integrator : GeneralizedAlpha
+        Default: from ``dynamics.rho_inf``.
     tolerance : float
         Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error a step
         leaves (lengths relative to the model size per second, rad/s) and the constraint
         residual (relative lengths, rad).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
-        ``"auto"``: dense LU up to `DENSE_MAX_SIZE` unknowns, `RefactorSolver` above.
+        The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
+        (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
+        unknowns, `RefactorSolver` above).
     pattern : ConstraintPattern, optional
+        With a Mechanism: its pattern, if built already.
+    options : SolveOptions, optional
+        Instead of `tolerance` and `linear_solver` (checked already); its
+        ``max_iterations`` bounds the Newton corrections of a step.
+    dynamics : DynamicsOptions, optional
+        Instead of `max_step` (and the ρ∞ of `integrator`).
 
     Attributes
     ----------
+    time : float or None
+        The current time, None before `start`.
     state : DynamicState
         After `start`: the current state, one value (each step makes new arrays: a
         recorder may keep them).
@@ -197,29 +210,35 @@ class GeneralizedAlphaStepper:
 
     Notes
     -----
-    The protocol a run driver needs is `start`, `advance` and `state`; `solve_dynamics`
-    records each output sample from `state` (`_DynamicRun`).
+    A `sparsekin.solve.steppers.Stepper`: `start` and `advance` return the Newton
+    corrections, `linearization` publishes the sample with its λ, `stats` the counts;
+    `recorded` gives the sample's energy balance and drift (the schema's ``energy`` and
+    ``drift``).  ``SampleSteps(stepper, stepper.recorded)`` is its block stepper.
     """
 
-    def __init__(self, mechanism: Mechanism, max_step: float, *, integrator: GeneralizedAlpha | None = None,
-                 tolerance: float = DEFAULT_TOLERANCE, linear_solver: str = "auto",
-                 pattern: ConstraintPattern | None = None) -> None:  # fmt: skip
-        if not isinstance(mechanism, Mechanism):
-            raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
-        self.mechanism = mechanism
-        self.max_step = _positive(max_step, "max_step")
-        self.integrator = GeneralizedAlpha() if integrator is None else integrator
-        self.tolerance = _positive(tolerance, "tolerance")
-        if linear_solver not in LINEAR_SOLVERS:
-            raise ValueError(f"`linear_solver` must be one of {', '.join(map(repr, LINEAR_SOLVERS))}, got {linear_solver!r}.")
-        self._linear_solver_name = linear_solver
-        self.discretization = discretize(mechanism, pattern)
-        self.pattern = self.discretization.constraints
+    def __init__(self, model: Mechanism | Discretization, max_step: float | None = None, *,
+                 integrator: GeneralizedAlpha | None = None, tolerance: float = DEFAULT_TOLERANCE,
+                 linear_solver: str = "auto", pattern: ConstraintPattern | None = None,
+                 options: SolveOptions | None = None, dynamics: DynamicsOptions | None = None) -> None:  # fmt: skip
+        self.discretization = model if isinstance(model, Discretization) else discretize(model, pattern)
+        self.mechanism, self.pattern = self.discretization.mechanism, self.discretization.constraints
+        if dynamics is None:
+            rho_inf = GeneralizedAlpha().rho_inf if integrator is None else integrator.rho_inf
+            dynamics = DynamicsOptions(max_step, rho_inf)
+        if dynamics.max_step is None:
+            raise ValueError("`max_step` must be a positive number, got None.")
+        self.max_step = dynamics.max_step
+        self.integrator = GeneralizedAlpha(dynamics.rho_inf) if integrator is None else integrator
+        self.options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver) if options is None else options
+        self.tolerance = self.options.tolerance
+        self.solver, self.path = None, "none"
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = 0
         self._state: DynamicState | None = None
         self._factored = False
+        self._balance0: float | None = None
+        self._recorded: dict = {}
 
     # ------------------------------------------------------------------ public
     @property
@@ -229,6 +248,10 @@ class GeneralizedAlphaStepper:
         return self._state
 
     @property
+    def time(self) -> float | None:
+        return None if self._state is None else self._state.time
+
+    @property
     def assembler(self):
         return self.system.assembler
 
@@ -236,8 +259,8 @@ class GeneralizedAlphaStepper:
     def n_factorizations(self) -> int:
         return self.solver.n_factorizations + self.solver.n_refactorizations
 
-    def start(self, t: float) -> DynamicState:
-        """The consistent initial state at time `t` (s).
+    def start(self, t: float) -> int:
+        """The consistent initial state at time `t` (s) (`state`); no Newton correction (0).
 
         Raises
         ------
@@ -276,10 +299,13 @@ class GeneralizedAlphaStepper:
         self._factored = False
         self._state = DynamicState(t, q, v, a, a.copy(), lam, self.max_step, 0.0, 0.0)
         self._power = system.powers(q, v, lam)
-        return self._state
+        self._balance0 = None  # the balance is measured from the first sample's
+        self._publish()
+        return 0
 
-    def advance(self, t: float) -> DynamicState:
-        """Integrate to time `t` (s, after the current one) in steps of at most `max_step`.
+    def advance(self, t: float) -> int:
+        """Integrate to time `t` (s, after the current one) in steps of at most `max_step`
+        (`state`); returns the Newton corrections.
 
         Raises
         ------
@@ -290,7 +316,7 @@ class GeneralizedAlphaStepper:
         t = float(t)
         if not t > state.time:
             raise ValueError(f"`t` must be after the current time {state.time!r}, got {t!r}.")
-        step, good = state.step, 0
+        step, good, before = state.step, 0, self.n_newton
         while self._state.time < t:
             now = self._state.time
             remaining = t - now
@@ -310,7 +336,51 @@ class GeneralizedAlphaStepper:
             if step < self.max_step and good >= GROWTH_AFTER:
                 step, good = min(2.0 * step, self.max_step), 0
         self._state = self._state._replace(step=step)
-        return self._state
+        self._publish()
+        return self.n_newton - before
+
+    def linearization(self) -> Linearization:
+        """The current sample (valid until the next step): Φq at q, −Φt, and λ (`multipliers`;
+        no factorization of Φq: the forces take λ as it is)."""
+        state, assembler, kept = self.state, self.assembler, self.system.kept_rows
+        q, v = state.coordinates, state.velocities
+        q_ground, v_ground, turns = np.zeros(q.size + 3), np.zeros(q.size + 3), np.zeros((q.size // 3 + 1, 2))
+        q_ground[:-3], v_ground[:-3] = q, v
+        _kernels.fill_body_turns(q_ground, turns)
+        return Linearization(
+            state.time, q, v, state.accelerations, (q_ground, v_ground, turns), assembler.values,
+            assembler.csr_positions, lambda: assembler.jacobian, assembler.velocity_rhs, None,
+            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, state.multipliers,
+        )  # fmt: skip
+
+    def recorded(self) -> dict:
+        """The current sample's energy balance and drift, one row each (the schema's
+        ``energy`` and ``drift``; new arrays)."""
+        return self._recorded
+
+    def stats(self) -> StepperStats:
+        solver = self.solver
+        if solver is None:
+            return StepperStats(n_subdivisions=self.n_subdivisions, path=self.path,
+                                redundant_equations=self.redundant_labels)  # fmt: skip
+        return StepperStats(solver.n_factorizations, solver.n_solves, solver.n_refactorizations, self.n_subdivisions,
+                            self.path, self.redundant_labels)  # fmt: skip
+
+    def _publish(self) -> None:
+        """Φ and Φq refilled at the state's q (what `linearization` publishes), and the
+        state's energy and drift (`recorded`)."""
+        state, system = self._state, self.system
+        q, v = state.coordinates, state.velocities
+        phi = system.fill_constraints(q)
+        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
+        kinetic, potential, elastic = system.energies(q, v)
+        balance = kinetic + potential + elastic + state.dissipated - state.work
+        if self._balance0 is None:
+            self._balance0 = balance
+        self._recorded = {
+            ENERGY: np.array([[kinetic, potential, elastic, state.dissipated, state.work, balance - self._balance0]]),
+            DRIFT: np.array([[phi, drift]]),
+        }
 
     # ------------------------------------------------------------------ one step
     def _step(self, state: DynamicState, h: float, t_next: float) -> DynamicState:
@@ -334,14 +404,15 @@ class GeneralizedAlphaStepper:
         # Converged: the error left in q by the last correction and the constraint residual,
         # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
         bound = tol / gamma_prime
-        for iteration in range(MAX_ITERATIONS + 1):
+        max_iterations = self.options.max_iterations
+        for iteration in range(max_iterations + 1):
             phi_norm = system.fill_constraints(q)
             floor = ROUNDING * (1.0 + _dynamics_kernels.weighted_norm(q, weights))
             stall = STALL * math.sqrt(n) * floor
             if settled and phi_norm <= max(bound, floor, stalled):
                 break
-            if iteration == MAX_ITERATIONS:
-                raise _StepFailed(f"no convergence in {MAX_ITERATIONS} corrections")
+            if iteration == max_iterations:
+                raise _StepFailed(f"no convergence in {max_iterations} corrections")
             system.residual(q, v, a, lam, force)
             if not (math.isfinite(phi_norm) and np.all(np.isfinite(force))):
                 raise _StepFailed("non-finite residual")
@@ -479,11 +550,9 @@ class GeneralizedAlphaStepper:
         return tuple(equation_label(self.mechanism, self.pattern, int(r)) for r in self.redundant_rows)
 
     def _make_solver(self, size: int):
-        name = self._linear_solver_name
-        if name == "auto":
-            name = "dense" if size <= DENSE_MAX_SIZE else "refactor"
-        self.path = name
-        return {"dense": DenseSolver, "superlu": SuperLUSolver, "refactor": RefactorSolver}[name]()
+        plan = plan_saddle_solver(size, self.options.linear_solver, self.options.thresholds)
+        self.path = plan.solver
+        return plan.make_solver()
 
     def _assembled(self, t: float) -> np.ndarray:
         """The drawing moved onto Φ(q, t) = 0 by the smallest weighted change (Gauss–Newton
@@ -494,7 +563,7 @@ class GeneralizedAlphaStepper:
         q = self.pattern.initial_coordinates.copy()
         system.set_time(t)
         metric = diags(self.pattern.coordinate_weights**2)
-        for _ in range(2 * MAX_ITERATIONS):
+        for _ in range(2 * self.options.max_iterations):
             norm = system.fill_constraints(q)
             if norm <= self.tolerance:
                 return q
@@ -507,7 +576,7 @@ class GeneralizedAlphaStepper:
                 break
             q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
         raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
-                         f"{system.fill_constraints(q):.3g} (relative) after {2 * MAX_ITERATIONS} corrections")  # fmt: skip
+                         f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
 
 
 def _redundant_rows(jacobian) -> np.ndarray:
@@ -535,13 +604,6 @@ def _redundant_rows(jacobian) -> np.ndarray:
     tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
     rank = int(np.sum(diagonal > tolerance))
     return np.sort(pivots[rank:]).astype(np.int64)
-
-
-def _positive(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not value > 0.0 \
-            or not math.isfinite(value):  # fmt: skip
-        raise ValueError(f"`{name}` must be a positive number, got {value!r}.")
-    return float(value)
 
 
 def _initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:
@@ -631,118 +693,42 @@ def solve_dynamics(
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
     times = check_times(times, mechanism)
-    if max_step is None:
-        max_step = mechanism.analysis.max_step
-    if max_step is None:
-        max_step = float(np.min(np.diff(times))) if times.size > 1 else 1.0
-    if progress is not None and not callable(progress):
-        raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
-    integrator = GeneralizedAlpha(rho_inf)
-    stepper = GeneralizedAlphaStepper(mechanism, max_step, integrator=integrator, tolerance=tolerance,
-                                      linear_solver=linear_solver)  # fmt: skip
-    selection = Selection(stepper.discretization, coordinates, points, joints, forces)
+    dynamics = DynamicsOptions(max_step, rho_inf).for_run(times, mechanism)
+    options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver)
+    check_progress(progress)
+    request = Request(coordinates, points, joints, forces, energy=True)
+    return run_dynamics(discretize(mechanism), times, options, dynamics, request, store=store, progress=progress)
+
+
+def run_dynamics(discretization: Discretization, times: np.ndarray, options: SolveOptions, dynamics: DynamicsOptions,
+                 request: Request = Request(energy=True), *, store=None, progress=None) -> DynamicsResult:  # fmt: skip
+    """`solve_dynamics` on arguments checked already (`sparsekin.solve.options`): the layer
+    under the facade, as `sparsekin.solve.kinematics.run_kinematics` is for the kinematics.
+
+    ``dynamics.max_step`` must be set (`DynamicsOptions.for_run`).  The stepper runs under
+    the run driver one output sample at a time (`SampleSteps`); each sample's driver
+    forces and reactions come from the integrator's λ (`ForceOutputs.fill`), its energy
+    and drift from the stepper (`GeneralizedAlphaStepper.recorded`).
+    """
+    selection = request.selection(discretization)
+    stepper = GeneralizedAlphaStepper(discretization, options=options, dynamics=dynamics)
     sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    run = _DynamicRun(stepper, times, Recorder(selection, sink), progress)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return run.solve()
+    recorder = Recorder(selection, sink, request.chunk_samples)
+    variables, outputs = RecordedVariables(selection), selection.forces
+    if outputs is not None:
+        work, row = np.zeros((len(outputs.joint_indices), 3)), np.zeros(outputs.n_columns)
 
+    def record(block: SampleBlock) -> None:
+        lin = block.linearization
+        forces = None if outputs is None else outputs.fill(lin, lin.multipliers, work, row)[None]
+        arrays = variables.block(block.coordinates, block.velocities, block.accelerations, forces)
+        if selection.records_energy:
+            arrays |= block.recorded
+        recorder.add_block(block.times, arrays)
 
-class _DynamicRun:
-    """The stepper feeding a recorder, with the energy and drift of each sample."""
+    def finish(state) -> DynamicsResult:
+        return recorded_result(DynamicsResult, discretization, recorder, stepper.stats(), state.iterations,
+                               times.size, "dynamics", n_steps=stepper.n_steps,
+                               rho_inf=stepper.integrator.rho_inf)  # fmt: skip
 
-    def __init__(self, stepper: GeneralizedAlphaStepper, times, recorder: Recorder, progress) -> None:
-        self.stepper, self.times, self.recorder, self.progress = stepper, times, recorder, progress
-        self.energy_rows: list[tuple[float, ...]] = []
-        self.iterations = np.zeros(times.size, dtype=np.int64)
-        outputs = recorder.selection.forces
-        self._outputs = None if outputs is None else outputs.arrays()
-        self._force_row = np.zeros(0 if outputs is None else outputs.n_columns)
-        self._work = np.zeros((0 if outputs is None else len(outputs.joint_indices), 3))
-        self._result = None
-        self._variables = RecordedVariables(recorder.selection)
-
-    def solve(self) -> DynamicsResult:
-        stepper = self.stepper
-        try:
-            for k, t in enumerate(self.times):
-                before = stepper.n_newton
-                state = stepper.start(t) if k == 0 else stepper.advance(t)
-                self.iterations[k] = stepper.n_newton - before
-                self._record(k, state)
-        except BaseException as error:
-            result = self._result_after(error)
-            if isinstance(error, KeyboardInterrupt) and result is not None:
-                raise AnalysisInterrupted(result) from None
-            if isinstance(error, SparsekinError):
-                error.result = result
-            raise
-        return self.result()
-
-    def _result_after(self, error):
-        try:
-            return self.result()
-        except Exception as failure:  # best effort: `error` is the one raised
-            error.add_note(f"the samples solved before this error could not be kept: {failure!r}")
-            return None
-
-    def _record(self, k: int, state: DynamicState) -> None:
-        system = self.stepper.system
-        q, v = state.coordinates, state.velocities
-        phi = system.fill_constraints(q)
-        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
-        forces = None
-        if self._outputs is not None:
-            assembler = system.assembler
-            q_ext, turns = np.zeros(q.size + 3), np.zeros((q.size // 3 + 1, 2))
-            q_ext[:-3] = q
-            _kernels.fill_body_turns(q_ext, turns)
-            _force_kernels.fill_force_outputs(self._outputs, assembler.values, state.multipliers, q_ext, turns,
-                                              assembler.velocity_rhs, self._work, self._force_row)  # fmt: skip
-            forces = self._force_row
-        arrays = self._variables.block(q[None], v[None], state.accelerations[None], None if forces is None else forces[None])
-        self.recorder.add_block(np.array([state.time]), arrays)
-        kinetic, potential, elastic = system.energies(q, v)
-        self.energy_rows.append((kinetic, potential, elastic, state.dissipated, state.work,
-                                 kinetic + potential + elastic + state.dissipated - state.work, phi, drift))  # fmt: skip
-        if self.progress is not None:
-            self.progress(k + 1, self.times.size)
-
-    def result(self) -> DynamicsResult:
-        if self._result is not None:
-            return self._result
-        arrays = self.recorder.finish()
-        n_solved = arrays["t"].shape[0]
-        stepper, mechanism = self.stepper, self.stepper.mechanism
-        selection = self.recorder.selection
-        rows = np.array(self.energy_rows[:n_solved], dtype=float).reshape(-1, 8)
-        if rows.shape[0]:
-            rows[:, 5] -= rows[0, 5]
-        solver = getattr(stepper, "solver", None)
-        self._result = DynamicsResult(
-            times=np.asarray(arrays["t"]),
-            coordinates=arrays.get("q"),
-            velocities=arrays.get("qd"),
-            accelerations=arrays.get("qdd"),
-            newton_iterations=self.iterations[:n_solved],
-            n_factorizations=0 if solver is None else solver.n_factorizations,
-            n_solves=0 if solver is None else solver.n_solves,
-            complete=n_solved == self.times.size,
-            point_map=stepper.discretization.points,
-            mechanism=mechanism,
-            n_subdivisions=stepper.n_subdivisions,
-            redundant_equations=stepper.redundant_labels,
-            n_refactorizations=0 if solver is None else solver.n_refactorizations,
-            linear_solver=getattr(stepper, "path", "none"),
-            recorded_points=selection.point_names,
-            point_tracks=arrays.get("points"),
-            recorded_joints=selection.joint_indices,
-            joint_tracks=arrays.get("joints"),
-            force_labels=() if selection.forces is None else selection.forces.labels,
-            force_units=() if selection.forces is None else selection.forces.units,
-            force_tracks=arrays.get("forces"),
-            store=getattr(self.recorder.sink, "path", None),
-            energy=Energy(*(np.ascontiguousarray(rows[:, c]) for c in range(8))),
-            n_steps=stepper.n_steps,
-            rho_inf=stepper.integrator.rho_inf,
-        )
-        return self._result
+    return run(SampleSteps(stepper, stepper.recorded), times, record, finish, progress=progress)
