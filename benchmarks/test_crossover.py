@@ -2,7 +2,7 @@
 ``"refactor"`` on small members of the test set, 400 steps of 5 ms.
 
 ``linear_solver="auto"`` switches from the first to the second at
-`sparsekin.solve.kinematics.COMPILED_MAX_COORDINATES` coordinates, from these figures.
+`sparsekin.solve.policy.COMPILED_MAX_COORDINATES` coordinates, from these figures.
 """
 
 from __future__ import annotations

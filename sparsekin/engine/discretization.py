@@ -15,8 +15,8 @@ bodies, equations per element and drawing) and packs the variant's own laws.
 >>> model = discretize(task5())
 >>> model.constraints.n_coordinates, model.constraints.n_equations
 (30, 30)
->>> model.points.locate("O")[0]  # a ground point
--1
+>>> model.points.locate("K")[0]  # K rides on the first body
+0
 """
 
 from __future__ import annotations

@@ -68,7 +68,8 @@ def run(stepper: BlockStepper, times: np.ndarray, record: Callable[[SampleBlock]
 
     ``finish(run)`` builds the result from what `record` kept (``run.done`` samples,
     ``run.iterations``); it is called once, also after an error, whose ``result`` it
-    becomes (see the module docstring).
+    becomes (see the module docstring).  The result has ``n_times`` (a `Motion` has), which
+    the message of `AnalysisInterrupted` names.
     """
     state = Run(stepper, times, record, progress, chunk)
     try:

@@ -15,8 +15,8 @@ jump is accepted); below `StepControl.failure_halvings` a rejection is final
 ...         raise StepRejected("too long")
 ...     steps.append((t0, t1))
 ...     return 1
->>> march(0.0, 1.0, attempt)
-MarchOutcome(corrections=4, halvings=2)
+>>> march(0.0, 1.0, attempt)  # each step grown back to 0.5 is rejected and halved again
+MarchOutcome(corrections=4, halvings=4)
 >>> [round(t1, 2) for _, t1 in steps]
 [0.25, 0.5, 0.75, 1.0]
 """
