@@ -10,6 +10,7 @@ from pathlib import Path
 from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from ..model.modelfile import load_model
+from ..results.dynamics import DynamicsResult
 from ..results.kinematics import KinematicsResult
 from ..solve.dynamics import solve_dynamics
 from ..solve.kinematics import solve_kinematics
@@ -158,8 +159,8 @@ class _Progress(ProgressBar):
         super().__call__(done, total)
 
 
-def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress, *,
-                      dynamics: bool = False, max_step: float | None = None) -> KinematicsResult:  # fmt: skip
+def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress, *, dynamics: bool = False,
+                      max_step: float | None = None) -> KinematicsResult | DynamicsResult:  # fmt: skip
     """`solve_kinematics` (or with `dynamics`, `solve_dynamics` with `max_step`) recording what
     `settings` asks for, with its argument and model errors reported against the file.
 
@@ -175,18 +176,12 @@ def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: P
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
+                kept = {"coordinates": settings.coordinates, "points": settings.point_names if record else None,
+                        "joints": settings.joint_indices if record else None, "forces": settings.forces,
+                        "store": store, "progress": progress}  # fmt: skip
                 if dynamics:
-                    return solve_dynamics(
-                        mechanism, settings.times, max_step, coordinates=settings.coordinates,
-                        points=settings.point_names if record else None,
-                        joints=settings.joint_indices if record else None, forces=settings.forces, store=store,
-                        progress=progress,
-                    )  # fmt: skip
-                return solve_kinematics(
-                    mechanism, settings.times, coordinates=settings.coordinates,
-                    points=settings.point_names if record else None, joints=settings.joint_indices if record else None,
-                    forces=settings.forces, quasi_static=settings.quasi_static, store=store, progress=progress,
-                )  # fmt: skip
+                    return solve_dynamics(mechanism, settings.times, max_step, **kept)
+                return solve_kinematics(mechanism, settings.times, quasi_static=settings.quasi_static, **kept)
             finally:
                 for warning in caught:
                     report(f"warning: {warning.message}")

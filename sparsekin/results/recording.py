@@ -32,7 +32,7 @@ from ..model.mechanism import Mechanism
 from . import schema
 from .schema import JOINT_DERIVATIVES, POINT_COMPONENTS, TIME
 
-__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
+__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "open_recorder", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
 
 #: A chunk holds at most this many bytes of samples (and at least one sample).
 CHUNK_BYTES = 64 * 2**20
@@ -255,6 +255,13 @@ class Recorder:
         """Write what is left and close the sink; returns the sink's arrays."""
         self.flush()
         return self.sink.close(self.n_written)
+
+
+def open_recorder(selection: Selection, store, n_times: int, chunk_samples: int | None = None) -> Recorder:
+    """A `Recorder` of a run of `n_times` samples: streaming to the Zarr `store`, or in
+    memory when `store` is None."""
+    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, n_times)
+    return Recorder(selection, sink, chunk_samples)
 
 
 @contextmanager

@@ -57,7 +57,7 @@ from ..engine.saddle import DynamicSystem
 from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, warn_caller
 from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
-from ..results.recording import MemorySink, Recorder, ZarrSink
+from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY
 from .kinematics import recorded_result
 from .observers import RecordedVariables
@@ -712,8 +712,7 @@ def run_dynamics(discretization: Discretization, times: np.ndarray, options: Sol
     """
     selection = request.selection(discretization)
     stepper = GeneralizedAlphaStepper(discretization, options=options, dynamics=dynamics)
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    recorder = Recorder(selection, sink, request.chunk_samples)
+    recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     variables, outputs = RecordedVariables(selection), selection.forces
     if outputs is not None:
         work, row = np.zeros((len(outputs.joint_indices), 3)), np.zeros(outputs.n_columns)

@@ -46,7 +46,7 @@ from ..engine.pattern import ConstraintPattern
 from ..errors import LimitWarning, warn_caller
 from ..model.mechanism import Mechanism
 from ..results.kinematics import KinematicsResult, PointMotion
-from ..results.recording import MemorySink, Recorder, ZarrSink
+from ..results.recording import Recorder, open_recorder
 from ..results.schema import FORCES, TIME, result_fields
 from ._compiled import CompiledKinematicLoop
 from .observers import InverseDynamics, LimitWatch, RecordedVariables
@@ -210,8 +210,7 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
     """
     selection = request.selection(discretization)
     plan = plan_linear_solver(discretization, options.linear_solver, options.thresholds)
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    recorder = Recorder(selection, sink, request.chunk_samples)
+    recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     pattern = discretization.constraints
     observer = None
     if pattern.n_equations == 0 and pattern.n_coordinates == 0:  # nothing to solve
