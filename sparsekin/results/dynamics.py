@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .kinematics import KinematicsResult
+from .kinematics import run_summary
 from .motion import Motion
 from .schema import DRIFT_TERMS, DRIFT_UNITS, ENERGY_TERMS
 from .stats import RunStatsFields
@@ -80,7 +80,7 @@ class DynamicsResult(Motion, RunStatsFields):
                       *(np.ascontiguousarray(drift[:, c]) for c in range(len(DRIFT_TERMS))))  # fmt: skip
 
     def __repr__(self) -> str:
-        text = KinematicsResult.__repr__(self)  # the same summary of the motion and the path
+        text = run_summary(self)
         energy = self.energy
         if energy is not None and energy.balance.size:
             worst = float(np.max(np.abs(energy.balance)))
