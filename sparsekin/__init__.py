@@ -61,6 +61,7 @@ from .errors import (
 from .model.composites import Cylinder
 from .model.elements import (
     AbsoluteDriver,
+    Actuator,
     DistanceDriver,
     Force,
     Gear,
@@ -70,6 +71,7 @@ from .model.elements import (
     Revolute,
     Rigid,
     RotationalDriver,
+    RotationalSpring,
     Spring,
     Torque,
     Translational,
@@ -80,12 +82,14 @@ from .model.mechanism import GROUND, Analysis, Body, Mechanism
 from .model.modelfile import load_model, save_model
 from .model.units import Cycle, OnCopies, Repeat, Step, Unit
 from .results.kinematics import CoordinateMotion, DriverForce, KinematicsResult, PointMotion, Reaction
+from .solve.dynamics import solve_dynamics
 from .solve.kinematics import solve_kinematics
 from .solve.stepper import KinematicStepper
 
 __all__ = [
     "GROUND",
     "AbsoluteDriver",
+    "Actuator",
     "AnalysisInterrupted",
     "Analysis",
     "Body",
@@ -119,6 +123,7 @@ __all__ = [
     "Revolute",
     "Rigid",
     "RotationalDriver",
+    "RotationalSpring",
     "SingularConfigurationError",
     "SingularJacobianError",
     "SparsekinError",
@@ -135,6 +140,7 @@ __all__ = [
     "load_model",
     "pose_model",
     "save_model",
+    "solve_dynamics",
     "solve_kinematics",
     "SweepResult",
     "VariantSet",

@@ -39,9 +39,9 @@ from .model.laws import Harmonic, Linear
 from .model.mechanism import Body, Mechanism
 from .model.units import Cycle, OnCopies, Repeat, Unit
 
-__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "lattice", "lattice_unit",
-           "rotating_squares", "rotating_squares_unit", "rotating_rectangles", "rotating_rectangles_motif", "rotating_lattice_motion",
-           "parallel_bar_chain", "task5_unit_phases"]
+__all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "n_four_bar", "lattice",
+           "lattice_unit", "rotating_squares", "rotating_squares_unit", "rotating_rectangles",
+           "rotating_rectangles_motif", "rotating_lattice_motion", "parallel_bar_chain", "task5_unit_phases"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -199,6 +199,38 @@ def four_bar_chain(n_loops: int, initial_angle: float = math.pi / 4, rate: float
         drivers=[RotationalDriver(("crank0", "ground"), law=Linear(rate=rate))],
         repeats=[Repeat(loop, count=int(n_loops), prefix="u", offset=(1.0, 0.0), first={"prev.crank": "crank0"})],
         name=f"four_bar_chain_{n_loops}",
+    )
+
+
+def n_four_bar(n_loops: int, initial_speed: float = 1.0, gravity: float = 9.81) -> Mechanism:
+    """The IFToMM A02 N-four-bar for forward dynamics: 2·n+1 uniform bars (1 m, 1 kg), no driver.
+
+    The cranks stand vertical at the start, pinned to the ground at (k, 0); the couplers
+    join their tips.  Every bar has its centre of mass at its middle and the inertia
+    m L²/12 there; gravity pulls along −y.  The tip B0 of ``crank0`` starts at
+    `initial_speed` m/s along +x: every crank turns at −`initial_speed` rad/s and every
+    coupler translates at that speed (the bodies' `velocity`, consistent as given).
+    Copy k (``u{k}.crank``, ``u{k}.coupler``) is built as in `four_bar_chain`.
+    """
+    n_loops = _whole(n_loops, "n_loops", 1)
+    half, inertia = 0.5, 1.0 / 12.0
+    crank = {"mass": 1.0, "inertia": inertia, "velocity": (0.0, 0.0, -initial_speed)}
+    loop = Unit(
+        "loop",
+        points={"T": (0.0, 1.0), "P": (1.0, 0.0), "Q": (1.0, 1.0)},
+        bodies=[Body("crank", origin="P", angle=math.pi / 2, points=("P", "Q"), com=(1.0, half), **crank),
+                Body("coupler", origin="T", points=("T", "Q"), mass=1.0, inertia=inertia, com=(half, 1.0),
+                     velocity=(initial_speed, 0.0, 0.0))],
+        joints=[Revolute(("crank", "ground"), at="P"), Revolute(("crank", "coupler"), at="Q"),
+                Revolute(("coupler", "prev.crank"), at="T")],
+    )  # fmt: skip
+    return Mechanism(
+        points={"O0": (0.0, 0.0), "B0": (0.0, 1.0)},
+        bodies=[Body("crank0", origin="O0", angle=math.pi / 2, points=("O0", "B0"), com=(0.0, half), **crank)],
+        joints=[Revolute(("crank0", "ground"), at="O0")],
+        repeats=[Repeat(loop, count=int(n_loops), prefix="u", offset=(1.0, 0.0), first={"prev.crank": "crank0"})],
+        gravity=(0.0, -float(gravity)),
+        name=f"n_four_bar_{n_loops}",
     )
 
 

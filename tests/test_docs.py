@@ -41,6 +41,7 @@ PAGES_WITH_CODE = {
     "how-to/chained-mechanisms.md": ("xarray",),
     "how-to/lattices.md": (),
     "how-to/forces.md": (),
+    "how-to/dynamics.md": (),
     "how-to/design-studies.md": ("distributed",),
     "reference/python/index.md": (),
 }

@@ -398,7 +398,7 @@ LOAD_MISTAKES = {
                             r"loads\[1\]\.points: K and K coincide in the drawing"),
     "negative stiffness": ('type = "spring"\nbodies = ["c1", "c2"]\npoints = ["K", "J"]\nstiffness = -1.0',
                            r"loads\[1\]\.stiffness"),
-    "unknown type": ('type = "pressure"\nbody = "c1"', r'loads\[1\]\.type: expected one of "force", "torque", "spring", got .pressure.'),
+    "unknown type": ('type = "pressure"\nbody = "c1"', r'loads\[1\]\.type: expected one of "force", "torque", "spring", "rotational_spring", "actuator", got .pressure.'),
 }
 
 

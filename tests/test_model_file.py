@@ -17,6 +17,7 @@ from sparsekin.errors import ModelError
 from sparsekin.model.laws import Harmonic, Linear, Polynomial, Spline
 from sparsekin.model.elements import (
     AbsoluteDriver,
+    Actuator,
     DistanceDriver,
     Gear,
     PathDriver,
@@ -25,6 +26,7 @@ from sparsekin.model.elements import (
     Revolute,
     Rigid,
     RotationalDriver,
+    RotationalSpring,
     Translational,
     TranslationalDriver,
 )
@@ -52,6 +54,7 @@ points = ["O", "A"]
 mass = 1.5
 inertia = 0.002
 com = "A"
+velocity = [0.0, 0.0, 2.5]
 
 [bodies.rod]
 origin = [0.1, 0.0]
@@ -191,10 +194,29 @@ point = "B"
 law_x = { type = "linear", rate = 0.1 }
 law_y = { type = "harmonic", amplitude = 0.02, omega = 3.0, offset = 0.0 }
 
+[[loads]]
+type = "rotational_spring"
+bodies = ["arm", "crank"]
+stiffness = 5.0
+free_angle = 0.3
+damping = 0.01
+
+[[loads]]
+name = "push"
+type = "actuator"
+joint = "guide"
+value = { type = "spline", times = [0.0, 0.5, 2.0], values = [0.0, 120.0, 80.0] }
+
+[[loads]]
+type = "actuator"
+joint = "pivot"
+value = 1.5
+
 [analysis]
 t_end = 2.0
 steps = 201
 points = ["A", "B", "D 1"]
+max_step = 0.001
 """
 
 ARM_CSV = "t, value\n0.0,0.0\n 0.5, 0.1\n\n1.0,0.3\n2.0,0.2\n"
@@ -206,7 +228,7 @@ def every_element_mechanism() -> Mechanism:
         name="every-element",
         points={"O": (0.0, 0.0), "A": (0.1, 0.0), "B": (0.4, 0.0), "C": (0.4, 0.2), "D 1": (0.6, 0.2)},
         bodies=[
-            Body("crank", origin="O", angle=0.25, points=("O", "A"), mass=1.5, inertia=0.002, com="A"),
+            Body("crank", origin="O", angle=0.25, points=("O", "A"), mass=1.5, inertia=0.002, com="A", velocity=(0.0, 0.0, 2.5)),
             Body("rod", origin=(0.1, 0.0), points=("A", "B"), com=(0.25, 0.0)),
             Body("slider", origin="B", points=("B",)),
             Body("arm", origin="C", points=("C", "D 1")),
@@ -238,7 +260,12 @@ def every_element_mechanism() -> Mechanism:
             DistanceDriver(("O", "D 1"), ("ground", "tool tip"), Linear(rate=0.01), name="cylinder", limits=(0.5, 0.8)),
             PathDriver("rod", "B", law_x=Linear(rate=0.1), law_y=Harmonic(amplitude=0.02, omega=3.0, offset=0.0)),
         ],
-        analysis=Analysis(t_end=2.0, steps=201, points=("A", "B", "D 1")),
+        loads=[
+            RotationalSpring(("arm", "crank"), stiffness=5.0, free_angle=0.3, damping=0.01),
+            Actuator("guide", Spline((0.0, 0.5, 2.0), (0.0, 120.0, 80.0)), name="push"),
+            Actuator("pivot", 1.5),
+        ],
+        analysis=Analysis(t_end=2.0, steps=201, points=("A", "B", "D 1"), max_step=0.001),
     )
 
 
@@ -408,6 +435,7 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
             mass=draw(st.none() | _NON_NEGATIVE),
             inertia=draw(st.none() | _NON_NEGATIVE),
             com=draw(st.none() | point_references),
+            velocity=draw(st.none() | st.tuples(_FINITE, _FINITE, _FINITE)),
         )
         for name in body_names
     ]
@@ -464,6 +492,8 @@ def mechanisms(draw: st.DrawFn) -> Mechanism:
             t_end=st.none() | st.floats(0.0, 1e3),
             steps=st.none() | st.integers(1, 10**6),
             points=st.none() | st.lists(st.sampled_from(point_names)).map(tuple),
+            type=st.sampled_from(Analysis.types),
+            max_step=st.none() | _FINITE.filter(lambda value: value > 0),
         )
     )
     return Mechanism(points, bodies, joints, drivers, name=draw(_NAMES), analysis=analysis)

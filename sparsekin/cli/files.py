@@ -83,6 +83,8 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
             written.append(write_forces_csv(result, directory / "forces.csv"))
         if settings.coordinates:
             written.append(write_coordinates(result, mechanism.body_names, directory / "coordinates.npz"))
+    if getattr(result, "energy", None) is not None:  # a forward-dynamics run
+        written.append(write_energy_csv(result, directory / "energy.csv"))
     if settings.plot and count_samples(result) > 0:
         from ..plots import (
             draw_mechanism,
@@ -173,6 +175,15 @@ def write_forces_csv(result: KinematicsResult | None, path: Path) -> Path:
     else:
         table = np.column_stack([result.times, result.force_tracks])
     return write_csv(path, ["t", *labels], _float_rows(table))
+
+
+def write_energy_csv(result, path: Path) -> Path:
+    """Write time, energy and drift of a forward-dynamics run (`sparsekin.results.dynamics.Energy`)."""
+    from ..results.dynamics import ENERGY_COLUMNS
+
+    energy = result.energy
+    table = np.column_stack([result.times, *(getattr(energy, name) for name, _ in ENERGY_COLUMNS)])
+    return write_csv(path, ["t", *(name for name, _ in ENERGY_COLUMNS)], _float_rows(table))
 
 
 def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str], path: Path) -> Path:

@@ -11,7 +11,9 @@ from pathlib import Path
 from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from ..model.modelfile import load_model
+from ..results.dynamics import DynamicsResult
 from ..results.kinematics import KinematicsResult
+from ..solve.dynamics import solve_dynamics
 from ..solve.kinematics import solve_kinematics
 from .common import (
     EXIT_INTERRUPTED,
@@ -76,7 +78,30 @@ def add_run_command(subparsers) -> None:
     parser.add_argument("--save-pose", nargs=2, metavar=("T", "OUT.toml"),
                         help="also write a model drawn at the solved pose at time T (s), its laws shifted so that "
                         "it starts there: a rough drawing becomes an exact one with T = 0")  # fmt: skip
+    add_dynamics_arguments(parser)
     parser.set_defaults(handler=run_command)
+
+
+def add_dynamics_arguments(parser) -> None:
+    """``--dynamics`` and ``--max-step``: integrate the equations of motion (forward dynamics)."""
+    parser.add_argument("--dynamics", action="store_true", default=None,
+                        help='integrate the equations of motion under the masses, gravity and loads (as [analysis] '
+                        'type = "dynamics"); also writes energy.csv')
+    parser.add_argument("--max-step", type=float, metavar="H",
+                        help="largest integration step of --dynamics, s (default: [analysis].max_step, else the "
+                        "output interval)")
+
+
+def is_dynamics(arguments: argparse.Namespace, mechanism: Mechanism) -> bool:
+    """Whether the command integrates the equations of motion: ``--dynamics`` or the model's
+    ``[analysis] type``; ``--max-step`` alone is a mistake."""
+    dynamics = bool(getattr(arguments, "dynamics", None)) or mechanism.analysis.type == "dynamics"
+    max_step = getattr(arguments, "max_step", None)
+    if max_step is not None and not dynamics:
+        raise CommandError('--max-step is for forward dynamics: give --dynamics (or [analysis] type = "dynamics")')
+    if max_step is not None and not max_step > 0.0:
+        raise CommandError(f"--max-step must be a positive number of seconds, got {max_step!r}")
+    return dynamics
 
 
 def run_command(arguments: argparse.Namespace) -> int:
@@ -100,9 +125,11 @@ def run_command(arguments: argparse.Namespace) -> int:
     settings.directory.mkdir(parents=True, exist_ok=True)
     for note in settings.notes:
         report(f"note: {note}")
+    dynamics = is_dynamics(arguments, mechanism)
     try:
         with _Progress(settings, timeline) as progress:
-            result = solve_for_command(mechanism, settings, arguments.model, progress)
+            result = solve_for_command(mechanism, settings, arguments.model, progress,
+                                       dynamics=dynamics, max_step=getattr(arguments, "max_step", None))  # fmt: skip
     except ConvergenceError as error:
         written = write_outputs(mechanism, error.result, settings)
         report(f"analysis stopped: {error}")
@@ -189,9 +216,10 @@ class _Progress(ProgressBar):
         super().__call__(done, total)
 
 
-def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress) -> KinematicsResult:
-    """`solve_kinematics` recording what `settings` asks for, with its argument and model
-    errors reported against the file.
+def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress, *, dynamics: bool = False,
+                      max_step: float | None = None) -> KinematicsResult | DynamicsResult:  # fmt: skip
+    """`solve_kinematics` (or with `dynamics`, `solve_dynamics` with `max_step`) recording what
+    `settings` asks for, with its argument and model errors reported against the file.
 
     Warnings (redundant equations left out, limits left) are printed as one line each.  On
     the first run after an install, says that the kernels compile (`announce_compilation`).
@@ -205,11 +233,12 @@ def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: P
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                return solve_kinematics(
-                    mechanism, settings.times, coordinates=settings.coordinates,
-                    points=settings.point_names if record else None, joints=settings.joint_indices if record else None,
-                    forces=settings.forces, quasi_static=settings.quasi_static, store=store, progress=progress,
-                )  # fmt: skip
+                kept = {"coordinates": settings.coordinates, "points": settings.point_names if record else None,
+                        "joints": settings.joint_indices if record else None, "forces": settings.forces,
+                        "store": store, "progress": progress}  # fmt: skip
+                if dynamics:
+                    return solve_dynamics(mechanism, settings.times, max_step, **kept)
+                return solve_kinematics(mechanism, settings.times, quasi_static=settings.quasi_static, **kept)
             finally:
                 for warning in caught:
                     report(f"warning: {warning.message}")

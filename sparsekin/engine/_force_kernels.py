@@ -77,6 +77,14 @@ def fill_applied_forces(loads, q, qd, qdd, turns, law_values, inertial, out):
         tension = spring.stiffness[k] * (length - spring.free_length[k]) + spring.damping[k] * (ex * vx + ey * vy)
         _add_force(out, i, aix, aiy, tension * ex, tension * ey)
         _add_force(out, j, ajx, ajy, -tension * ex, -tension * ey)
+    torsion = loads.torsion
+    for k in range(torsion.body_i.size):
+        i, j = torsion.body_i[k], torsion.body_j[k]
+        moment = torsion.stiffness[k] * (q[3 * i + 2] - q[3 * j + 2] - torsion.free_angle[k]) + torsion.damping[k] * (
+            qd[3 * i + 2] - qd[3 * j + 2]
+        )
+        out[3 * i + 2] -= moment
+        out[3 * j + 2] += moment
 
 
 @njit(**JIT)

@@ -31,6 +31,7 @@ import numpy as np
 from ..model.laws import LawTable, fill_laws
 from ..model.loads import LoadArrays, MassArrays, pack_loads
 from ..model.mechanism import Mechanism
+from .actuators import ActuatorForces, build_actuators
 from .columns import Resolver
 from .force_columns import ForceOutputArrays  # noqa: F401 (compiled kernels cached before the split name it here)
 from .pattern import element_columns, pack_element_laws, per_element
@@ -50,12 +51,15 @@ class LoadPattern:
     other_laws : list of (int, Law)
         Laws that are not built in, evaluated in Python (the compiled loop refuses them).
     n_laws : int
+    actuators : ActuatorForces or None
+        The actuators along joints (`sparsekin.engine.actuators`), if any.
     """
 
     arrays: LoadArrays
     laws: LawTable
     other_laws: list
     n_laws: int
+    actuators: ActuatorForces | None = None
 
     def evaluate(self, t: float, values: np.ndarray, rates: np.ndarray, accelerations: np.ndarray) -> None:
         """The value of every load law at time `t` (s) into `values` (N or N·m)."""
@@ -75,7 +79,7 @@ def build_load_pattern(mechanism: Mechanism, resolver: Resolver | None = None) -
         blocks += kind.loads(columns)
     table, others, n_laws = pack_element_laws(mechanism, "loads")
     arrays = pack_loads(blocks, _masses(mechanism, resolver), mechanism.gravity, resolver.frames, mechanism.shapes)
-    return LoadPattern(arrays, table, others, n_laws)
+    return LoadPattern(arrays, table, others, n_laws, build_actuators(blocks, n_laws, resolver.frames))
 
 
 def _masses(mechanism: Mechanism, resolver: Resolver) -> MassArrays:

@@ -40,13 +40,17 @@ class Linearization(NamedTuple):
         ``jacobian()`` is Φq as a CSR array (every row, the redundant ones included).
     velocity_rhs : ndarray, shape (n_equations,)
         −Φt: the time derivative of each row's target (a driver's rate).
-    factorization : LinearSolver
+    factorization : LinearSolver or None
         Holds the factorization of the kept rows of Φq at this sample:
-        ``factorization.solve(rhs, transposed=True)`` solves Φq[kept]ᵀ λ = rhs.
+        ``factorization.solve(rhs, transposed=True)`` solves Φq[kept]ᵀ λ = rhs.  None for
+        forward dynamics, which factors its saddle matrix instead and gives `multipliers`.
     kept_rows : ndarray of int or None
         The rows of Φq the factorization holds; None: every row (a square Φq).
     redundant_rows : ndarray of int
         The rows left out as redundant (empty for most models).
+    multipliers : ndarray, shape (n_equations,), or None
+        λ of every equation when the stepper solved for it (forward dynamics; 0 on the
+        rows left out); None: forces take a transposed solve with `factorization`.
     """
 
     time: float
@@ -61,3 +65,4 @@ class Linearization(NamedTuple):
     factorization: object
     kept_rows: np.ndarray | None
     redundant_rows: np.ndarray
+    multipliers: np.ndarray | None = None

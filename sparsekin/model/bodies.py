@@ -25,7 +25,9 @@ class Body:
 
     For forces: its `mass` (kg, default 0), its `inertia` about its centre of mass
     (kg·m², default 0) and its centre of mass `com` (a point name or (x, y), drawn;
-    default the frame origin).
+    default the frame origin).  For forward dynamics: its initial `velocity` ``(vx, vy,
+    angular velocity)`` of the frame origin (m/s, rad/s; default at rest), made
+    consistent with the constraints by the smallest mass-weighted change.
 
     `lengths`: exact distances between some of its points, ``((P, Q, length), ...)`` (m);
     the drawing then only approximates them: the body takes the local positions of its
@@ -40,9 +42,12 @@ class Body:
     mass: float | None = None
     inertia: float | None = None
     com: PointRef | None = None
+    velocity: tuple[float, float, float] | None = None
     lengths: tuple[tuple[str, str, float], ...] = ()
 
-    file_keys = FileKeys(required=("origin",), optional=("angle", "points", "mass", "inertia", "com", "lengths"))
+    file_keys = FileKeys(
+        required=("origin",), optional=("angle", "points", "mass", "inertia", "com", "velocity", "lengths")
+    )
 
     def __post_init__(self) -> None:
         _validate.name(self.name, "name")
@@ -54,6 +59,11 @@ class Body:
                 _set(self, field_name, _validate.non_negative_float(getattr(self, field_name), field_name))
         if self.com is not None:
             _set(self, "com", _validate.point_reference(self.com, "com"))
+        if self.velocity is not None:
+            velocity = self.velocity
+            if isinstance(velocity, str) or not _validate.is_sequence(velocity) or len(velocity) != 3:
+                raise ModelError(f"expected [vx, vy, angular velocity], got {velocity!r}", element="velocity")
+            _set(self, "velocity", tuple(_validate.finite_float(v, f"velocity[{k}]") for k, v in enumerate(velocity)))
         if self.lengths != ():
             _set(self, "lengths", _checked_lengths(self.lengths, self.points))
 

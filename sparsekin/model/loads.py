@@ -14,6 +14,11 @@ primitive          generalized force on the bodies
 `BodyTorque`       a torque (one law) on a body, counter-clockwise positive
 `SpringDamper`     tension k (L - L0) + c L' along the line from a point of
                    body i to a point of body j, pulling the two together
+`TorsionSpring`    torque k (θi - θj - θ0) + c (θi' - θj') resisting the relative
+                   turn of body i against body j (a rotational spring-damper)
+`JointActuator`    a force (one law) along a joint's own coordinate s(q): the
+                   generalized force F ∇s (a stroke pushed apart, a relative
+                   angle turned counter-clockwise)
 =================  ==========================================================
 
 The laws of the loads are numbered by the loads, in model order (a force's x and y laws,
@@ -33,10 +38,13 @@ __all__ = [
     "PointForce",
     "BodyTorque",
     "SpringDamper",
+    "TorsionSpring",
+    "JointActuator",
     "MassArrays",
     "PointForceArrays",
     "TorqueArrays",
     "SpringArrays",
+    "TorsionArrays",
     "LoadArrays",
     "pack_loads",
 ]
@@ -74,6 +82,28 @@ class SpringDamper(NamedTuple):
     damping: np.ndarray
 
 
+class TorsionSpring(NamedTuple):
+    """A rotational spring-damper between `body_i` and `body_j`: the torque ``stiffness ·
+    (angle_i - angle_j - free_angle) + damping · (angle_i' - angle_j')`` (N·m) acts
+    clockwise on body i and counter-clockwise on body j.  A NaN `free_angle` is the drawn
+    relative angle."""
+
+    body_i: np.ndarray
+    body_j: np.ndarray
+    stiffness: np.ndarray
+    free_angle: np.ndarray
+    damping: np.ndarray
+
+
+class JointActuator(NamedTuple):
+    """A force (N) or torque (N·m), the law ``law``, along the own coordinate s(q) of a
+    joint: `coordinate` is the constraint-primitive block that measures s, one entry per
+    actuator, whose ``row`` is the actuator's law.  The generalized force is ``F ∇s``."""
+
+    law: np.ndarray
+    coordinate: tuple
+
+
 # ---------------------------------------------------------------------- packed (what kernels read)
 class MassArrays(NamedTuple):
     mass: np.ndarray  # float64 (n_bodies,), kg
@@ -102,17 +132,34 @@ class SpringArrays(NamedTuple):
     damping: np.ndarray  # N·s/m
 
 
+class TorsionArrays(NamedTuple):
+    body_i: np.ndarray
+    body_j: np.ndarray
+    stiffness: np.ndarray  # N·m/rad
+    free_angle: np.ndarray  # rad
+    damping: np.ndarray  # N·m·s/rad
+
+
 class LoadArrays(NamedTuple):
-    """Everything that loads the bodies: the one argument of the force kernels."""
+    """Everything that loads the bodies: the one argument of the force kernels.
+
+    The joint actuators are not here: their coordinates are constraint primitives, packed
+    by `actuator_blocks` for `sparsekin.engine.saddle`."""
 
     masses: MassArrays
     gravity: np.ndarray  # float64 (2,), m/s²
     force: PointForceArrays
     torque: TorqueArrays
     spring: SpringArrays
+    torsion: TorsionArrays
 
 
-_KINDS = (PointForce, BodyTorque, SpringDamper)
+_KINDS = (PointForce, BodyTorque, SpringDamper, TorsionSpring)
+
+
+def actuator_blocks(blocks) -> list:
+    """The coordinate blocks (constraint primitives, rows = laws) of the joint actuators."""
+    return [block.coordinate for block in blocks if type(block) is JointActuator]
 
 
 def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray, shapes=None) -> LoadArrays:
@@ -132,8 +179,10 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray, shapes=N
     """
     blocks = list(blocks)
     merged = {kind: _merged([b for b in blocks if type(b) is kind], kind) for kind in _KINDS}
-    f, t, s = merged[PointForce], merged[BodyTorque], merged[SpringDamper]
+    f, t, s, r = merged[PointForce], merged[BodyTorque], merged[SpringDamper], merged[TorsionSpring]
     free_length = np.where(np.isnan(s.free_length), np.hypot(*(s.point_j - s.point_i).T), s.free_length)
+    body_i, body_j = _ints(r.body_i), _ints(r.body_j)
+    free_angle = np.where(np.isnan(r.free_angle), frames[body_i, 2] - frames[body_j, 2], r.free_angle)
     return LoadArrays(
         masses=masses,
         gravity=np.asarray(gravity, dtype=float).reshape(2),
@@ -144,6 +193,7 @@ def pack_loads(blocks, masses: MassArrays, gravity, frames: np.ndarray, shapes=N
             _local(frames, s.body_j, s.point_j, shapes),
             _floats(s.stiffness), _floats(free_length), _floats(s.damping),
         ),
+        torsion=TorsionArrays(body_i, body_j, _floats(r.stiffness), _floats(free_angle), _floats(r.damping)),
     )  # fmt: skip
 
 

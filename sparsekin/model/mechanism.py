@@ -51,15 +51,27 @@ __all__ = ["GROUND", "COORDINATE_NAMES", "Body", "Analysis", "Mechanism"]
 
 @dataclass(frozen=True, slots=True)
 class Analysis:
-    """Defaults for ``sparsekin run``: end time (s), number of samples, output points."""
+    """Defaults for ``sparsekin run``: end time (s), number of samples, output points; the
+    `type` of analysis (``"kinematics"``, or ``"dynamics"``: the equations of motion
+    integrated, `sparsekin.solve_dynamics`) and its largest integration step `max_step`
+    (s; default the output interval)."""
 
     t_end: float | None = None
     steps: int | None = None
     points: tuple[str, ...] | None = None
+    type: str = "kinematics"
+    max_step: float | None = None
 
-    file_keys = FileKeys(optional=("t_end", "steps", "points"))
+    file_keys = FileKeys(optional=("type", "t_end", "steps", "points", "max_step"))
+    #: The kinds of analysis `type` names.
+    types = ("kinematics", "dynamics")
 
     def __post_init__(self) -> None:
+        _set(self, "type", _validate.choice(self.type, "type", self.types))
+        if self.max_step is not None:
+            _set(self, "max_step", _validate.finite_float(self.max_step, "max_step"))
+            if self.max_step <= 0.0:
+                raise ModelError(f"expected max_step > 0, got {self.max_step!r}", element="max_step")
         if self.t_end is not None:
             _set(self, "t_end", _validate.finite_float(self.t_end, "t_end"))
             if self.t_end < 0.0:

@@ -309,7 +309,7 @@ class _Reader:
         arguments = {
             key: self.converters.get(key, _unchanged)(value, f"{element}.{key}")
             for key, value in table.items()
-            if key != "type"
+            if key != "type" or "type" in spec.keys  # the kind's `type`, unless a field (the analysis')
         }
         try:
             return (spec.build or spec.kind)(**fixed, **arguments)

@@ -7,20 +7,20 @@ forces, tables) is `sparsekin.results.motion.Motion`; the counters and the path 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..engine.outputs import LimitState, element_index, limit_states, own_coordinates  # noqa: F401 (re-exported)
 from .motion import CoordinateMotion, DriverForce, Motion, PointMotion, Reaction
-from .stats import RunStats
+from .stats import RunStats, RunStatsFields
 
-__all__ = ["KinematicsResult", "Motion", "RunStats", "PointMotion", "CoordinateMotion", "DriverForce", "Reaction",
+__all__ = ["KinematicsResult", "run_summary", "Motion", "RunStats", "PointMotion", "CoordinateMotion", "DriverForce", "Reaction",
            "LimitState", "element_index", "own_coordinates", "limit_states"]
 
 
 @dataclass(frozen=True, eq=False)
-class KinematicsResult(Motion):
+class KinematicsResult(Motion, RunStatsFields):
     """Positions, velocities and accelerations of every body at every time, and how they were solved.
 
     A `Motion` (its accessors: `point`, `joint`, `driver`, `driver_force`, `reaction`,
@@ -52,54 +52,45 @@ class KinematicsResult(Motion):
         ``"superlu"``, or ``"none"`` for a model with nothing to solve (no body, no equation).
     """
 
-    newton_iterations: np.ndarray = field(kw_only=True)
-    n_factorizations: int = field(kw_only=True)
-    n_solves: int = field(kw_only=True)
-    n_subdivisions: int = field(default=0, kw_only=True)
-    redundant_equations: tuple[str, ...] = field(default=(), kw_only=True)
-    n_refactorizations: int = field(default=0, kw_only=True)
-    linear_solver: str = field(default="superlu", kw_only=True)
-
-    @property
-    def stats(self) -> RunStats:
-        """The run's counters and path."""
-        return RunStats(self.newton_iterations, self.n_factorizations, self.n_solves, self.n_subdivisions,
-                        self.redundant_equations, self.n_refactorizations, self.linear_solver)  # fmt: skip
-
     def __repr__(self) -> str:
-        """A summary, like xarray's: the model, the samples, the path and what was
-        recorded with its shape (not the arrays themselves)."""
-        times = np.asarray(self.times[:1]), np.asarray(self.times[-1:])
-        span = f"t = {times[0][0]:g} … {times[1][0]:g} s" if self.n_times else "no sample"
-        state = "complete" if self.complete else "stopped early"
-        lines = [
-            f"<KinematicsResult {self.mechanism.name!r}: {self.n_times} samples, {span}, {state}>",
-            (f"  model:        {_count(self.mechanism.n_bodies, 'body', 'bodies')}, "
-             f"{_count(len(self.mechanism.joints), 'joint')}, {_count(len(self.mechanism.drivers), 'driver')}"),
-            (f"  path:         {self.linear_solver}: {self.n_factorizations} factorizations, {self.n_solves} solves, "
-             f"{int(np.sum(self.newton_iterations))} Newton corrections, {self.n_subdivisions} halved steps"),
-            "  recorded:",
-        ]
-        if self.coordinates is not None:
-            shape = tuple(self.coordinates.shape)
-            lines.append(f"    coordinates  {shape}  coordinates, velocities, accelerations (x, y, angle per body)")
-        if self.recorded_points:
-            lines.append(f"    points       {tuple(self.point_tracks.shape)}  {_listed(self.recorded_points)} "
-                         f"× (x, y, vx, vy, ax, ay)")  # fmt: skip
-        if self.recorded_joints:
-            shown = [self.mechanism.joints[k].name or f"joints[{k}]" for k in self.recorded_joints[:LISTED_NAMES]]
-            joints = _listed(shown, total=len(self.recorded_joints))  # a copy's joint is built on demand
-            lines.append(f"    joints       {tuple(self.joint_tracks.shape)}  {joints} × (value, rate, accel)")
-        if self.force_labels:
-            forces = "quasi-static " * self.quasi_static
-            lines.append(f"    forces       {tuple(self.force_tracks.shape)}  {forces}{_listed(self.force_labels)}")
-        if lines[-1] == "  recorded:":
-            lines[-1] += " nothing but the times"
-        if self.redundant_equations:
-            lines.append(f"  left out:     {_listed(self.redundant_equations)} (redundant)")
-        if self.store is not None:
-            lines.append(f"  store:        {self.store}")
-        return "\n".join(lines)
+        """A summary (`run_summary`): the model, the samples, the path and what was recorded."""
+        return run_summary(self)
+
+
+def run_summary(result) -> str:
+    """A summary of a result, like xarray's: its class, the model, the samples, the path
+    (`RunStatsFields`) and what was recorded with its shape (not the arrays themselves)."""
+    times = np.asarray(result.times[:1]), np.asarray(result.times[-1:])
+    span = f"t = {times[0][0]:g} … {times[1][0]:g} s" if result.n_times else "no sample"
+    state = "complete" if result.complete else "stopped early"
+    lines = [
+        f"<{type(result).__name__} {result.mechanism.name!r}: {result.n_times} samples, {span}, {state}>",
+        (f"  model:        {_count(result.mechanism.n_bodies, 'body', 'bodies')}, "
+         f"{_count(len(result.mechanism.joints), 'joint')}, {_count(len(result.mechanism.drivers), 'driver')}"),
+        (f"  path:         {result.linear_solver}: {result.n_factorizations} factorizations, {result.n_solves} solves, "
+         f"{int(np.sum(result.newton_iterations))} Newton corrections, {result.n_subdivisions} halved steps"),
+        "  recorded:",
+    ]
+    if result.coordinates is not None:
+        shape = tuple(result.coordinates.shape)
+        lines.append(f"    coordinates  {shape}  coordinates, velocities, accelerations (x, y, angle per body)")
+    if result.recorded_points:
+        lines.append(f"    points       {tuple(result.point_tracks.shape)}  {_listed(result.recorded_points)} "
+                     f"× (x, y, vx, vy, ax, ay)")  # fmt: skip
+    if result.recorded_joints:
+        shown = [result.mechanism.joints[k].name or f"joints[{k}]" for k in result.recorded_joints[:LISTED_NAMES]]
+        joints = _listed(shown, total=len(result.recorded_joints))  # a copy's joint is built on demand
+        lines.append(f"    joints       {tuple(result.joint_tracks.shape)}  {joints} × (value, rate, accel)")
+    if result.force_labels:
+        forces = "quasi-static " * result.quasi_static
+        lines.append(f"    forces       {tuple(result.force_tracks.shape)}  {forces}{_listed(result.force_labels)}")
+    if lines[-1] == "  recorded:":
+        lines[-1] += " nothing but the times"
+    if result.redundant_equations:
+        lines.append(f"  left out:     {_listed(result.redundant_equations)} (redundant)")
+    if result.store is not None:
+        lines.append(f"  store:        {result.store}")
+    return "\n".join(lines)
 
 
 #: Most names listed in `KinematicsResult`'s summary per kind of record: a line each, whatever the model's size.

@@ -362,7 +362,7 @@ class Motion:
 
         arrays = {name: np.asarray(array) for name, array in schema.result_arrays(self).items()}
         layout = _Layout(self.mechanism, self.coordinates is not None, self.recorded_points, self.recorded_joints,
-                         self.force_labels, self.force_units)  # fmt: skip
+                         self.force_labels, self.force_units, schema.ENERGY in arrays)  # fmt: skip
         coords = {schema.TIME: ("time", np.asarray(self.times))} | schema.dataset_labels(layout)
         return xr.Dataset(schema.dataset_variables(arrays), coords=coords)
 
@@ -376,6 +376,7 @@ class _Layout(NamedTuple):
     joint_indices: tuple
     force_labels: tuple
     force_units: tuple
+    records_energy: bool = False
 
 
 def _sorted_columns(pd, labels):

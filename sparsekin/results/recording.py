@@ -32,7 +32,7 @@ from ..model.mechanism import Mechanism
 from . import schema
 from .schema import JOINT_DERIVATIVES, POINT_COMPONENTS, TIME
 
-__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
+__all__ = ["Selection", "Recorder", "MemorySink", "ZarrSink", "open_recorder", "POINT_COMPONENTS", "JOINT_DERIVATIVES"]
 
 #: A chunk holds at most this many bytes of samples (and at least one sample).
 CHUNK_BYTES = 64 * 2**20
@@ -60,11 +60,16 @@ class Selection:
         Drivers and joints whose forces are recorded (`sparsekin.engine.force_columns.ForceOutputs`):
         names or ``drivers[i]`` / ``joints[i]`` labels; "all": every driver and joint;
         "auto": all when the model has a mass or a load (`Mechanism.has_forces`), else none.
+    energy : bool
+        Record the energy balance and the constraint drift of each sample (forward
+        dynamics: `sparsekin.results.schema` variables ``energy`` and ``drift``).
 
     Attributes
     ----------
     forces : ForceOutputs or None
         The force columns, if any.
+    records_energy : bool
+        `energy`.
 
     Raises
     ------
@@ -73,12 +78,13 @@ class Selection:
     """
 
     def __init__(self, discretization: Discretization, coordinates: bool = True, points=None, joints=None,
-                 forces=None) -> None:  # fmt: skip
+                 forces=None, *, energy: bool = False) -> None:  # fmt: skip
         from ..engine.outputs import element_index
 
         self.discretization = discretization
         self.mechanism = mechanism = discretization.mechanism
         self.coordinates = bool(coordinates)
+        self.records_energy = bool(energy)
         if points is None:
             names: tuple[str, ...] = ()
         elif isinstance(points, str) and points == "all":
@@ -249,6 +255,13 @@ class Recorder:
         """Write what is left and close the sink; returns the sink's arrays."""
         self.flush()
         return self.sink.close(self.n_written)
+
+
+def open_recorder(selection: Selection, store, n_times: int, chunk_samples: int | None = None) -> Recorder:
+    """A `Recorder` of a run of `n_times` samples: streaming to the Zarr `store`, or in
+    memory when `store` is None."""
+    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, n_times)
+    return Recorder(selection, sink, chunk_samples)
 
 
 @contextmanager

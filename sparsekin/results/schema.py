@@ -25,7 +25,14 @@ variable       dimensions                      content
                                                forces and powers, joints' reactions),
                                                labelled like them; ``force_unit`` per
                                                column (N, N·m, W)
+``energy``     (time, energy_term)             forward dynamics: kinetic, potential,
+                                               elastic, dissipated, work and balance, J
+``drift``      (time, drift_term)              forward dynamics: ‖Φ‖ (position, 1) and
+                                               ‖Φq q̇ + Φt‖ (velocity, 1/s); ``drift_unit``
 =============  ==============================  ===========================================
+
+The layout's ``records_energy`` (False when it has none) says whether the last two are
+recorded; they are fields of a dynamics result only (`Variable.analyses`).
 """
 
 from __future__ import annotations
@@ -35,7 +42,8 @@ from dataclasses import dataclass
 
 from ..model.elements import COORDINATE_NAMES
 
-__all__ = ["Variable", "VARIABLES", "TIME", "Q", "QD", "QDD", "POINTS", "JOINTS", "FORCES", "POINT_COMPONENTS", "JOINT_DERIVATIVES", "COORDINATE_VARIABLES",
+__all__ = ["Variable", "VARIABLES", "TIME", "Q", "QD", "QDD", "POINTS", "JOINTS", "FORCES", "ENERGY", "DRIFT",
+           "ENERGY_TERMS", "DRIFT_TERMS", "DRIFT_UNITS", "POINT_COMPONENTS", "JOINT_DERIVATIVES", "COORDINATE_VARIABLES",
            "variable", "sample_shapes", "dataset_labels", "dataset_variables", "result_arrays", "result_fields"]
 
 #: The time: the first dimension of every variable, and its coordinate.
@@ -44,6 +52,11 @@ TIME = "t"
 POINT_COMPONENTS = ("x", "y", "vx", "vy", "ax", "ay")
 #: The derivatives of a recorded joint coordinate.
 JOINT_DERIVATIVES = ("value", "rate", "accel")
+#: The terms of a dynamics run's energy balance, J (`sparsekin.results.dynamics.Energy`).
+ENERGY_TERMS = ("kinetic", "potential", "elastic", "dissipated", "work", "balance")
+#: Its constraint drift: position (relative lengths, rad) and velocity, with their units.
+DRIFT_TERMS = ("position", "velocity")
+DRIFT_UNITS = ("1", "1/s")
 
 
 @dataclass(frozen=True)
@@ -64,6 +77,8 @@ class Variable:
         ``shape(layout)``: the shape of one sample, or None when the layout does not record it.
     labels : callable
         ``labels(layout)``: the Dataset coordinates of its dimensions.
+    analyses : tuple of str
+        The analyses whose results have a field for it (`result_fields`).
     """
 
     name: str
@@ -72,6 +87,7 @@ class Variable:
     unit: str
     shape: Callable
     labels: Callable
+    analyses: tuple[str, ...] = ("kinematics", "dynamics")
 
 
 def _coordinate_shape(layout):
@@ -116,6 +132,22 @@ def _force_labels(layout) -> dict:
     return {"force": list(layout.force_labels), "force_unit": ("force", list(layout.force_units))}
 
 
+def _energy_shape(layout):
+    return (len(ENERGY_TERMS),) if getattr(layout, "records_energy", False) else None
+
+
+def _energy_labels(layout) -> dict:
+    return {"energy_term": list(ENERGY_TERMS)}
+
+
+def _drift_shape(layout):
+    return (len(DRIFT_TERMS),) if getattr(layout, "records_energy", False) else None
+
+
+def _drift_labels(layout) -> dict:
+    return {"drift_term": list(DRIFT_TERMS), "drift_unit": ("drift_term", list(DRIFT_UNITS))}
+
+
 #: Every variable a run can record, in the order it is stored.
 VARIABLES = (
     Variable("q", "coordinates", ("coordinate",), "m, rad", _coordinate_shape, _coordinate_labels),
@@ -124,11 +156,13 @@ VARIABLES = (
     Variable("points", "point_tracks", ("point", "component"), "m, m/s, m/s²", _point_shape, _point_labels),
     Variable("joints", "joint_tracks", ("joint", "derivative"), "joint_unit", _joint_shape, _joint_labels),
     Variable("forces", "force_tracks", ("force",), "force_unit", _force_shape, _force_labels),
+    Variable("energy", "energy_tracks", ("energy_term",), "J", _energy_shape, _energy_labels, ("dynamics",)),
+    Variable("drift", "drift_tracks", ("drift_term",), "drift_unit", _drift_shape, _drift_labels, ("dynamics",)),
 )
 #: The body coordinates and their two time derivatives (the state of a kinematic sample).
 COORDINATE_VARIABLES = VARIABLES[:3]
 #: The names, for the code that fills them.
-Q, QD, QDD, POINTS, JOINTS, FORCES = (v.name for v in VARIABLES)
+Q, QD, QDD, POINTS, JOINTS, FORCES, ENERGY, DRIFT = (v.name for v in VARIABLES)
 _BY_NAME = {v.name: v for v in VARIABLES}
 
 
@@ -161,11 +195,11 @@ def dataset_variables(arrays: dict, leading: tuple[str, ...] = ("time",)) -> dic
 
 def result_arrays(result) -> dict:
     """The recorded arrays of a result (any object with the variables' attributes), by name."""
-    arrays = {v.name: getattr(result, v.attribute) for v in VARIABLES}
+    arrays = {v.name: getattr(result, v.attribute, None) for v in VARIABLES}
     return {name: array for name, array in arrays.items() if array is not None}
 
 
-def result_fields(arrays: dict) -> dict:
-    """The keyword arguments of a result's fields for the recorded `arrays` (by name): None
-    for a variable not recorded."""
-    return {v.attribute: arrays.get(v.name) for v in VARIABLES}
+def result_fields(arrays: dict, analysis: str = "kinematics") -> dict:
+    """The keyword arguments of the fields of an `analysis`'s result for the recorded
+    `arrays` (by name): None for a variable not recorded."""
+    return {v.attribute: arrays.get(v.name) for v in VARIABLES if analysis in v.analyses}

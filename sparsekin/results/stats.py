@@ -3,11 +3,11 @@ sits beside ``y``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RunStats"]
+__all__ = ["RunStats", "RunStatsFields"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,3 +38,23 @@ class RunStats:
     redundant_equations: tuple[str, ...] = ()
     n_refactorizations: int = 0
     linear_solver: str = "superlu"
+
+
+@dataclass(frozen=True, eq=False)
+class RunStatsFields:
+    """The fields of `RunStats` (keywords only) on a result beside its `Motion`, and `stats`:
+    a result class is ``class XResult(Motion, RunStatsFields)``."""
+
+    newton_iterations: np.ndarray = field(kw_only=True)
+    n_factorizations: int = field(kw_only=True)
+    n_solves: int = field(kw_only=True)
+    n_subdivisions: int = field(default=0, kw_only=True)
+    redundant_equations: tuple[str, ...] = field(default=(), kw_only=True)
+    n_refactorizations: int = field(default=0, kw_only=True)
+    linear_solver: str = field(default="superlu", kw_only=True)
+
+    @property
+    def stats(self) -> RunStats:
+        """The run's counters and path."""
+        return RunStats(self.newton_iterations, self.n_factorizations, self.n_solves, self.n_subdivisions,
+                        self.redundant_equations, self.n_refactorizations, self.linear_solver)  # fmt: skip

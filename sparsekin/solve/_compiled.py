@@ -134,9 +134,11 @@ class CompiledForces(NamedTuple):
 def supports_compiled(mechanism: Mechanism) -> bool:
     """Whether every law is one the compiled loop evaluates (`sparsekin.model.laws.BUILT_IN_LAWS`).
 
-    Subclasses and other law objects are refused: their `evaluate` may differ.
+    Subclasses and other law objects are refused: their `evaluate` may differ.  So are
+    actuator loads (`sparsekin.engine.actuators`), which the loop's forces leave out.
     """
-    return _unsupported_law(mechanism) is None
+    return _unsupported_law(mechanism) is None and not any(load.type_name == "actuator"
+                                                           for load in mechanism.declared("loads"))
 
 
 def _unsupported_law(mechanism: Mechanism):

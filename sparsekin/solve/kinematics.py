@@ -47,17 +47,17 @@ from ..engine.pattern import ConstraintPattern
 from ..errors import LimitWarning, warn_caller
 from ..model.mechanism import Mechanism
 from ..results.kinematics import KinematicsResult, PointMotion
-from ..results.recording import MemorySink, Recorder, ZarrSink
+from ..results.recording import Recorder, open_recorder
 from ..results.schema import FORCES, TIME, result_fields
 from ._compiled import CompiledKinematicLoop
 from .observers import InverseDynamics, LimitWatch, RecordedVariables
-from .options import Request, SolveOptions, check_times
+from .options import Request, SolveOptions, check_progress, check_times
 from .policy import plan_linear_solver
 from .run import run
 from .stepper import KinematicStepper
 from .steppers import FallbackStepper, SampleBlock, SampleSteps, StillStepper
 
-__all__ = ["KinematicsResult", "PointMotion", "solve_kinematics", "run_kinematics"]
+__all__ = ["KinematicsResult", "PointMotion", "solve_kinematics", "run_kinematics", "recorded_result"]
 
 
 def solve_kinematics(
@@ -182,8 +182,7 @@ def solve_kinematics(
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
     times = check_times(times, mechanism)
     options = SolveOptions(tolerance, max_iterations, linear_solver)
-    if progress is not None and not callable(progress):
-        raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
+    check_progress(progress)
     request = Request(coordinates, points, joints, forces, quasi_static)
     return run_kinematics(discretize(mechanism, pattern), times, options, request, store=store, progress=progress)
 
@@ -215,8 +214,7 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
     discretization = start_discretization(discretization, float(times[0]))
     selection = request.selection(discretization)
     plan = plan_linear_solver(discretization, options.linear_solver, options.thresholds)
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
-    recorder = Recorder(selection, sink, request.chunk_samples)
+    recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     pattern = discretization.constraints
     observer = None
     if pattern.n_equations == 0 and pattern.n_coordinates == 0:  # nothing to solve
@@ -242,8 +240,9 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
         recorder.add_block(block.times, variables.block(block.coordinates, block.velocities, block.accelerations, forces))
 
     def finish(state) -> KinematicsResult:
-        return _result(discretization, recorder, stepper.stats(), state.iterations, times.size,
-                       observer is not None and not observer.inertial)  # fmt: skip
+        quasi_static = observer is not None and not observer.inertial
+        return recorded_result(KinematicsResult, discretization, recorder, stepper.stats(), state.iterations,
+                               times.size, quasi_static=quasi_static)  # fmt: skip
 
     try:
         return run(stepper, times, record, finish, progress=progress, chunk=recorder.size)
@@ -254,14 +253,19 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
                         LimitWarning)  # fmt: skip
 
 
-def _result(discretization, recorder: Recorder, stats, iterations, n_times: int, quasi_static: bool) -> KinematicsResult:
-    """The result of the samples recorded (it closes the recorder)."""
+def recorded_result(result_type, discretization, recorder: Recorder, stats, iterations, n_times: int,
+                    analysis: str = "kinematics", **fields):  # fmt: skip
+    """The result of the samples recorded (it closes the recorder): a `result_type`
+    (`KinematicsResult`, `~sparsekin.results.dynamics.DynamicsResult`: a `Motion` with the
+    fields of `RunStats`) from the recorded arrays, the stepper's `stats`
+    (`sparsekin.solve.steppers.StepperStats`) and the run's Newton `iterations`, plus
+    the `analysis`'s own `fields` (its recorded variables: `sparsekin.results.schema.Variable.analyses`)."""
     arrays = recorder.finish()
     n_solved = arrays[TIME].shape[0]  # every sample recorded has its iterations
     selection = recorder.selection
-    return KinematicsResult(
+    return result_type(
         times=np.asarray(arrays[TIME]),
-        **result_fields(arrays),
+        **result_fields(arrays, analysis),
         newton_iterations=iterations[:n_solved],
         n_factorizations=stats.n_factorizations,
         n_solves=stats.n_solves,
@@ -276,7 +280,6 @@ def _result(discretization, recorder: Recorder, stats, iterations, n_times: int,
         recorded_joints=selection.joint_indices,
         force_labels=selection.force_labels,
         force_units=selection.force_units,
-        quasi_static=quasi_static,
         store=getattr(recorder.sink, "path", None),
+        **fields,
     )
-

@@ -59,6 +59,9 @@ class InverseDynamics:
         qdd[:-3] = lin.accelerations
         self.loads.evaluate(lin.time, *self._laws)
         fill_applied_forces(self.loads.arrays, q, qd, qdd, turns, self._laws[0], self.inertial, self._b)
+        if self.loads.actuators is not None:  # actuators along joints (forward-dynamics loads)
+            self.loads.actuators.fill(q, turns)
+            self.loads.actuators.add_forces(self._laws[0], self._b)
         multipliers = self.multipliers.solve(lin, self._b[:-3])
         return self.outputs.fill(lin, multipliers, self._work, self.row)
 

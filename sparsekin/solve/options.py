@@ -27,8 +27,8 @@ from ..results.recording import Selection
 from .branch_guard import BranchGuard
 from .policy import LINEAR_SOLVERS, Thresholds
 
-__all__ = ["SolveOptions", "Request", "BranchGuard", "TOLERANCE_RANGE", "check_times", "checked_tolerance",
-           "checked_max_iterations"]
+__all__ = ["SolveOptions", "Request", "DynamicsOptions", "BranchGuard", "TOLERANCE_RANGE", "check_times",
+           "checked_tolerance", "checked_max_iterations", "checked_rho_inf", "check_progress"]
 
 #: Smallest and largest accepted `tolerance`: below about 4 eps the residual cannot be
 #: reached in floating point; above 1 % of the model size a "solution" is not one.
@@ -105,6 +105,7 @@ class Request:
     forces: object = "auto"
     quasi_static: bool = False
     chunk_samples: int | None = None
+    energy: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.quasi_static, (bool, np.bool_)):
@@ -114,7 +115,60 @@ class Request:
 
     def selection(self, discretization: Discretization) -> Selection:
         """The variables this request records for `discretization` (names checked there)."""
-        return Selection(discretization, self.coordinates, self.points, self.joints, self.forces)
+        return Selection(discretization, self.coordinates, self.points, self.joints, self.forces, energy=self.energy)
+
+
+@dataclass(frozen=True)
+class DynamicsOptions:
+    """How a forward-dynamics run integrates (`sparsekin.solve_dynamics`): checked when made.
+
+    Attributes
+    ----------
+    max_step : float or None
+        Largest integration step, s; None: chosen by `for_run` from the model and times.
+    rho_inf : float
+        Numerical damping of generalized-α, in [0, 1] (1: none).
+    """
+
+    max_step: float | None = None
+    rho_inf: float = 0.9
+
+    def __post_init__(self) -> None:
+        if self.max_step is not None:
+            object.__setattr__(self, "max_step", checked_positive(self.max_step, "max_step"))
+        object.__setattr__(self, "rho_inf", checked_rho_inf(self.rho_inf))
+
+    def for_run(self, times: np.ndarray, mechanism: Mechanism) -> DynamicsOptions:
+        """These options with `max_step` chosen when not given: the model's
+        ``analysis.max_step``, else the shortest interval of `times` (1 s for one sample)."""
+        if self.max_step is not None:
+            return self
+        max_step = mechanism.analysis.max_step
+        if max_step is None:
+            max_step = float(np.min(np.diff(times))) if times.size > 1 else 1.0
+        return DynamicsOptions(max_step, self.rho_inf)
+
+
+def checked_positive(value, name: str) -> float:
+    """`value` as a positive finite float, else a ValueError naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not value > 0.0 \
+            or not math.isfinite(value):  # fmt: skip
+        raise ValueError(f"`{name}` must be a positive number, got {value!r}.")
+    return float(value)
+
+
+def checked_rho_inf(value) -> float:
+    """`value` as a float in [0, 1], else a ValueError."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= value <= 1.0:  # fmt: skip
+        raise ValueError(f"`rho_inf` must be a number in [0, 1], got {value!r}.")
+    return float(value)
+
+
+def check_progress(progress) -> None:
+    """A ValueError unless `progress` is None or a callable ``(done, total)``."""
+    if progress is not None and not callable(progress):
+        raise ValueError(f"`progress` must be a callable (done, total), got {progress!r}.")
 
 
 def check_times(times, mechanism: Mechanism) -> np.ndarray:

@@ -13,7 +13,10 @@ factorization, the fastest path measured (benchmarks/RESULTS.md, docs/design-not
   Jacobian entry, its factorization reused across samples (`ReusingSolver`, path ``"reuse"``).
 
 The plan is a value (`SolverPlan`): the facade, the stepper and the benchmark harness all
-ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).
+ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).  Forward
+dynamics solves the saddle matrix [[M + …, Φqᵀ], [Φq, 0]] instead of Φq: its plan is
+`plan_saddle_solver`, dense LU up to `SADDLE_DENSE_MAX_SIZE` unknowns, a refactorization
+above.
 
 >>> from sparsekin.engine.discretization import discretize
 >>> from sparsekin.testset import task5, lattice
@@ -43,7 +46,9 @@ __all__ = [
     "MIN_METIS_COORDINATES",
     "SolverPlan",
     "Thresholds",
+    "SADDLE_DENSE_MAX_SIZE",
     "plan_linear_solver",
+    "plan_saddle_solver",
 ]
 
 #: The `linear_solver` names.
@@ -64,6 +69,9 @@ MAX_REFACTOR_FILL = 8.0
 #: give the same fill, at 10^5 METIS's refactorization is twice as fast
 #: (docs/design-notes.md, "Fill-reducing column order").
 MIN_METIS_COORDINATES = 30_000
+#: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
+#: kept equations) densely up to this size, with `RefactorSolver` above.
+SADDLE_DENSE_MAX_SIZE = 400
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
 
@@ -92,6 +100,8 @@ class Thresholds:
     min_norm_iterations : int
         `sparsekin.engine.multipliers.MIN_NORM_ITERATIONS`: conjugate-gradient iterations for
         the minimum-norm multipliers before the augmented LU takes over.
+    saddle_dense_max_size : int
+        `SADDLE_DENSE_MAX_SIZE`.
     """
 
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
@@ -100,6 +110,7 @@ class Thresholds:
     min_tiled_coordinates: int = MIN_TILED_COORDINATES
     smallest_tall_lu: int = SMALLEST_TALL_LU
     min_norm_iterations: int = MIN_NORM_ITERATIONS
+    saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
 
 
 @dataclass(frozen=True)
@@ -172,3 +183,15 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
         reuse_fill=thresholds.max_refactor_fill if auto else None,
         thresholds=thresholds,
     )
+
+
+def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None) -> SolverPlan:
+    """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
+    kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`): the
+    Python loop, ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``,
+    ``"refactor"`` above; never reused across steps (the integrator holds its own
+    factorization while Newton contracts)."""
+    thresholds = Thresholds() if thresholds is None else thresholds
+    if linear_solver == "auto":
+        linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
+    return SolverPlan(loop="python", solver=linear_solver, chord=False, thresholds=thresholds)

@@ -19,6 +19,7 @@ The run driver (`sparsekin.solve.run`) knows only `BlockStepper`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -62,7 +63,8 @@ class SampleBlock(NamedTuple):
         Newton corrections per sample.
     recorded : dict
         Recorded variables (`sparsekin.results.schema` names) the stepper computed itself,
-        one row per sample: the compiled loop's force columns.
+        one row per sample: the compiled loop's force columns, a dynamics run's energy
+        and drift.
     linearization : Linearization or None
         The system at the block's sample, for a block of one sample from a `Stepper`.
     """
@@ -105,18 +107,27 @@ class BlockStepper(Protocol):
 class SampleSteps:
     """A `Stepper` as a `BlockStepper`: ``advance_block`` solves ``times[0]`` only (`start`
     at the first call, `advance` after) and returns it as a block of one sample, with its
-    linearization."""
+    linearization.
 
-    def __init__(self, stepper: Stepper) -> None:
-        self.stepper = stepper
+    Parameters
+    ----------
+    stepper : Stepper
+    recorded : callable, optional
+        ``recorded()`` after each sample: the variables the stepper computed itself for
+        it (`SampleBlock.recorded`, one row each; a dynamics run's energy and drift).
+    """
+
+    def __init__(self, stepper: Stepper, recorded: Callable[[], dict] | None = None) -> None:
+        self.stepper, self.recorded = stepper, recorded
         self._iterations = np.zeros(1, dtype=np.int64)
 
     def advance_block(self, times: np.ndarray) -> SampleBlock:
         stepper, t = self.stepper, times[0]
         self._iterations[0] = stepper.start(t) if stepper.time is None else stepper.advance(t)
         lin = stepper.linearization()
+        recorded = {} if self.recorded is None else self.recorded()
         return SampleBlock(times[:1], lin.coordinates[None], lin.velocities[None], lin.accelerations[None],
-                           self._iterations, {}, lin)  # fmt: skip
+                           self._iterations, recorded, lin)  # fmt: skip
 
     def stats(self) -> StepperStats:
         return self.stepper.stats()

@@ -81,7 +81,7 @@ from .drivers import (
     TranslationalDriver,
 )
 from .joints import Gear, PinInSlot, RackPinion, Revolute, Rigid, Translational
-from .loads import Force, Spring, Torque
+from .loads import Actuator, Force, RotationalSpring, Spring, Torque
 
 __all__ = [
     "COORDINATE_NAMES",
@@ -95,6 +95,7 @@ __all__ = [
     "JOINT_KINDS",
     "LOAD_KINDS",
     "AbsoluteDriver",
+    "Actuator",
     "DistanceDriver",
     "Force",
     "Gear",
@@ -105,6 +106,7 @@ __all__ = [
     "Revolute",
     "Rigid",
     "RotationalDriver",
+    "RotationalSpring",
     "Spring",
     "Torque",
     "Translational",

@@ -1,4 +1,5 @@
-"""The load kinds: a force at a point, a torque, a spring-damper."""
+"""The load kinds: a force at a point, a torque, a spring-damper, a rotational spring-damper,
+an actuator along a joint."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from ...errors import ModelError
 from .. import _validate
 from .._validate import FileKeys
 from ..laws import Law, Polynomial
-from ..loads import BodyTorque, PointForce, SpringDamper
+from ..loads import BodyTorque, JointActuator, PointForce, SpringDamper, TorsionSpring
 from .base import (
     Columns,
     Load,
@@ -136,6 +137,112 @@ class Spring(Load):
 
     def draw(self, canvas) -> None:
         canvas.spring(*(canvas.point(body, point) for body, point in zip(self.bodies, self.points)))
+
+
+@load_kind
+@dataclass(frozen=True, slots=True)
+class RotationalSpring(Load):
+    """A torsional spring-damper between ``bodies[0]`` (a) and ``bodies[1]`` (b): the torque
+    ``stiffness · (angle(a) - angle(b) - free_angle) + damping · (angle(a)' - angle(b)')``
+    (N·m) turns a clockwise and b counter-clockwise.  `free_angle` (rad) defaults to the
+    drawn relative angle."""
+
+    bodies: tuple[str, str]
+    stiffness: float
+    free_angle: float | None = None
+    damping: float = 0.0
+    name: str | None = None
+
+    type_name = "rotational_spring"
+    file_keys = FileKeys(required=("bodies", "stiffness"), optional=("free_angle", "damping", "name"))
+    body_fields = ("bodies",)
+
+    def __post_init__(self) -> None:
+        _pair_checks(self)
+        _set(self, "stiffness", _validate.non_negative_float(self.stiffness, "stiffness"))
+        _set(self, "damping", _validate.non_negative_float(self.damping, "damping"))
+        if self.free_angle is not None:
+            _set(self, "free_angle", _validate.finite_float(self.free_angle, "free_angle"))
+
+    def describe(self) -> str:
+        return f"rotational spring {self.bodies[0]}–{self.bodies[1]}"
+
+    @classmethod
+    def loads(cls, loads: Columns):
+        return [TorsionSpring(*loads.pair(), loads.number("stiffness"), loads.number("free_angle"),
+                              loads.number("damping"))]  # fmt: skip  (NaN free angle: the drawn one)
+
+    def draw(self, canvas) -> None:
+        canvas.turn(canvas.origin(self.bodies[1]))
+
+
+@load_kind
+@dataclass(frozen=True, slots=True)
+class Actuator(Load):
+    """A force that an actuator applies along (or about) the joint named `joint`, `value`
+    a number or a law: along a translational joint or a pin in a slot, a force (N) along
+    its own coordinate, positive pushing its points apart; about a revolute, a torque
+    (N·m) on ``bodies[0]`` relative to ``bodies[1]``, counter-clockwise positive.  It does
+    the work ``value · d(own coordinate)``."""
+
+    joint: str
+    value: float | Law
+    name: str | None = None
+
+    type_name = "actuator"
+    file_keys = FileKeys(required=("joint", "value"), optional=("name",))
+    body_fields = ()
+    joint_fields = ("joint",)
+    n_laws = 1
+
+    #: The joint kinds an actuator can act along: their own coordinate is a stroke, a
+    #: slide or a relative angle.
+    joint_types = ("revolute", "translational", "pin_in_slot")
+
+    def __post_init__(self) -> None:
+        _validate.name(self.joint, "joint")
+        if self.name is not None:
+            _validate.name(self.name, "name")
+        _set(self, "value", _component(self.value, "value"))
+
+    def check(self, mechanism, where: str) -> None:
+        try:
+            joint = mechanism.joint_named(self.joint)
+        except KeyError:
+            known = [j.name for j in mechanism.joints if j.type_name in self.joint_types and j.name]
+            raise ModelError(
+                f'unknown joint "{self.joint}" (known joints with a name: '
+                f"{_validate.known_list(known) or 'none'})",
+                element=f"{where}.joint",
+            ) from None
+        if joint.type_name not in self.joint_types:
+            raise ModelError(f'joint "{self.joint}" is {joint.type_name}; expected one of {", ".join(self.joint_types)}',
+                             element=f"{where}.joint")  # fmt: skip
+
+    def laws(self) -> tuple[Law, ...]:
+        return (_as_law(self.value),)
+
+    def describe(self) -> str:
+        return f'actuator along joint "{self.joint}"'
+
+    @classmethod
+    def loads(cls, loads: Columns):
+        joints = loads.joints("joint")
+        kinds = {type(joint) for joint in joints.elements}
+        if len(kinds) == 1:
+            return [JointActuator(loads.rows, coordinate) for coordinate in kinds.pop().outputs(joints)]
+        if hasattr(joints, "copies"):
+            raise NotImplementedError("the actuators of a repeated unit act on joints of several kinds; give each kind "
+                                      "its own unit or write them out")  # fmt: skip
+        blocks = []  # actuators along joints of several kinds: one group per kind
+        for kind in kinds:
+            chosen = np.array([type(joint) is kind for joint in joints.elements])
+            group = type(joints)([j for j, c in zip(joints.elements, chosen) if c], loads.rows[chosen], joints.resolver)
+            blocks += [JointActuator(group.rows, coordinate) for coordinate in kind.outputs(group)]
+        return blocks
+
+    def draw(self, canvas) -> None:
+        """Drawn by its joint."""
 
 
 def _load_checks(load) -> None:

@@ -1,0 +1,392 @@
+"""numba kernels of forward dynamics: mass blocks, load tangents, the derivative of Φqᵀλ.
+
+The iteration matrix of an implicit step (`sparsekin.engine.saddle`) is
+
+    S = [[a M + b C_t + c K_t, Φqᵀ], [Φq, 0]]
+
+with ``M`` the mass matrix, ``C_t = ∂f/∂qd`` and ``K_t = ∂f/∂q`` the tangents of the
+forces ``f(q, qd, qdd, λ, t) = M qdd + h − Q + Φqᵀ λ`` that the equations of motion set to
+zero (h: the centripetal terms; Q: gravity and loads).  Every kernel here writes its part
+of ``a M + b C_t + c K_t`` as *triplets*: for entry e, ``rows[e]``, ``cols[e]`` (a
+coordinate index, ``3 · body + k``; the ground's, ``n .. n + 2``, are discarded by the
+assembler; equations follow at ``n + 3``) and ``vals[e]``, from ``start`` on, and returns the next free position.  The
+order of the entries depends only on the model, never on the values, so one run at the
+drawing fixes the pattern (`sparsekin.engine.saddle.SaddlePattern`) and every later run
+refills the same positions.
+
+Symbols as in `sparsekin.engine._kernels` (``q``, ``qd``, ``qdd`` with the ground appended,
+``turns`` the (cos, sin) of every angle, ``Omega`` the +90° turn).  For body b with its
+centre of mass at ``A = R s`` from its frame origin, angular velocity ω and acceleration
+α, the inertial force ``M qdd + h`` is
+
+    f_x = m (x'' − α A_y − ω² A_x),  f_y = m (y'' + α A_x − ω² A_y),
+    f_θ = m (A_x y'' − A_y x'') + (I + m |A|²) α,
+
+so ``M = [[m, 0, −m A_y], [0, m, m A_x], [−m A_y, m A_x, I + m |A|²]]``, its derivative in
+θ at fixed accelerations (``A' = Omega A``) is ``(m (ω² A_y − α A_x), −m (α A_y + ω² A_x),
+−m A · r'')`` and in ω ``(−2 m ω A_x, −2 m ω A_y, 0)``.  Gravity's moment ``A × m g``
+gives ``∂(−Q_θ)/∂θ = m A · g``; a force F at arm A the same with F.
+
+A constraint row g (or an actuator's coordinate s) contributes ``w ∇²g`` (w = λ, or −F for
+an actuator pushing along s): the Hessians of the primitives, derived in each kernel's
+docstring and checked against differences in tests/test_dynamics_engine.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .._jit import JIT
+from ._kernels import _turned, point_separation, separation_rate
+
+
+@njit(inline="always", **JIT)
+def _put(rows, cols, vals, e, row, col, value):
+    rows[e] = row
+    cols[e] = col
+    vals[e] = value
+
+
+# ---------------------------------------------------------------------- masses, gravity
+@njit(**JIT)
+def fill_inertia_triplets(masses, gravity, qd, qdd, turns, a, b, c, rows, cols, vals, start):
+    """Each body's 3×3 block of ``a M + b C + c K`` from its mass, inertia and gravity:
+    9 entries per body, row-major, massless bodies included (zeros)."""
+    gx, gy = gravity[0], gravity[1]
+    e = start
+    for body in range(masses.mass.size):
+        m, inertia = masses.mass[body], masses.inertia[body]
+        ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
+        omega, alpha = qd[3 * body + 2], qdd[3 * body + 2]
+        xdd, ydd = qdd[3 * body], qdd[3 * body + 1]
+        x, y, angle = 3 * body, 3 * body + 1, 3 * body + 2
+        # column θ: stiffness (inertial at fixed accelerations, and gravity) and damping
+        k_x = m * (omega * omega * ay - alpha * ax)
+        k_y = -m * (alpha * ay + omega * omega * ax)
+        k_t = -m * (ax * xdd + ay * ydd) + m * (ax * gx + ay * gy)
+        c_x, c_y = -2.0 * m * omega * ax, -2.0 * m * omega * ay
+        _put(rows, cols, vals, e, x, x, a * m)
+        _put(rows, cols, vals, e + 1, x, y, 0.0)
+        _put(rows, cols, vals, e + 2, x, angle, -a * m * ay + b * c_x + c * k_x)
+        _put(rows, cols, vals, e + 3, y, x, 0.0)
+        _put(rows, cols, vals, e + 4, y, y, a * m)
+        _put(rows, cols, vals, e + 5, y, angle, a * m * ax + b * c_y + c * k_y)
+        _put(rows, cols, vals, e + 6, angle, x, -a * m * ay)
+        _put(rows, cols, vals, e + 7, angle, y, a * m * ax)
+        _put(rows, cols, vals, e + 8, angle, angle, a * (inertia + m * (ax * ax + ay * ay)) + c * k_t)
+        e += 9
+    return e
+
+
+# ---------------------------------------------------------------------- loads
+@njit(**JIT)
+def fill_point_force_triplets(force, turns, law_values, c, rows, cols, vals, start):
+    """A force F at arm A: ``Q_θ = A × F``, ``∂(−Q_θ)/∂θ = A · F``; one entry per force."""
+    e = start
+    for k in range(force.body.size):
+        body = force.body[k]
+        ax, ay = _turned(turns[body, 0], turns[body, 1], force.local[k])
+        fx, fy = law_values[force.law[k]], law_values[force.law[k] + 1]
+        _put(rows, cols, vals, e, 3 * body + 2, 3 * body + 2, c * (ax * fx + ay * fy))
+        e += 1
+    return e
+
+
+@njit(inline="always", **JIT)
+def _separation_gradient(aix, aiy, ajx, ajy, ex, ey, gradient):
+    """∇L = Dᵀ e over (x_i, y_i, θ_i, x_j, y_j, θ_j), D = [−I, −Omega A, I, Omega B]."""
+    gradient[0], gradient[1] = -ex, -ey
+    gradient[2] = ex * aiy - ey * aix
+    gradient[3], gradient[4] = ex, ey
+    gradient[5] = -ex * ajy + ey * ajx
+
+
+@njit(inline="always", **JIT)
+def _separation_jacobian(aix, aiy, ajx, ajy, d):
+    """D = ∂d/∂(x_i, y_i, θ_i, x_j, y_j, θ_j), 2×6."""
+    d[0, 0], d[1, 0] = -1.0, 0.0
+    d[0, 1], d[1, 1] = 0.0, -1.0
+    d[0, 2], d[1, 2] = aiy, -aix
+    d[0, 3], d[1, 3] = 1.0, 0.0
+    d[0, 4], d[1, 4] = 0.0, 1.0
+    d[0, 5], d[1, 5] = -ajy, ajx
+
+
+@njit(inline="always", **JIT)
+def _distance_hessian(aix, aiy, ajx, ajy, ex, ey, length, d, hessian):
+    """∇²L = Dᵀ (I − e eᵀ) D / L, plus e · ∂²d on θ_iθ_i (e · A) and θ_jθ_j (−e · B)."""
+    _separation_jacobian(aix, aiy, ajx, ajy, d)
+    for u in range(6):
+        pu = d[0, u] - ex * (ex * d[0, u] + ey * d[1, u])  # (P D)[:, u]
+        qu = d[1, u] - ey * (ex * d[0, u] + ey * d[1, u])
+        for v in range(6):
+            hessian[u, v] = (pu * d[0, v] + qu * d[1, v]) / length
+    hessian[2, 2] += ex * aix + ey * aiy
+    hessian[5, 5] -= ex * ajx + ey * ajy
+
+
+@njit(inline="always", **JIT)
+def _put_pair_block(body_i, body_j, block, rows, cols, vals, start):
+    """A 6×6 block over the coordinates of bodies i and j, row-major: 36 entries."""
+    e = start
+    for u in range(6):
+        row = 3 * (body_i if u < 3 else body_j) + u % 3
+        for v in range(6):
+            _put(rows, cols, vals, e, row, 3 * (body_i if v < 3 else body_j) + v % 3, block[u, v])
+            e += 1
+    return e
+
+
+@njit(**JIT)
+def fill_spring_triplets(spring, q, qd, turns, b, c, gradient, rate_gradient, d, hessian, block, rows, cols, vals,
+                         start):  # fmt: skip
+    """Spring-dampers, 36 entries each.  ``f = −Q = T ∇L`` with ``T = k (L − L0) + c_d L'``,
+    ``L' = e · d'``, so ``C = c_d ∇L ∇Lᵀ`` and ``K = ∇L (k ∇L + c_d ∇L')ᵀ + T ∇²L``, where
+    ``∇L' = Dᵀ (I − e eᵀ) d' / L`` plus ``ω_i e · A`` on θ_i and ``−ω_j e · B`` on θ_j
+    (``∂d'/∂θ_i = A ω_i``, ``∂d'/∂θ_j = −B ω_j``).  `gradient`, `rate_gradient` (6,), `d`
+    (2, 6), `hessian`, `block` (6, 6): scratch."""
+    e = start
+    for k in range(spring.body_i.size):
+        i, j = spring.body_i[k], spring.body_j[k]
+        aix, aiy, ajx, ajy, dx, dy, length = point_separation(q, turns, i, j, spring.local_i[k], spring.local_j[k])
+        ex, ey = dx / length, dy / length
+        vx, vy = separation_rate(qd, i, j, aix, aiy, ajx, ajy)
+        along = ex * vx + ey * vy
+        stiffness, damping = spring.stiffness[k], spring.damping[k]
+        tension = stiffness * (length - spring.free_length[k]) + damping * along
+        _separation_gradient(aix, aiy, ajx, ajy, ex, ey, gradient)
+        _distance_hessian(aix, aiy, ajx, ajy, ex, ey, length, d, hessian)
+        px, py = (vx - ex * along) / length, (vy - ey * along) / length  # (I − e eᵀ) d' / L
+        for v in range(6):
+            rate_gradient[v] = d[0, v] * px + d[1, v] * py
+        rate_gradient[2] += qd[3 * i + 2] * (ex * aix + ey * aiy)
+        rate_gradient[5] -= qd[3 * j + 2] * (ex * ajx + ey * ajy)
+        for u in range(6):
+            for v in range(6):
+                block[u, v] = (b * damping * gradient[u] * gradient[v]
+                               + c * (gradient[u] * (stiffness * gradient[v] + damping * rate_gradient[v])
+                                      + tension * hessian[u, v]))  # fmt: skip
+        e = _put_pair_block(i, j, block, rows, cols, vals, e)
+    return e
+
+
+@njit(**JIT)
+def fill_torsion_triplets(torsion, b, c, rows, cols, vals, start):
+    """Rotational spring-dampers: ``f_θi = −f_θj = k (θ_i − θ_j − θ0) + c_d (ω_i − ω_j)``,
+    4 entries each (θ_iθ_i, θ_iθ_j, θ_jθ_i, θ_jθ_j)."""
+    e = start
+    for k in range(torsion.body_i.size):
+        i, j = 3 * torsion.body_i[k] + 2, 3 * torsion.body_j[k] + 2
+        value = b * torsion.damping[k] + c * torsion.stiffness[k]
+        _put(rows, cols, vals, e, i, i, value)
+        _put(rows, cols, vals, e + 1, i, j, -value)
+        _put(rows, cols, vals, e + 2, j, i, -value)
+        _put(rows, cols, vals, e + 3, j, j, value)
+        e += 4
+    return e
+
+
+# ---------------------------------------------------------------------- Σ w ∇²g per primitive
+@njit(**JIT)
+def fill_coincidence_hessian(coincidence, turns, weights, c, rows, cols, vals, start):
+    """``g = r_i + A − r_j − B`` (rows x, y): ``∂²g_x/∂θ_i² = −A_x``, ``∂²g_y/∂θ_i² = −A_y``,
+    ``+B`` on θ_j; 2 entries each (θ_iθ_i, θ_jθ_j)."""
+    e = start
+    for k in range(coincidence.row.size):
+        bi, bj, r = coincidence.body_i[k], coincidence.body_j[k], coincidence.row[k]
+        ax, ay = _turned(turns[bi, 0], turns[bi, 1], coincidence.local_i[k])
+        bx, by = _turned(turns[bj, 0], turns[bj, 1], coincidence.local_j[k])
+        wx, wy = weights[r], weights[r + 1]
+        _put(rows, cols, vals, e, 3 * bi + 2, 3 * bi + 2, -c * (wx * ax + wy * ay))
+        _put(rows, cols, vals, e + 1, 3 * bj + 2, 3 * bj + 2, c * (wx * bx + wy * by))
+        e += 2
+    return e
+
+
+@njit(**JIT)
+def fill_projection_hessian(projection, q, turns, weights, c, rows, cols, vals, start):
+    """``g = n · (r_j + B − r_i) − u · s_i + rolling (θ_j − θ_i)``, n = R_i u: with
+    ``E = r_j + B − r_i``, ``∂g/∂θ_i = (Omega n) · E``, so ``∂²g/∂θ_i² = −n · E``,
+    ``∂²g/∂θ_i∂r_i = −Omega n``, ``∂²g/∂θ_i∂r_j = Omega n``, ``∂²g/∂θ_i∂θ_j = n · B``,
+    ``∂²g/∂θ_j² = −n · B``; 12 entries each (both triangles)."""
+    e = start
+    for k in range(projection.row.size):
+        bi, bj = projection.body_i[k], projection.body_j[k]
+        i, j = 3 * bi, 3 * bj
+        w = c * weights[projection.row[k]]
+        nx, ny = _turned(turns[bi, 0], turns[bi, 1], projection.direction[k])
+        bx, by = _turned(turns[bj, 0], turns[bj, 1], projection.local_j[k])
+        big_ex = q[j] + bx - q[i]
+        big_ey = q[j + 1] + by - q[i + 1]
+        nb = nx * bx + ny * by
+        ti, tj = i + 2, j + 2
+        _put(rows, cols, vals, e, ti, ti, -w * (nx * big_ex + ny * big_ey))
+        _put(rows, cols, vals, e + 1, ti, i, w * ny)  # −(Omega n)_x
+        _put(rows, cols, vals, e + 2, i, ti, w * ny)
+        _put(rows, cols, vals, e + 3, ti, i + 1, -w * nx)  # −(Omega n)_y
+        _put(rows, cols, vals, e + 4, i + 1, ti, -w * nx)
+        _put(rows, cols, vals, e + 5, ti, j, -w * ny)
+        _put(rows, cols, vals, e + 6, j, ti, -w * ny)
+        _put(rows, cols, vals, e + 7, ti, j + 1, w * nx)
+        _put(rows, cols, vals, e + 8, j + 1, ti, w * nx)
+        _put(rows, cols, vals, e + 9, ti, tj, w * nb)
+        _put(rows, cols, vals, e + 10, tj, ti, w * nb)
+        _put(rows, cols, vals, e + 11, tj, tj, -w * nb)
+        e += 12
+    return e
+
+
+@njit(**JIT)
+def fill_distance_hessian(distance, q, turns, weights, c, d, hessian, rows, cols, vals, start):
+    """``g = |d|``: ``∇²g`` of `_distance_hessian`, 36 entries each."""
+    e = start
+    for k in range(distance.row.size):
+        bi, bj = distance.body_i[k], distance.body_j[k]
+        aix, aiy, ajx, ajy, dx, dy, length = point_separation(q, turns, bi, bj, distance.local_i[k],
+                                                              distance.local_j[k])  # fmt: skip
+        _distance_hessian(aix, aiy, ajx, ajy, dx / length, dy / length, length, d, hessian)
+        w = c * weights[distance.row[k]]
+        for u in range(6):
+            for v in range(6):
+                hessian[u, v] *= w
+        e = _put_pair_block(bi, bj, hessian, rows, cols, vals, e)
+    return e
+
+
+@njit(**JIT)
+def fill_primitive_hessians(primitives, q, turns, weights, c, d, hessian, rows, cols, vals, start):
+    """``c Σ_r weights[r] ∇²g_r`` over every primitive (combinations are linear: nothing)."""
+    e = fill_coincidence_hessian(primitives.coincidence, turns, weights, c, rows, cols, vals, start)
+    e = fill_projection_hessian(primitives.projection, q, turns, weights, c, rows, cols, vals, e)
+    return fill_distance_hessian(primitives.distance, q, turns, weights, c, d, hessian, rows, cols, vals, e)
+
+
+@njit(**JIT)
+def hessian_entries(primitives):
+    """How many triplets `fill_primitive_hessians` writes."""
+    return 2 * primitives.coincidence.row.size + 12 * primitives.projection.row.size + 36 * primitives.distance.row.size
+
+
+# ---------------------------------------------------------------------- assembly and forces
+@njit(**JIT)
+def scatter_add(vals, slots, data):
+    """``data[:] = 0``, then ``data[slots[e]] += vals[e]``; the last entry of `data` is the
+    discard slot."""
+    for k in range(data.size):
+        data[k] = 0.0
+    for e in range(vals.size):
+        data[slots[e]] += vals[e]
+
+
+@njit(**JIT)
+def add_transposed_product(indptr, indices, values, weights, out):
+    """``out += Jᵀ weights`` for a CSR J: the generalized force of row weights (actuators:
+    ``F ∇s``; constraints: ``Φqᵀ λ``)."""
+    for r in range(indptr.size - 1):
+        w = weights[r]
+        if w != 0.0:
+            for s in range(indptr[r], indptr[r + 1]):
+                out[indices[s]] += values[s] * w
+
+
+@njit(**JIT)
+def fill_row_products(indptr, indices, values, x, out):
+    """``out = J x`` for a CSR J."""
+    for r in range(indptr.size - 1):
+        total = 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            total += values[s] * x[indices[s]]
+        out[r] = total
+
+
+@njit(**JIT)
+def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, cols, vals, start):
+    """Φq and Φqᵀ of the kept rows (``kept_row[r]``: the row's index among them, −1 if
+    left out) at rows/columns ``first + kept_row[r]``; 2 entries per Jacobian entry."""
+    e = start
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        for s in range(indptr[r], indptr[r + 1]):
+            row = first + kept if kept >= 0 else -1
+            _put(rows, cols, vals, e, row, indices[s], values[s])
+            _put(rows, cols, vals, e + 1, indices[s], row, values[s])
+            e += 2
+    return e
+
+
+@njit(**JIT)
+def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
+    """``value`` on the diagonal of rows ``first .. first + count − 1``."""
+    for k in range(count):
+        _put(rows, cols, vals, start + k, first + k, first + k, value)
+    return start + count
+
+
+@njit(**JIT)
+def kinetic_potential_elastic(masses, gravity, spring, torsion, q, qd, turns):
+    """Kinetic energy ½ qdᵀ M qd, gravitational potential −Σ m g · r_com, and the elastic
+    energy of springs ½ k (L − L0)² and rotational springs ½ k (Δθ − θ0)², J."""
+    kinetic, potential, elastic = 0.0, 0.0, 0.0
+    gx, gy = gravity[0], gravity[1]
+    for body in range(masses.mass.size):
+        m = masses.mass[body]
+        ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
+        omega = qd[3 * body + 2]
+        vx, vy = qd[3 * body] - omega * ay, qd[3 * body + 1] + omega * ax
+        kinetic += 0.5 * (m * (vx * vx + vy * vy) + masses.inertia[body] * omega * omega)
+        potential -= m * (gx * (q[3 * body] + ax) + gy * (q[3 * body + 1] + ay))
+    for k in range(spring.body_i.size):
+        length = point_separation(q, turns, spring.body_i[k], spring.body_j[k], spring.local_i[k], spring.local_j[k])[6]
+        elastic += 0.5 * spring.stiffness[k] * (length - spring.free_length[k]) ** 2
+    for k in range(torsion.body_i.size):
+        turn = q[3 * torsion.body_i[k] + 2] - q[3 * torsion.body_j[k] + 2] - torsion.free_angle[k]
+        elastic += 0.5 * torsion.stiffness[k] * turn * turn
+    return kinetic, potential, elastic
+
+
+@njit(**JIT)
+def damping_power(spring, torsion, qd, q, turns):
+    """Power dissipated by the dampers, c L'² and c (Δω)², W."""
+    power = 0.0
+    for k in range(spring.body_i.size):
+        i, j = spring.body_i[k], spring.body_j[k]
+        aix, aiy, ajx, ajy, dx, dy, length = point_separation(q, turns, i, j, spring.local_i[k], spring.local_j[k])
+        vx, vy = separation_rate(qd, i, j, aix, aiy, ajx, ajy)
+        along = (dx * vx + dy * vy) / length
+        power += spring.damping[k] * along * along
+    for k in range(torsion.body_i.size):
+        rate = qd[3 * torsion.body_i[k] + 2] - qd[3 * torsion.body_j[k] + 2]
+        power += torsion.damping[k] * rate * rate
+    return power
+
+
+@njit(**JIT)
+def applied_power(loads, qd, turns, law_values):
+    """Power of the point forces and torques (not springs: their energy is elastic), W."""
+    power = 0.0
+    force = loads.force
+    for k in range(force.body.size):
+        body = force.body[k]
+        ax, ay = _turned(turns[body, 0], turns[body, 1], force.local[k])
+        omega = qd[3 * body + 2]
+        vx, vy = qd[3 * body] - omega * ay, qd[3 * body + 1] + omega * ax
+        power += law_values[force.law[k]] * vx + law_values[force.law[k] + 1] * vy
+    torque = loads.torque
+    for k in range(torque.body.size):
+        power += law_values[torque.law[k]] * qd[3 * torque.body[k] + 2]
+    return power
+
+
+@njit(**JIT)
+def weighted_norm(values, weights):
+    """max |values| · weights, NaN if not finite."""
+    norm = 0.0
+    for k in range(values.size):
+        v = abs(values[k]) * weights[k]
+        if not math.isfinite(v):
+            return math.nan
+        if v > norm:
+            norm = v
+    return norm

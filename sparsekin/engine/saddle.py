@@ -1,0 +1,246 @@
+"""The equations of motion as numbers: their residual and the saddle-point iteration matrix.
+
+Forward dynamics solves, at each time,
+
+    f(q, qd, qdd, lam) = M(q) qdd + h(q, qd) - Q(q, qd, t) + Phi_q^T lam = 0,
+    Phi(q, t) = 0,
+
+with Q gravity and the loads (actuators along joints included) and h the centripetal
+terms.  An implicit step linearises them into the *saddle* matrix
+
+    S = [[a M + b C_t + c K_t, Phi_q^T], [Phi_q, -r I]],   C_t = df/dqd,  K_t = df/dq,
+
+whose pattern is known before the first step: every body's 3×3 mass block, a 6×6 block
+for each pair of bodies that a constraint primitive or a spring couples, and the
+Jacobian's entries twice.  `DynamicSystem` builds that pattern once (`SaddlePattern`, from
+one run of the kernels of `sparsekin.engine._dynamics_kernels`, which write their entries
+in an order fixed by the model) and refills its values in place: a numba scatter of the
+kernels' triplets into the CSR values, no allocation per call.  ``(a, b, c) = (1, 0, 0)``
+gives [[M, Phi_q^T], [Phi_q, 0]] (initial accelerations and multipliers, velocity
+projection); generalized-alpha takes ``(1, gamma'/beta', 1/beta')``, its scaled form
+(`sparsekin.solve.dynamics`).
+
+Redundant equations are left out of the saddle (``kept_rows``): their multipliers are 0.
+A small ``r`` (only in an iteration matrix: the residual stays exact) keeps S regular where
+Φq loses rank for an instant (a chain of parallelograms with its bars aligned): Newton's
+multiplier updates there stay bounded, as in a least-squares step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _dynamics_kernels as kernels
+from . import _force_kernels, _kernels
+from .assembly import Assembler
+from .discretization import Discretization
+
+__all__ = ["SaddlePattern", "DynamicSystem"]
+
+
+@dataclass(frozen=True, eq=False)
+class SaddlePattern:
+    """The CSR pattern of the saddle matrix and where each kernel triplet goes.
+
+    Attributes
+    ----------
+    size : int
+        n_coordinates + number of kept equations.
+    indptr, indices : ndarray
+        CSR pattern, columns sorted within rows.
+    slots : ndarray of int, shape (n_triplets,)
+        The position of each triplet in the CSR values; ``nnz`` (a discard slot) for the
+        ground's coordinates and left-out equations.
+    """
+
+    size: int
+    indptr: np.ndarray
+    indices: np.ndarray
+    slots: np.ndarray
+
+    @property
+    def nnz(self) -> int:
+        return int(self.indptr[-1])
+
+    @classmethod
+    def from_triplets(cls, rows: np.ndarray, cols: np.ndarray, n: int, size: int) -> SaddlePattern:
+        """The pattern of triplets whose indices are coordinates (the ground's three,
+        ``n .. n + 2``, discarded) or ``n + 3 + k`` for the k-th kept equation (negative:
+        left out, discarded)."""
+        rows, cols = _saddle_index(rows, n), _saddle_index(cols, n)
+        valid = (rows >= 0) & (cols >= 0)
+        keys = rows[valid] * np.int64(size) + cols[valid]
+        unique, inverse = np.unique(keys, return_inverse=True)
+        slots = np.full(rows.size, unique.size, dtype=np.int64)
+        slots[valid] = inverse
+        indptr = np.zeros(size + 1, dtype=np.int64)
+        np.cumsum(np.bincount(unique // size, minlength=size), out=indptr[1:])
+        return cls(size, indptr, np.ascontiguousarray(unique % size), slots)
+
+
+def _saddle_index(index: np.ndarray, n: int) -> np.ndarray:
+    """Triplet index → row of S: coordinates as they are, the ground's −1, equations shifted."""
+    return np.where(index < n, index, np.where(index < n + 3, -1, index - 3))
+
+
+class DynamicSystem:
+    """Residual of the equations of motion and the saddle matrix of a mechanism, in place.
+
+    Parameters
+    ----------
+    discretization : Discretization
+        The mechanism's arrays (`sparsekin.engine.discretization.discretize`).
+    kept_rows : ndarray of int, optional
+        The equations in the saddle (default all); the others are redundant.
+    assembler : Assembler, optional
+        The constraints' assembler, if already made.
+
+    Attributes
+    ----------
+    assembler : Assembler
+        The constraints: residual Phi, Jacobian, velocity and acceleration right-hand sides.
+    loads : LoadPattern
+    law_values : ndarray
+        The load laws' values at the last `set_time`.
+    matrix : scipy.sparse.csr_array, shape (size, size)
+        S after `fill_matrix`; its pattern is fixed.
+    n, size : int
+        Coordinates; coordinates plus kept equations.
+    """
+
+    def __init__(self, discretization: Discretization, kept_rows: np.ndarray | None = None,
+                 assembler: Assembler | None = None) -> None:  # fmt: skip
+        from scipy.sparse import csr_array
+
+        self.pattern = pattern = discretization.constraints
+        self.assembler = Assembler(discretization) if assembler is None else assembler
+        self.loads = discretization.loads
+        self.actuators = self.loads.actuators
+        n, m = pattern.n_coordinates, pattern.n_equations
+        self.n = n
+        self.kept_rows = np.arange(m, dtype=np.int64) if kept_rows is None else np.asarray(kept_rows, dtype=np.int64)
+        self.kept_row = np.full(m, -1, dtype=np.int64)
+        self.kept_row[self.kept_rows] = np.arange(self.kept_rows.size)
+        self.size = n + self.kept_rows.size
+        n_laws = self.loads.n_laws
+        self.law_values, self._law_rates, self._law_accelerations = np.zeros(n_laws), np.zeros(n_laws), np.zeros(n_laws)
+        self._q, self._qd, self._qdd = np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3)
+        self._turns = np.zeros((pattern.n_bodies + 1, 2))
+        self._applied = np.zeros(n + 3)
+        self._actuator_weights = np.zeros(n_laws)
+        arrays = self.loads.arrays
+        count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
+                 + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
+                 + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
+        if self.actuators is not None:
+            count += kernels.hessian_entries(self.actuators.equations.primitives)
+        self._rows = np.zeros(count, dtype=np.int64)
+        self._cols = np.zeros(count, dtype=np.int64)
+        self._vals = np.zeros(count)
+        self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
+        # one run at the drawing fixes the pattern
+        drawn = pattern.initial_coordinates
+        self.assembler.set_time(0.0)
+        self.assembler.fill_residual_jacobian(drawn)
+        self._fill_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
+        self.saddle = SaddlePattern.from_triplets(self._rows, self._cols, n, self.size)
+        self._data = np.zeros(self.saddle.nnz + 1)
+        self.matrix = csr_array((self._data[:-1], self.saddle.indices, self.saddle.indptr), shape=(self.size, self.size))
+
+    # ------------------------------------------------------------------ time and constraints
+    def set_time(self, t: float) -> None:
+        """Driver targets and load laws at time `t` (s)."""
+        self.assembler.set_time(t)
+        self.loads.evaluate(t, self.law_values, self._law_rates, self._law_accelerations)
+
+    def fill_constraints(self, coordinates: np.ndarray) -> float:
+        """Phi and Phi_q at `coordinates` (`assembler.residual`, `assembler.values`); returns
+        the weighted norm of Phi on the kept rows."""
+        self.assembler.fill_residual_jacobian(coordinates)
+        return kernels.weighted_norm(self.assembler.residual[self.kept_rows], self.assembler.weights[self.kept_rows])
+
+    def velocity_drift(self, velocities: np.ndarray) -> np.ndarray:
+        """Phi_q qd + Phi_t of every equation, at the last `fill_constraints`."""
+        return self.assembler.jacobian @ velocities - self.assembler.velocity_rhs
+
+    # ------------------------------------------------------------------ motion
+    def _load(self, coordinates, velocities, accelerations) -> None:
+        self._q[:-3], self._qd[:-3], self._qdd[:-3] = coordinates, velocities, accelerations
+        _kernels.fill_body_turns(self._q, self._turns)
+
+    def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
+        """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
+        self._load(coordinates, velocities, accelerations)
+        _force_kernels.fill_applied_forces(self.loads.arrays, self._q, self._qd, self._qdd, self._turns,
+                                           self.law_values, True, self._applied)  # fmt: skip
+        out[:] = self._applied[:-3]
+        if self.actuators is not None:
+            self.actuators.fill(self._q, self._turns)
+            self.actuators.add_forces(self.law_values, out)
+        return out
+
+    def residual(self, coordinates, velocities, accelerations, multipliers, out: np.ndarray) -> np.ndarray:
+        """``out = M qdd + h − Q + Phi_qᵀ lam`` (N, N·m), Phi_q from the last `fill_constraints`.
+
+        `multipliers` has one entry per equation (0 on those left out)."""
+        self.applied_forces(coordinates, velocities, accelerations, out)
+        np.negative(out, out=out)
+        p = self.pattern
+        values = self.assembler.values
+        kernels.add_transposed_product(p.indptr, p.indices, values, multipliers, out)
+        return out
+
+    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+        self._load(coordinates, velocities, accelerations)
+        arrays, p = self.loads.arrays, self.pattern
+        rows, cols, vals = self._rows, self._cols, self._vals
+        gradient, rate_gradient, d, hessian, block = self._scratch
+        e = kernels.fill_inertia_triplets(arrays.masses, arrays.gravity, self._qd, self._qdd, self._turns, a, b, c,
+                                          rows, cols, vals, 0)  # fmt: skip
+        e = kernels.fill_point_force_triplets(arrays.force, self._turns, self.law_values, c, rows, cols, vals, e)
+        e = kernels.fill_spring_triplets(arrays.spring, self._q, self._qd, self._turns, b, c, gradient, rate_gradient,
+                                         d, hessian, block, rows, cols, vals, e)  # fmt: skip
+        e = kernels.fill_torsion_triplets(arrays.torsion, b, c, rows, cols, vals, e)
+        e = kernels.fill_primitive_hessians(p.primitives, self._q, self._turns, multipliers, c, d, hessian,
+                                            rows, cols, vals, e)  # fmt: skip
+        if self.actuators is not None:
+            np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
+            e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
+                                                self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
+        e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
+                                             rows, cols, vals, e)  # fmt: skip
+        kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
+
+    def fill_matrix(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
+                    regularization: float = 0.0):  # fmt: skip
+        """S = [[a M + b C_t + c K_t, Phi_qᵀ], [Phi_q, −regularization · I]] at the state
+        given, Phi_q from the last `fill_constraints` (at the same coordinates); returns
+        `matrix`."""
+        self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c, regularization)
+        kernels.scatter_add(self._vals, self.saddle.slots, self._data)
+        return self.matrix
+
+    # ------------------------------------------------------------------ energy
+    def energies(self, coordinates, velocities) -> tuple[float, float, float]:
+        """Kinetic, gravitational potential and elastic energy, J."""
+        self._load(coordinates, velocities, self._qdd[:-3])
+        arrays = self.loads.arrays
+        return kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion,
+                                                 self._q, self._qd, self._turns)  # fmt: skip
+
+    def powers(self, coordinates, velocities, multipliers) -> tuple[float, float]:
+        """Power put in by the loads, actuators and drivers, and power dissipated by the
+        dampers, W; Phi_q and the drivers' rates from the last `fill_constraints` /
+        `set_time`."""
+        self._load(coordinates, velocities, self._qdd[:-3])
+        arrays = self.loads.arrays
+        power = kernels.applied_power(arrays, self._qd, self._turns, self.law_values)
+        if self.actuators is not None:
+            self.actuators.fill(self._q, self._turns)
+            power += self.actuators.power(self.law_values, velocities)
+        rows = self.pattern.driven_row
+        power -= float(multipliers[rows] @ self.assembler.velocity_rhs[rows])  # a driver's force is −λ
+        dissipated = kernels.damping_power(arrays.spring, arrays.torsion, self._qd, self._q, self._turns)
+        return power, dissipated

@@ -1,0 +1,733 @@
+"""Forward dynamics: `solve_dynamics` integrates M q̈ + Φqᵀλ = Q, Φ(q, t) = 0 in time.
+
+The integrator is generalized-α (Arnold & Brüls 2007) on the index-3 equations, in the
+absolute coordinates of the kinematics.  A step of size h from (q_n, q̇_n, q̈_n, ã_n, λ_n)
+solves for q_{n+1} and λ_{n+1}
+
+    q_{n+1}  = q_n + h q̇_n + h² (½ − β) ã_n + h² β ã_{n+1}
+    q̇_{n+1}  = q̇_n + h (1 − γ) ã_n + h γ ã_{n+1}
+    (1 − α_m) ã_{n+1} + α_m ã_n = (1 − α_f) q̈_{n+1} + α_f q̈_n
+    f(q_{n+1}, q̇_{n+1}, q̈_{n+1}, λ_{n+1}) = M q̈ + h − Q + Φqᵀ λ = 0,   Φ(q_{n+1}, t_{n+1}) = 0
+
+by Newton on q and λ; with ∂q̈/∂q = β′ = (1 − α_m) / (h² β (1 − α_f)) and ∂q̇/∂q = γ′ =
+γ / (h β) its matrix is the saddle matrix of `sparsekin.engine.saddle`.  Scaled as in
+Bottasso, Bauchau & Cardona (2008) — the first block row divided by β′ and the unknown
+λ by β′ — it reads [[M + (γ′/β′) C_t + K_t/β′, Φqᵀ], [Φq, 0]], whose condition does not
+grow as h⁻⁴.  The parameters follow from ρ∞, the spectral radius at infinite frequency:
+α_m = (2ρ∞ − 1)/(ρ∞ + 1), α_f = ρ∞/(ρ∞ + 1), γ = ½ + α_f − α_m, β = ¼ (γ + ½)².  ρ∞ = 1
+is the trapezoidal rule (no numerical damping; energy error bounded, O(h²)); smaller
+ρ∞ damps the highest frequencies.
+
+After each step the velocities are projected on Φq q̇ + Φt = 0 (with the iteration
+matrix's leading block as the metric): the position constraints hold to the Newton
+tolerance by construction, the velocity constraints to the same by the projection, so
+neither drifts.  Newton is modified: the factorization of the last step is reused
+while its corrections contract (`CONTRACTION`), refactored otherwise.  A step whose
+Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling
+after `GROWTH_AFTER` good steps, up to `max_step`.
+
+The initial state: the drawing assembled at t0 by the smallest weighted change;
+velocities, the bodies' `velocity` made consistent by the smallest mass-weighted change
+(one solve of [[M, Φqᵀ], [Φq, 0]]); accelerations and multipliers from the same matrix.
+
+`GeneralizedAlphaStepper` is the algorithm with its state, a `sparsekin.solve.steppers.Stepper`
+(`start`, `advance`, `linearization`, `stats`; `state` and `recorded` besides);
+`solve_dynamics` validates once (`SolveOptions`, `DynamicsOptions`, `Request` of
+`sparsekin.solve.options`) and `run_dynamics` records through the run driver
+(`sparsekin.solve.run`): the same pipeline as the kinematics, with the driver forces and
+reactions made from the integrator's λ (`ForceOutputs.fill`) and the energy balance and
+drift as recorded variables (`sparsekin.results.schema`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ..engine import _dynamics_kernels, _kernels
+from ..engine.discretization import Discretization, discretize
+from ..engine.linalg import SingularMatrix, SuperLUSolver
+from ..engine.linearization import Linearization
+from ..engine.newton import NEWTON_MAXITER
+from ..engine.pattern import ConstraintPattern
+from ..engine.saddle import DynamicSystem
+from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, warn_caller
+from ..model.mechanism import Mechanism
+from ..results.dynamics import DynamicsResult
+from ..results.recording import open_recorder
+from ..results.schema import DRIFT, ENERGY
+from .kinematics import recorded_result
+from .observers import RecordedVariables
+from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
+from .policy import LINEAR_SOLVERS, plan_saddle_solver
+from .run import run
+from .steppers import SampleBlock, SampleSteps, StepperStats
+
+__all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
+           "LINEAR_SOLVERS"]
+
+#: Default Newton tolerance: the velocity error left by Newton's last correction (lengths
+#: relative to the model size per second, rad/s) and the constraint residual (relative
+#: lengths, rad).  Positions are solved to ``tolerance · h / γ′``-ish, far below the
+#: tolerance itself: a Newton error of δq in every step is a systematic velocity error
+#: γ′ δq ≈ 2 δq / h per step, which adds up over a run.
+DEFAULT_TOLERANCE = 1e-10
+#: A correction below this multiple of the rounding of q (relative) cannot be improved.
+ROUNDING = 8.0 * np.finfo(float).eps
+#: A freshly factored Newton that stops contracting within STALL · √n times that floor has
+#: converged as far as the matrix's conditioning allows: near singular configurations (the
+#: N-four-bar at its flat crossings stalls at 4e-12), and on long chains, whose corrections
+#: stall higher with their size (N-four-bar, 10^4 bodies: ~1e-11 at some steps; 10^5
+#: bodies: 3e-10 to 8e-10 at every step).
+STALL = 1e4
+#: The same for a held factorization, whose corrections' ratio is noise below NOISE · √n
+#: times the floor (it would otherwise be refactored for nothing: a 10^4-body chain did
+#: so at every second step).
+NOISE = 1e2
+#: Most Newton corrections in one step (`SolveOptions.max_iterations`, the kinematics' default).
+MAX_ITERATIONS = NEWTON_MAXITER
+#: A correction of modified Newton must be at most this fraction of the one before, or
+#: the matrix is refactored at the current iterate.
+CONTRACTION = 0.3
+#: The iteration matrix's (2, 2) block is −REGULARIZATION · (largest mass) · I: Newton's
+#: multiplier updates stay bounded where Φq loses rank for an instant (sparsekin.engine.saddle).
+REGULARIZATION = 1e-10
+#: Most solves of one velocity projection, and the contraction its iterative refinement
+#: must keep on the held factorization.
+PROJECTION_ITERATIONS = 8
+REFINEMENT_CONTRACTION = 0.1
+#: A failing step is halved at most this many times.
+MAX_HALVINGS = 12
+#: After this many good steps in a row at a reduced step, the step doubles.
+GROWTH_AFTER = 4
+#: Models up to this many coordinates are always searched for redundant equations at the
+#: start (larger ones when they have at least as many equations as coordinates).
+REDUNDANCY_CHECK_COORDINATES = 3000
+
+
+@dataclass(frozen=True)
+class GeneralizedAlpha:
+    """Generalized-α parameters from the spectral radius at infinite frequency.
+
+    Parameters
+    ----------
+    rho_inf : float
+        In [0, 1]: 1 no numerical damping (the trapezoidal rule), 0 the most.
+    """
+
+    rho_inf: float = 0.9
+
+    def __post_init__(self) -> None:
+        checked_rho_inf(self.rho_inf)
+
+    @property
+    def coefficients(self) -> tuple[float, float, float, float]:
+        """``(alpha_m, alpha_f, gamma, beta)``."""
+        rho = float(self.rho_inf)
+        alpha_m = (2.0 * rho - 1.0) / (rho + 1.0)
+        alpha_f = rho / (rho + 1.0)
+        gamma = 0.5 + alpha_f - alpha_m
+        return alpha_m, alpha_f, gamma, 0.25 * (gamma + 0.5) ** 2
+
+
+class DynamicState(NamedTuple):
+    """The integrator's state after a step: everything the next step starts from.
+
+    Attributes
+    ----------
+    time : float
+        s.
+    coordinates, velocities, accelerations : ndarray, shape (n_coordinates,)
+        q, q̇ and q̈ (m, rad and their rates).
+    pseudo_accelerations : ndarray, shape (n_coordinates,)
+        Generalized-α's ã.
+    multipliers : ndarray, shape (n_equations,)
+        λ of every equation (0 on those left out as redundant).
+    step : float
+        The step the next one starts with, s.
+    work, dissipated : float
+        Work of the loads, actuators and drivers, and energy dissipated by dampers, since
+        the start, J.
+    """
+
+    time: float
+    coordinates: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    pseudo_accelerations: np.ndarray
+    multipliers: np.ndarray
+    step: float
+    work: float
+    dissipated: float
+
+
+class _StepFailed(Exception):
+    pass
+
+
+class GeneralizedAlphaStepper:
+    """Integrate a mechanism's equations of motion from sample to sample.
+
+    Parameters
+    ----------
+    model : Mechanism or Discretization
+    max_step : float
+        Largest integration step, s (or ``dynamics.max_step``).
+    integrator : GeneralizedAlpha
+        Default: from ``dynamics.rho_inf``.
+    tolerance : float
+        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error a step
+        leaves (lengths relative to the model size per second, rad/s) and the constraint
+        residual (relative lengths, rad).
+    linear_solver : {"auto", "dense", "superlu", "refactor"}
+        The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
+        (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
+        unknowns, `RefactorSolver` above).
+    pattern : ConstraintPattern, optional
+        With a Mechanism: its pattern, if built already.
+    options : SolveOptions, optional
+        Instead of `tolerance` and `linear_solver` (checked already); its
+        ``max_iterations`` bounds the Newton corrections of a step.
+    dynamics : DynamicsOptions, optional
+        Instead of `max_step` (and the ρ∞ of `integrator`).
+
+    Attributes
+    ----------
+    time : float or None
+        The current time, None before `start`.
+    state : DynamicState
+        After `start`: the current state, one value (each step makes new arrays: a
+        recorder may keep them).
+    system : DynamicSystem
+    n_steps, n_subdivisions, n_newton, n_stalls : int
+        Steps accepted, step halvings, Newton corrections, Newton iterations accepted at
+        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`).
+    redundant_rows : ndarray of int
+        Equations left out as redundant (`redundant_labels` in words).
+
+    Notes
+    -----
+    A `sparsekin.solve.steppers.Stepper`: `start` and `advance` return the Newton
+    corrections, `linearization` publishes the sample with its λ, `stats` the counts;
+    `recorded` gives the sample's energy balance and drift (the schema's ``energy`` and
+    ``drift``).  ``SampleSteps(stepper, stepper.recorded)`` is its block stepper.
+    """
+
+    def __init__(self, model: Mechanism | Discretization, max_step: float | None = None, *,
+                 integrator: GeneralizedAlpha | None = None, tolerance: float = DEFAULT_TOLERANCE,
+                 linear_solver: str = "auto", pattern: ConstraintPattern | None = None,
+                 options: SolveOptions | None = None, dynamics: DynamicsOptions | None = None) -> None:  # fmt: skip
+        self.discretization = model if isinstance(model, Discretization) else discretize(model, pattern)
+        self.mechanism, self.pattern = self.discretization.mechanism, self.discretization.constraints
+        if dynamics is None:
+            rho_inf = GeneralizedAlpha().rho_inf if integrator is None else integrator.rho_inf
+            dynamics = DynamicsOptions(max_step, rho_inf)
+        if dynamics.max_step is None:
+            raise ValueError("`max_step` must be a positive number, got None.")
+        self.max_step = dynamics.max_step
+        self.integrator = GeneralizedAlpha(dynamics.rho_inf) if integrator is None else integrator
+        self.options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver) if options is None else options
+        self.tolerance = self.options.tolerance
+        self.solver, self.path = None, "none"
+        self.system: DynamicSystem | None = None
+        self.redundant_rows = np.zeros(0, dtype=np.int64)
+        self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = 0
+        self._state: DynamicState | None = None
+        self._factored = False
+        self._balance0: float | None = None
+        self._recorded: dict = {}
+
+    # ------------------------------------------------------------------ public
+    @property
+    def state(self) -> DynamicState:
+        if self._state is None:
+            raise RuntimeError("no state yet: call `start` first.")
+        return self._state
+
+    @property
+    def time(self) -> float | None:
+        return None if self._state is None else self._state.time
+
+    @property
+    def assembler(self):
+        return self.system.assembler
+
+    @property
+    def n_factorizations(self) -> int:
+        return self.solver.n_factorizations + self.solver.n_refactorizations
+
+    def start(self, t: float) -> int:
+        """The consistent initial state at time `t` (s) (`state`); no Newton correction (0).
+
+        Raises
+        ------
+        ModelError
+            The drawing cannot be assembled, or the motion is not determined (a moving
+            part with neither mass nor constraint).
+        """
+        t = float(t)
+        pattern = self.pattern
+        n, m = pattern.n_coordinates, pattern.n_equations
+        kept = self._kept_rows(t)
+        self.system = system = DynamicSystem(self.discretization, kept)
+        self.solver = self._make_solver(system.size)
+        masses = system.loads.arrays.masses
+        self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
+                                                    float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
+        q = self._assembled(t)
+        system.set_time(t)
+        system.fill_constraints(q)
+        # velocities: smallest mass-weighted change of the given ones; then accelerations, λ
+        matrix = system.fill_matrix(q, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 0.0, 0.0)
+        try:
+            self.solver.factor(matrix)
+            given = _initial_velocities(self.mechanism, n)
+            rhs = np.concatenate([matrix[:n, :n] @ given, system.assembler.velocity_rhs[kept]])
+            v = self.solver.solve(rhs)[:n].copy()
+            system.fill_constraints(q)
+            applied = system.applied_forces(q, v, np.zeros(n), np.zeros(n))
+            system.assembler.fill_acceleration_rhs(q, v)
+            solution = self.solver.solve(np.concatenate([applied, system.assembler.acceleration_rhs[kept]]))
+        except SingularMatrix:
+            raise ModelError(_undetermined(self.mechanism, pattern)) from None
+        a = solution[:n].copy()
+        lam = np.zeros(m)
+        lam[kept] = solution[n:]
+        self._factored = False
+        self._state = DynamicState(t, q, v, a, a.copy(), lam, self.max_step, 0.0, 0.0)
+        self._power = system.powers(q, v, lam)
+        self._balance0 = None  # the balance is measured from the first sample's
+        self._publish()
+        return 0
+
+    def advance(self, t: float) -> int:
+        """Integrate to time `t` (s, after the current one) in steps of at most `max_step`
+        (`state`); returns the Newton corrections.
+
+        Raises
+        ------
+        ConvergenceError
+            A step failed after `MAX_HALVINGS` halvings; `state` is the last good one.
+        """
+        state = self.state
+        t = float(t)
+        if not t > state.time:
+            raise ValueError(f"`t` must be after the current time {state.time!r}, got {t!r}.")
+        step, good, before = state.step, 0, self.n_newton
+        while self._state.time < t:
+            now = self._state.time
+            remaining = t - now
+            h = remaining if remaining <= step * (1.0 + 1e-9) else step
+            try:
+                self._state = self._step(self._state, h, t if h == remaining else now + h)
+            except _StepFailed as failure:
+                step *= 0.5
+                good = 0
+                self.n_subdivisions += 1
+                self._factored = False
+                if step < self.max_step * 0.5**MAX_HALVINGS:
+                    raise ConvergenceError(f"the step from t = {now:.9g} s failed after {MAX_HALVINGS} halvings "
+                                           f"({failure})", time=now + h, driver_values={}) from None  # fmt: skip
+                continue
+            good += 1
+            if step < self.max_step and good >= GROWTH_AFTER:
+                step, good = min(2.0 * step, self.max_step), 0
+        self._state = self._state._replace(step=step)
+        self._publish()
+        return self.n_newton - before
+
+    def linearization(self) -> Linearization:
+        """The current sample (valid until the next step): Φq at q, −Φt, and λ (`multipliers`;
+        no factorization of Φq: the forces take λ as it is)."""
+        state, assembler, kept = self.state, self.assembler, self.system.kept_rows
+        q, v = state.coordinates, state.velocities
+        q_ground, v_ground, turns = np.zeros(q.size + 3), np.zeros(q.size + 3), np.zeros((q.size // 3 + 1, 2))
+        q_ground[:-3], v_ground[:-3] = q, v
+        _kernels.fill_body_turns(q_ground, turns)
+        return Linearization(
+            state.time, q, v, state.accelerations, (q_ground, v_ground, turns), assembler.values,
+            assembler.csr_positions, lambda: assembler.jacobian, assembler.velocity_rhs, None,
+            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, state.multipliers,
+        )  # fmt: skip
+
+    def recorded(self) -> dict:
+        """The current sample's energy balance and drift, one row each (the schema's
+        ``energy`` and ``drift``; new arrays)."""
+        return self._recorded
+
+    def stats(self) -> StepperStats:
+        solver = self.solver
+        if solver is None:
+            return StepperStats(n_subdivisions=self.n_subdivisions, path=self.path,
+                                redundant_equations=self.redundant_labels)  # fmt: skip
+        return StepperStats(solver.n_factorizations, solver.n_solves, solver.n_refactorizations, self.n_subdivisions,
+                            self.path, self.redundant_labels)  # fmt: skip
+
+    def _publish(self) -> None:
+        """Φ and Φq refilled at the state's q (what `linearization` publishes), and the
+        state's energy and drift (`recorded`)."""
+        state, system = self._state, self.system
+        q, v = state.coordinates, state.velocities
+        phi = system.fill_constraints(q)
+        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
+        kinetic, potential, elastic = system.energies(q, v)
+        balance = kinetic + potential + elastic + state.dissipated - state.work
+        if self._balance0 is None:
+            self._balance0 = balance
+        self._recorded = {
+            ENERGY: np.array([[kinetic, potential, elastic, state.dissipated, state.work, balance - self._balance0]]),
+            DRIFT: np.array([[phi, drift]]),
+        }
+
+    # ------------------------------------------------------------------ one step
+    def _step(self, state: DynamicState, h: float, t_next: float) -> DynamicState:
+        alpha_m, alpha_f, gamma, beta = self.integrator.coefficients
+        system, solver, tol = self.system, self.solver, self.tolerance
+        kept, n = system.kept_rows, system.n
+        beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
+        gamma_prime = gamma / (h * beta)
+        coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
+        # predictor: the accelerations of the last step
+        a = state.accelerations.copy()
+        pseudo = ((1.0 - alpha_f) * a + alpha_f * state.accelerations - alpha_m * state.pseudo_accelerations) / (1.0 - alpha_m)
+        q = state.coordinates + h * state.velocities + h * h * ((0.5 - beta) * state.pseudo_accelerations + beta * pseudo)
+        v = state.velocities + h * ((1.0 - gamma) * state.pseudo_accelerations + gamma * pseudo)
+        lam = state.multipliers.copy()
+        system.set_time(t_next)
+        weights = self.pattern.coordinate_weights
+        rhs = np.zeros(system.size)
+        force = np.zeros(n)
+        last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
+        # Converged: the error left in q by the last correction and the constraint residual,
+        # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
+        bound = tol / gamma_prime
+        max_iterations = self.options.max_iterations
+        for iteration in range(max_iterations + 1):
+            phi_norm = system.fill_constraints(q)
+            floor = ROUNDING * (1.0 + _dynamics_kernels.weighted_norm(q, weights))
+            stall = STALL * math.sqrt(n) * floor
+            if settled and phi_norm <= max(bound, floor, stalled):
+                break
+            if iteration == max_iterations:
+                raise _StepFailed(f"no convergence in {max_iterations} corrections")
+            system.residual(q, v, a, lam, force)
+            if not (math.isfinite(phi_norm) and np.all(np.isfinite(force))):
+                raise _StepFailed("non-finite residual")
+            if not self._factored:
+                self._factor(q, v, a, lam, coefficients)
+                fresh = True
+            np.multiply(force, -1.0 / beta_prime, out=rhs[:n])
+            np.negative(system.assembler.residual[kept], out=rhs[n:])
+            try:
+                delta = solver.solve(rhs)
+            except SingularMatrix as error:
+                raise _StepFailed(str(error)) from None
+            self.n_newton += 1
+            correction = _dynamics_kernels.weighted_norm(delta[:n], weights)
+            if not math.isfinite(correction):
+                raise _StepFailed("non-finite correction")
+            q += delta[:n]
+            v += gamma_prime * delta[:n]
+            a += beta_prime * delta[:n]
+            lam[kept] += beta_prime * delta[n:]
+            if iteration > 0:
+                rate = correction / last
+            left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
+            settled = left <= bound or correction <= floor
+            if not settled and rate > CONTRACTION and iteration > 0:
+                if correction <= (stall if fresh else NOISE * stall / STALL):
+                    # at the rounding floor of the (ill-conditioned) matrix: the ratio of two
+                    # corrections there is noise, not a slow contraction
+                    settled = True
+                    self.n_stalls += 1
+                    stalled = stall
+                elif fresh:
+                    raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
+                else:
+                    self._factored = False  # a fresh matrix at the next iterate
+            else:
+                fresh = False
+            last = correction
+        self._project_velocities(q, v, lam, coefficients, h)
+        pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
+        power = system.powers(q, v, lam)
+        work = state.work + 0.5 * h * (self._power[0] + power[0])
+        dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
+        self._power = power
+        self.n_steps += 1
+        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
+
+    def _factor(self, q, v, a, lam, coefficients) -> None:
+        self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, self._regularization))
+
+    def _factor_filled(self, matrix) -> None:
+        try:
+            self.solver.factor(matrix)
+        except SingularMatrix as error:
+            raise _StepFailed(f"singular iteration matrix ({error})") from None
+        self._factored = True
+
+    def _project_velocities(self, q, v, lam, coefficients, h: float) -> None:
+        """The velocities moved onto Φq v + Φt = 0 along Φq's normals: v ← v − Δv with
+
+            [[A, Φqᵀ], [Φq, 0]] [Δv; μ] = [0; Φq v + Φt],
+
+        A the iteration matrix's leading block and Φq at the converged q.  The held
+        factorization (of an earlier state) preconditions iterative refinement on the
+        matrix at q, refactored when the refinement stops contracting: a correction along
+        stale normals would turn part of it along the motion, an energy error that adds
+        up step after step.  The drift left is at most ``tolerance · h · max(1, ‖v‖)``:
+        a drift d comes back as a velocity kick of about 2 d in the next step."""
+        system, n, kept = self.system, self.system.n, self.system.kept_rows
+        weights = self.assembler.weights[kept]
+        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
+        bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
+        drift = system.velocity_drift(v)[kept]
+        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
+            return
+        matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+        goal = np.zeros(system.size)
+        goal[n:] = drift
+        solution = np.zeros(system.size)
+        residual = goal.copy()
+        last, fresh = math.inf, False
+        coordinate_weights = self.pattern.coordinate_weights
+        for _ in range(PROJECTION_ITERATIONS):
+            increment = self.solver.solve(residual)
+            solution += increment
+            size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
+            if size <= bound:
+                v -= solution[:n]
+                return
+            if size > REFINEMENT_CONTRACTION * last:
+                if fresh:
+                    break
+                self._factor(q, v, np.zeros(n), lam, coefficients)
+                matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+                fresh = True
+                solution[:] = 0.0
+                residual[:] = goal
+                last = math.inf
+                continue
+            last = size
+            residual = goal - matrix @ solution
+        # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
+        drift = system.velocity_drift(v - solution[:n])[kept]
+        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
+            v -= solution[:n]
+            return
+        raise _StepFailed(f"the velocity projection does not converge (increment {size:.3g})")
+
+    # ------------------------------------------------------------------ start
+    def _kept_rows(self, t: float) -> np.ndarray:
+        """All equations but the redundant ones (found at the drawing, as the kinematics does)."""
+        pattern = self.pattern
+        n, m = pattern.n_coordinates, pattern.n_equations
+        everything = np.arange(m, dtype=np.int64)
+        if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
+            return everything
+        from ..engine.assembly import Assembler
+
+        assembler = Assembler(self.discretization)
+        assembler.set_time(t)
+        assembler.fill_residual_jacobian(pattern.initial_coordinates)
+        self.redundant_rows = _redundant_rows(assembler.jacobian)
+        if self.redundant_rows.size:
+            labels = self.redundant_labels
+            shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
+            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); their "
+                        "multipliers are zero: the forces of a redundant set are not unique", RedundantConstraintWarning)  # fmt: skip
+        return np.setdiff1d(everything, self.redundant_rows)
+
+    @property
+    def redundant_labels(self) -> tuple[str, ...]:
+        """The equations left out as redundant, in words (``joints[3] (revolute …) x``)."""
+        from ..analysis.describe import equation_label
+
+        return tuple(equation_label(self.mechanism, self.pattern, int(r)) for r in self.redundant_rows)
+
+    def _make_solver(self, size: int):
+        plan = plan_saddle_solver(size, self.options.linear_solver, self.options.thresholds)
+        self.path = plan.solver
+        return plan.make_solver()
+
+    def _assembled(self, t: float) -> np.ndarray:
+        """The drawing moved onto Φ(q, t) = 0 by the smallest weighted change (Gauss–Newton
+        on [[W, Φqᵀ], [Φq, 0]], W = diag(coordinate weights²))."""
+        from scipy.sparse import bmat, diags
+
+        system, kept = self.system, self.system.kept_rows
+        q = self.pattern.initial_coordinates.copy()
+        system.set_time(t)
+        metric = diags(self.pattern.coordinate_weights**2)
+        for _ in range(2 * self.options.max_iterations):
+            norm = system.fill_constraints(q)
+            if norm <= self.tolerance:
+                return q
+            jacobian = system.assembler.jacobian[kept]
+            matrix = bmat([[metric, jacobian.T], [jacobian, None]], format="csr")
+            solver = SuperLUSolver()
+            try:
+                solver.factor(matrix)
+            except SingularMatrix:
+                break
+            q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
+        raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
+                         f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
+
+
+def _redundant_rows(jacobian) -> np.ndarray:
+    """Equations to leave out so that the others are independent.
+
+    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
+    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
+    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
+    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
+    exactly singular matrix; the dense path keeps small dynamic models, which often have
+    as many equations as coordinates, away from it.)
+    """
+    m, n = jacobian.shape
+    if n > REDUNDANCY_CHECK_COORDINATES:
+        from ..analysis.rank import analyse_jacobian
+
+        return analyse_jacobian(jacobian).redundant_rows
+    from scipy.linalg import qr
+
+    rows = jacobian.toarray()
+    scale = np.abs(rows).max(axis=1)
+    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
+    r, pivots = qr(rows.T, mode="r", pivoting=True)
+    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
+    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
+    rank = int(np.sum(diagonal > tolerance))
+    return np.sort(pivots[rank:]).astype(np.int64)
+
+
+def _initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:
+    """The bodies' `velocity` (copies of repeated units included), zero where not given."""
+    velocities = np.zeros((n // 3, 3))
+    for b, body in enumerate(mechanism.own("bodies")):
+        if body.velocity is not None:
+            velocities[b] = body.velocity
+    for copies in mechanism.copies:
+        for body, (_, starts) in zip(copies.unit.bodies, copies.placed("bodies")):
+            if body.velocity is not None:
+                velocities[copies.first_body + starts] = body.velocity
+    return velocities.ravel()
+
+
+def _undetermined(mechanism: Mechanism, pattern: ConstraintPattern) -> str:
+    """The one-line message of a motion that the masses and constraints leave undetermined."""
+    bodies = mechanism.own("bodies")
+    massless = [body.name for body in bodies if not body.mass and not body.inertia]
+    named = f" (massless bodies: {', '.join(massless[:4])}{', …' if len(massless) > 4 else ''})" if massless else ""
+    return ("the motion is not determined: a moving part has neither mass nor a constraint that fixes it"
+            f"{named}; expected masses (and inertias) on every body that moves freely")
+
+
+# ---------------------------------------------------------------------- the facade
+def solve_dynamics(
+    mechanism: Mechanism,
+    times,
+    max_step: float | None = None,
+    *,
+    rho_inf: float = 0.9,
+    tolerance: float = DEFAULT_TOLERANCE,
+    linear_solver: str = "auto",
+    coordinates: bool = True,
+    points=None,
+    joints=None,
+    forces="auto",
+    store=None,
+    progress=None,
+) -> DynamicsResult:
+    """The motion of `mechanism` under its masses, gravity and loads, at `times`.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        Any mechanism whose motion its masses and constraints determine; drivers are
+        prescribed motions (their forces are recorded as in inverse dynamics).
+    times : array_like, shape (n_times,)
+        Strictly increasing output times, s; the first is the initial state.
+    max_step : float, optional
+        Largest integration step, s (default: the shortest output interval, or
+        ``analysis.max_step`` of the model when given).
+    rho_inf : float
+        Numerical damping of generalized-α, in [0, 1] (1: none).
+    tolerance : float
+        Newton and projection tolerance (`GeneralizedAlphaStepper`).
+    linear_solver : {"auto", "dense", "superlu", "refactor"}
+    coordinates, points, joints, forces, store, progress
+        As for `sparsekin.solve_kinematics`.
+
+    Returns
+    -------
+    DynamicsResult
+
+    Raises
+    ------
+    ModelError
+        If the drawing cannot be assembled or the motion is not determined.
+    ConvergenceError
+        If a step fails after halving; ``error.result`` holds the samples before it.
+    AnalysisInterrupted
+        On Ctrl-C, with the samples solved.
+
+    Examples
+    --------
+    A pendulum of 1 kg on a massless 1 m link, released horizontal:
+
+    >>> import numpy as np, sparsekin as sk
+    >>> pendulum = sk.Mechanism(
+    ...     points={"O": (0.0, 0.0), "P": (1.0, 0.0)},
+    ...     bodies=[sk.Body("link", origin="O", points=("O", "P"), mass=1.0, com="P")],
+    ...     joints=[sk.Revolute(("link", "ground"), at="O")], gravity=(0.0, -9.81))
+    >>> result = sk.solve_dynamics(pendulum, times=[0.0, 0.1], max_step=1e-3)
+    >>> round(float(result.point("P").position[1, 1]), 4)  # fallen ≈ g t² / 2 at first
+    -0.049
+    """
+    if not isinstance(mechanism, Mechanism):
+        raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
+    times = check_times(times, mechanism)
+    dynamics = DynamicsOptions(max_step, rho_inf).for_run(times, mechanism)
+    options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver)
+    check_progress(progress)
+    request = Request(coordinates, points, joints, forces, energy=True)
+    return run_dynamics(discretize(mechanism), times, options, dynamics, request, store=store, progress=progress)
+
+
+def run_dynamics(discretization: Discretization, times: np.ndarray, options: SolveOptions, dynamics: DynamicsOptions,
+                 request: Request = Request(energy=True), *, store=None, progress=None) -> DynamicsResult:  # fmt: skip
+    """`solve_dynamics` on arguments checked already (`sparsekin.solve.options`): the layer
+    under the facade, as `sparsekin.solve.kinematics.run_kinematics` is for the kinematics.
+
+    ``dynamics.max_step`` must be set (`DynamicsOptions.for_run`).  The stepper runs under
+    the run driver one output sample at a time (`SampleSteps`); each sample's driver
+    forces and reactions come from the integrator's λ (`ForceOutputs.fill`), its energy
+    and drift from the stepper (`GeneralizedAlphaStepper.recorded`).
+    """
+    selection = request.selection(discretization)
+    stepper = GeneralizedAlphaStepper(discretization, options=options, dynamics=dynamics)
+    recorder = open_recorder(selection, store, times.size, request.chunk_samples)
+    variables, outputs = RecordedVariables(selection), selection.forces
+    if outputs is not None:
+        work, row = np.zeros((len(outputs.joint_indices), 3)), np.zeros(outputs.n_columns)
+
+    def record(block: SampleBlock) -> None:
+        lin = block.linearization
+        forces = None if outputs is None else outputs.fill(lin, lin.multipliers, work, row)[None]
+        arrays = variables.block(block.coordinates, block.velocities, block.accelerations, forces)
+        if selection.records_energy:
+            arrays |= block.recorded
+        recorder.add_block(block.times, arrays)
+
+    def finish(state) -> DynamicsResult:
+        return recorded_result(DynamicsResult, discretization, recorder, stepper.stats(), state.iterations,
+                               times.size, "dynamics", n_steps=stepper.n_steps,
+                               rho_inf=stepper.integrator.rho_inf)  # fmt: skip
+
+    return run(SampleSteps(stepper, stepper.recorded), times, record, finish, progress=progress)

@@ -1,0 +1,306 @@
+"""Forward dynamics against exact and published references (issue 25).
+
+* A01 (pendulum released horizontal): the period against the complete elliptic integral,
+  the point's path against the Jacobi elliptic solution, the energy error ∝ h² and bounded
+  over 10^4 steps without numerical damping, no constraint drift;
+* A02 (N-four-bar): through its singular crossings on the exact one-parameter family (every
+  crank at the angle of the reduced ODE);
+* A03 (Andrews' squeezing mechanism): the published angles at t = 0.03 s, second-order
+  convergence towards them;
+* the round trip with inverse dynamics: Task 5's driver forces from `solve_kinematics`,
+  applied as actuator spline loads with the drivers removed, give the motion back, the error
+  falling as h²;
+* errors in one line, the command line's energy.csv.
+
+The references (tests/dynamics_reference.py) are closed forms, SciPy integrations of the
+reduced equations, and the Test Set's published values; none uses sparsekin.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from dynamics_reference import (
+    ANDREWS_REFERENCE_ANGLES,
+    andrews_angles_from_bodies,
+    n_four_bar_b0,
+    n_four_bar_motion,
+    pendulum_period,
+    pendulum_point,
+)
+
+import sparsekin as sk
+from sparsekin.testset import n_four_bar
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return sk.load_model(EXAMPLES / "dynamics" / "pendulum.toml")
+
+
+@pytest.fixture(scope="module")
+def pendulum_runs(pendulum):
+    """10 s of A01 without numerical damping at 1 ms (10^4 steps) and 2 ms."""
+    times = np.linspace(0.0, 10.0, 5001)
+    return {h: sk.solve_dynamics(pendulum, times, max_step=h, rho_inf=1.0) for h in (1e-3, 2e-3)}
+
+
+def test_pendulum_period_is_the_elliptic_integral(pendulum_runs):
+    result = pendulum_runs[1e-3]
+    rate = result.velocities[:, 2]
+    # the angular velocity is zero at every half period: linear interpolation between samples
+    k = np.flatnonzero(np.sign(rate[1:]) != np.sign(rate[:-1]))
+    k = k[rate[k] != 0.0]
+    crossings = result.times[k] - rate[k] * (result.times[k + 1] - result.times[k]) / (rate[k + 1] - rate[k])
+    half_periods = np.diff(np.concatenate([[0.0], crossings]))
+    assert half_periods.size >= 8
+    np.testing.assert_allclose(2.0 * half_periods, pendulum_period(), rtol=0, atol=2e-5)
+
+
+def test_pendulum_path_within_the_benchmarks_high_precision(pendulum_runs):
+    result = pendulum_runs[1e-3]
+    position, velocity = pendulum_point(result.times)
+    motion = result.point("P")
+    assert np.abs(motion.position - position).max() <= 1e-3  # IFToMM A01 "high precision", m
+    assert np.abs(motion.velocity - velocity).max() <= 1e-2
+
+
+def test_energy_error_falls_as_h_squared_and_stays_bounded(pendulum_runs):
+    fine, coarse = (np.abs(pendulum_runs[h].energy.balance) for h in (1e-3, 2e-3))
+    ratio = coarse.max() / fine.max()
+    assert 3.5 < ratio < 4.5  # second order
+    half = fine.size // 2
+    assert fine[half:].max() <= 1.2 * fine[:half].max()  # no growth over 10^4 steps
+    assert fine.max() <= 2e-5 * 9.81  # J, against the pendulum's energy range m g L
+
+
+def test_no_drift_of_positions_or_velocities(pendulum_runs):
+    energy = pendulum_runs[1e-3].energy
+    assert energy.drift_position.max() <= 1e-10
+    assert energy.drift_velocity.max() <= 1e-10
+
+
+def test_n_four_bar_keeps_every_crank_on_the_exact_motion_through_singular_crossings():
+    """A02 with N = 4 (the reduced ODE is exact at every N): 5 s, five flat crossings."""
+    times = np.linspace(0.0, 5.0, 101)
+    result = sk.solve_dynamics(n_four_bar(4), times, max_step=1e-3, forces=None)
+    motion = n_four_bar_motion(times, n_loops=4)
+    q = result.coordinates
+    cranks = q[:, [2, *range(5, q.shape[1], 6)]]  # crank0, then each copy's crank
+    assert np.sum(np.diff(np.floor(motion.angle / np.pi)) != 0) == 5
+    np.testing.assert_allclose(cranks - motion.angle[:, None], 0.0, atol=1e-3)
+    assert np.ptp(cranks, axis=1).max() <= 1e-9  # every crank at the same angle throughout
+    position, _ = n_four_bar_b0(times, n_loops=4)
+    b0 = result.point("B0")
+    assert np.abs(b0.position - position).max() <= 1e-3
+    assert result.energy.drift_position.max() <= 1e-9
+
+
+def test_andrews_mechanism_converges_to_the_published_angles():
+    mechanism = sk.load_model(EXAMPLES / "dynamics" / "andrews.toml")
+    errors = []
+    for h in (2e-5, 1e-5):
+        result = sk.solve_dynamics(mechanism, [0.0, 0.03], max_step=h, forces=None)
+        errors.append(np.abs(andrews_angles_from_bodies(result.coordinates[-1, 2::3]) - ANDREWS_REFERENCE_ANGLES).max())
+    assert 3.5 < errors[0] / errors[1] < 4.5  # second order
+    assert errors[1] <= 1.5e-4
+
+
+@pytest.fixture(scope="module")
+def task5_round_trip():
+    """Task 5 with masses: its driver forces (inverse dynamics) as actuator loads, drivers removed."""
+    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
+    horizon = 0.3
+    samples = np.linspace(0.0, horizon, 301)
+    kinematic = sk.solve_kinematics(mechanism, samples)
+    start = kinematic.velocities[0].reshape(-1, 3)
+    actuators = [sk.Actuator(f"actuator{k}", sk.Spline(tuple(samples), tuple(kinematic.driver_force(f"cylinder{k}").force)))
+                 for k in (1, 2)]  # fmt: skip
+    free = dataclasses.replace(
+        mechanism, drivers=[], loads=[*mechanism.loads, *actuators],
+        bodies=[dataclasses.replace(body, velocity=tuple(start[k])) for k, body in enumerate(mechanism.bodies)],
+    )  # fmt: skip
+    return kinematic, free
+
+
+def test_round_trip_with_inverse_dynamics_comes_back_as_h_squared(task5_round_trip):
+    kinematic, free = task5_round_trip
+    times = kinematic.times[::10]
+    errors = []
+    for h in (2e-3, 1e-3, 5e-4):
+        result = sk.solve_dynamics(free, times, max_step=h)
+        errors.append(np.abs(result.coordinates - kinematic.coordinates[::10]).max())
+    assert errors[-1] <= 1e-8
+    np.testing.assert_allclose(np.array(errors[:-1]) / np.array(errors[1:]), 4.0, rtol=0.05)
+
+
+def test_drivers_are_prescribed_motions_whose_forces_match_inverse_dynamics():
+    """Task 5 with its drivers: no degree of freedom left, the dynamic run is the kinematic
+    one and its multipliers are the inverse-dynamics forces."""
+    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
+    times = np.linspace(0.0, 0.2, 11)
+    kinematic = sk.solve_kinematics(mechanism, times)
+    dynamic = sk.solve_dynamics(mechanism, times, max_step=1e-3)
+    np.testing.assert_allclose(dynamic.coordinates, kinematic.coordinates, rtol=0, atol=1e-9)
+    force = kinematic.driver_force("cylinder1").force
+    np.testing.assert_allclose(dynamic.driver_force("cylinder1").force, force, rtol=1e-5, atol=1e-5 * np.abs(force).max())
+    balance = dynamic.energy.balance
+    assert np.abs(balance).max() <= 1e-3 * np.abs(dynamic.energy.work).max()
+
+
+# ------------------------------------------------------------------ errors and the command line
+MISTAKES = {
+    "actuator on an unknown joint": ('[[loads]]\ntype = "actuator"\njoint = "nope"\nvalue = 1.0',
+                                     r'loads\[1\]\.joint: unknown joint "nope"'),
+    "actuator on a revolute without a name": ('[[loads]]\ntype = "actuator"\nvalue = 1.0',
+                                              r'loads\[1\]: missing key "joint"'),
+    "negative rotational stiffness": ('[[loads]]\ntype = "rotational_spring"\nbodies = ["c1", "c2"]\nstiffness = -2.0',
+                                      r"loads\[1\]\.stiffness"),
+}
+
+
+@pytest.mark.parametrize("case", MISTAKES)
+def test_a_mistake_in_a_dynamics_load_is_one_line(tmp_path, case):
+    table, message = MISTAKES[case]
+    text = (EXAMPLES / "task5_dynamics.toml").read_text(encoding="utf-8").replace("[analysis]", f"{table}\n\n[analysis]")
+    (tmp_path / "model.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(sk.ModelError, match=message) as error:
+        sk.load_model(tmp_path / "model.toml")
+    assert "\n" not in str(error.value)
+
+
+@pytest.mark.parametrize(("line", "message"), [('type = "statics"', r'analysis\.type: expected one of "kinematics", '
+                                                                     r'"dynamics"'),
+                                                ("max_step = 0.0", r"analysis\.max_step: expected max_step > 0")])
+def test_a_mistake_in_the_analysis_is_one_line(tmp_path, line, message):
+    text = (EXAMPLES / "task5_dynamics.toml").read_text(encoding="utf-8").replace("[analysis]", f"[analysis]\n{line}")
+    (tmp_path / "model.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(sk.ModelError, match=message):
+        sk.load_model(tmp_path / "model.toml")
+
+
+def test_a_body_velocity_needs_three_numbers():
+    with pytest.raises(sk.ModelError, match=r"velocity: expected \[vx, vy, angular velocity\]"):
+        sk.Body("b", origin=(0.0, 0.0), velocity=(1.0, 2.0))
+
+
+def test_a_massless_free_body_is_named(pendulum):
+    free = dataclasses.replace(pendulum, bodies=[dataclasses.replace(pendulum.bodies[0], mass=None)])
+    with pytest.raises(sk.ModelError, match="the motion is not determined.*massless bodies: pendulum"):
+        sk.solve_dynamics(free, [0.0, 0.1])
+
+
+def test_run_dynamics_writes_energy_csv(tmp_path):
+    from sparsekin.cli import main
+
+    status = main(["run", str(EXAMPLES / "dynamics" / "pendulum.toml"), "--t-end", "0.5", "--steps", "11",
+                   "--max-step", "0.005", "--out", str(tmp_path), "--quiet"])  # fmt: skip
+    assert status == 0
+    lines = (tmp_path / "energy.csv").read_text(encoding="utf-8").splitlines()
+    assert lines[0] == "t,kinetic,potential,elastic,dissipated,work,balance,drift_position,drift_velocity"
+    assert len(lines) == 12
+    kinetic, potential = (float(value) for value in lines[-1].split(",")[1:3])
+    assert kinetic > 1.0 and abs(kinetic + potential) < 1e-3  # released from rest at zero potential
+    for name in ("points.csv", "joints.csv", "forces.csv"):
+        assert (tmp_path / name).exists()
+
+
+def test_max_step_without_dynamics_is_refused(tmp_path, capsys):
+    from sparsekin.cli import main
+
+    status = main(["run", str(EXAMPLES / "task5_dynamics.toml"), "--max-step", "0.01", "--out", str(tmp_path)])
+    assert status != 0
+    assert "--max-step is for forward dynamics" in capsys.readouterr().err
+
+
+def test_an_actuator_takes_its_share_of_the_inverse_dynamics_force():
+    """A kinematic run with an actuator along a driven joint: the driver holds the motion with
+    the actuator's force less (the actuator's work counted once, by the load)."""
+    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
+    helped = dataclasses.replace(mechanism, loads=[*mechanism.loads, sk.Actuator("actuator1", 150.0)])
+    times = np.linspace(0.0, 0.5, 6)
+    alone, with_actuator = (sk.solve_kinematics(m, times).driver_force("cylinder1").force for m in (mechanism, helped))
+    np.testing.assert_allclose(with_actuator, alone - 150.0, rtol=0, atol=1e-8 * np.abs(alone).max())
+
+
+def _tower(redundant: bool) -> sk.Mechanism:
+    """Three parallelogram cells released under gravity, the first cell's bars turning: with
+    a massless third bar per cell (one redundant equation each), or without it."""
+    from sparsekin.testset import parallel_bar_chain
+
+    tower = parallel_bar_chain(3, bars=3)
+    bodies = []
+    for body in tower.bodies:
+        if body.name.startswith("b"):
+            if redundant:
+                bodies.append(body)  # massless: the motion is that of the tower without it
+        elif body.name.startswith("p"):
+            bodies.append(dataclasses.replace(body, mass=2.0, inertia=0.2, com=body.points[1]))
+        else:
+            x, y = tower.position(body.points[0])
+            turning = (0.0, 0.0, -0.5) if body.name in ("a0", "c0") else None
+            bodies.append(dataclasses.replace(body, mass=1.0, inertia=1.0 / 12.0, com=(x, y + 0.5), velocity=turning))
+    kept = {body.name for body in bodies} | {"ground"}
+    joints = [joint for joint in tower.joints if set(joint.bodies) <= kept]
+    return dataclasses.replace(tower, bodies=bodies, joints=joints, drivers=[], gravity=(0.0, -9.81))
+
+
+def test_redundant_equations_are_left_out_and_change_nothing():
+    times = np.linspace(0.0, 1.0, 11)
+    with pytest.warns(sk.RedundantConstraintWarning, match="3 redundant equations"):
+        redundant = sk.solve_dynamics(_tower(True), times, max_step=1e-3, forces=None)
+    plain = sk.solve_dynamics(_tower(False), times, max_step=1e-3, forces=None)
+    assert len(redundant.redundant_equations) == 3 and plain.redundant_equations == ()
+    names = redundant.mechanism.body_names
+    both = [names.index(name) for name in plain.mechanism.body_names]
+    moved = redundant.coordinates.reshape(times.size, -1, 3)[:, both]
+    assert np.abs(plain.coordinates[-1] - plain.coordinates[0]).max() > 1.0  # the tower fell
+    np.testing.assert_allclose(moved.reshape(times.size, -1), plain.coordinates, rtol=0, atol=1e-9)
+    assert redundant.energy.drift_position.max() <= 1e-10
+
+
+def test_energy_and_drift_are_recorded_variables_streamed_bit_for_bit(pendulum, tmp_path):
+    """The energy balance and drift are rows of the schema: a run streamed to Zarr holds
+    them labelled, equal to the run in memory."""
+    xarray = pytest.importorskip("xarray", reason='the Zarr test needs "sparsekin[zarr]"')
+    from sparsekin.results.schema import DRIFT_TERMS, ENERGY_TERMS
+
+    times = np.linspace(0.0, 0.2, 21)
+    memory = sk.solve_dynamics(pendulum, times, max_step=1e-3)
+    streamed = sk.solve_dynamics(pendulum, times, max_step=1e-3, store=tmp_path / "run.zarr")
+    for name in (*ENERGY_TERMS, "drift_position", "drift_velocity"):
+        np.testing.assert_array_equal(getattr(streamed.energy, name), getattr(memory.energy, name))
+    dataset = xarray.open_zarr(tmp_path / "run.zarr")
+    assert list(dataset["energy"].coords["energy_term"].values) == list(ENERGY_TERMS)
+    assert list(dataset["drift"].coords["drift_term"].values) == list(DRIFT_TERMS)
+    np.testing.assert_array_equal(memory.to_xarray()["energy"].values, dataset["energy"].values)
+    assert memory.energy.balance[0] == 0.0
+
+
+def test_the_saddle_plan_changes_the_linear_solver_not_the_motion(pendulum):
+    from sparsekin.engine.discretization import discretize
+    from sparsekin.solve.dynamics import run_dynamics
+    from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
+    from sparsekin.solve.policy import Thresholds
+
+    times = np.linspace(0.0, 0.2, 21)
+    dense = run_dynamics(discretize(pendulum), times, SolveOptions(1e-10), DynamicsOptions(1e-3), Request(energy=True))
+    sparse_options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+    sparse = run_dynamics(discretize(pendulum), times, sparse_options, DynamicsOptions(1e-3), Request(energy=True))
+    assert (dense.linear_solver, sparse.linear_solver) == ("dense", "refactor")
+    # the same integrator to the Newton tolerance (1e-10 relative, 1 m pendulum)
+    np.testing.assert_allclose(sparse.coordinates, dense.coordinates, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("keywords", "message"), [
+    ({"rho_inf": 1.5}, r"`rho_inf` must be a number in \[0, 1\], got 1.5"),
+    ({"max_step": 0.0}, "`max_step` must be a positive number, got 0.0"),
+])
+def test_dynamics_options_are_checked_once(pendulum, keywords, message):
+    with pytest.raises(ValueError, match=message):
+        sk.solve_dynamics(pendulum, [0.0, 0.1], **keywords)
