@@ -36,12 +36,14 @@ files, written once).
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 
 from ..errors import ModelError
+from . import signals
 from .animate import add_animate_command
 from .check import add_check_command
-from .common import EXIT_INTERRUPTED, EXIT_USAGE, PROGRAM, CommandError, report
+from .common import EXIT_USAGE, PROGRAM, CommandError, report
 from .run import add_run_command
 from .sweep import add_sweep_command
 from .warning_lines import one_line_warnings
@@ -68,21 +70,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         model or bad arguments, 3 when the analysis stopped, 130 on Ctrl-C (a command
         that has solved samples writes them first).
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     try:
         arguments = parser.parse_args(argv)
     except SystemExit as exit_request:  # usage errors and --help: argparse has printed
         return int(exit_request.code or 0)
-    try:
-        with one_line_warnings(PROGRAM):
-            return arguments.handler(arguments)
-    except (CommandError, ModelError) as error:
-        report(f"error: {error}")
-    except OSError as error:  # an output folder or file that cannot be written
-        report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
-    except KeyboardInterrupt:  # before any sample was solved (the commands handle it after)
-        report("interrupted: nothing solved yet, nothing written")
-        return EXIT_INTERRUPTED
+    arguments.command_line = [PROGRAM, *argv]
+    with signals.stop_on_signals():
+        try:
+            with one_line_warnings(PROGRAM):
+                return arguments.handler(arguments)
+        except (CommandError, ModelError) as error:
+            report(f"error: {error}")
+        except OSError as error:  # an output folder or file that cannot be written
+            report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
+        except KeyboardInterrupt:  # before any sample was solved (the commands handle it after)
+            report(f"{signals.interrupted()}: nothing solved yet, nothing written")
+            return signals.exit_status()
     return EXIT_USAGE
 
 

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import math
+import os
 import time
 from pathlib import Path
 
@@ -12,7 +15,8 @@ import numpy as np
 from ..errors import AnalysisInterrupted, ConvergenceError, SingularConfigurationError
 from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
-from .common import EXIT_INTERRUPTED, EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
+from . import signals
+from .common import EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
 from .run import solve_for_command
 from .settings import (
@@ -73,7 +77,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
         trace = parse_point_names(arguments.trace, mechanism, option="--trace")
     path = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name / "animation.gif"
     _check_animation_options(arguments, path, times)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    _check_writable(path)
     # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
     settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
     start = time.perf_counter()
@@ -84,8 +88,10 @@ def animate_command(arguments: argparse.Namespace) -> int:
         if solved:
             mark = f"interrupted at t = {interrupt.result.times[-1]:.6g} s"
             written = _write_animation(interrupt.result, path, arguments, trace, mark)
-            report(f"interrupted: animated {solved} of {times.size} samples: {written}")
-        return EXIT_INTERRUPTED
+            report(f"{signals.interrupted()}: animated {solved} of {times.size} samples: {written}")
+        else:
+            report(f"{signals.interrupted()}: nothing solved yet, {path} not written")
+        return signals.exit_status()
     except ConvergenceError as error:
         report(f"analysis stopped: {error}")
         solved = count_samples(error.result)
@@ -100,7 +106,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
     written = _write_animation(result, path, arguments, trace, None)
     print(f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s\n{written}\n"
           f"wall time: {time.perf_counter() - start:.3g} s\nwrote:\n  {path}")  # fmt: skip
-    return EXIT_SUCCESS
+    return EXIT_SUCCESS if signals.received() is None else signals.exit_status()
 
 
 def _check_animation_options(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> None:
@@ -132,13 +138,36 @@ def _check_animation_options(arguments: argparse.Namespace, path: Path, times: n
         raise CommandError("--at chooses the time of one frame: give --out FILE.png with it")
 
 
+def _check_writable(path: Path) -> None:
+    """The clip's folder (created) can be written and `path` is not a folder: before any solving."""
+    if path.is_dir():
+        raise CommandError(f"--out {path}: is a folder; give a file name ending in .gif, .mp4 or .png")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise CommandError(f"--out {path}: {path.parent} is a file, not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not os.access(path.parent, os.W_OK):
+        raise OSError(errno.EACCES, "Permission denied", str(path.parent))
+
+
 def _write_animation(result: KinematicsResult, path: Path, arguments, trace, stopped: str | None) -> str:
-    """Write the clip or the frame; a line saying what was written."""
+    """Write the clip or the frame (at a temporary name, renamed to `path` once complete,
+    signals held meanwhile); a line saying what was written."""
     from ..plots import animate, save_frame
 
-    if path.suffix.lower() == ".png":
-        at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
-        save_frame(result, path, at, trace=trace, stopped=stopped)
-        return f"frame at t = {result.times[-1] if at is None else at:g} s"
-    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped)
-    return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"
+    partial = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")  # the suffix chooses the format
+    with signals.holding():
+        try:
+            if path.suffix.lower() == ".png":
+                at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
+                save_frame(result, partial, at, trace=trace, stopped=stopped)
+                what = f"frame at t = {result.times[-1] if at is None else at:g} s"
+            else:
+                clip = animate(result, partial, trace=trace, fps=arguments.fps, duration=arguments.duration,
+                               stopped=stopped)  # fmt: skip
+                what = f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"
+            os.replace(partial, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.remove(partial)
+            raise
+    return what

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from ..errors import ModelError
 from ..model.modelfile import load_model
+from . import signals
 from .common import (
-    EXIT_INTERRUPTED,
     EXIT_STOPPED,
     EXIT_SUCCESS,
     CommandError,
@@ -17,6 +17,7 @@ from .common import (
     report,
     require_matplotlib,
 )
+from .outputs import OutputFolder, manifest
 from .settings import (
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
@@ -125,37 +126,47 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         if plot_point is None or plot_point not in points:
             raise CommandError(f"--plot-point: {plot_point or 'no point'} is not recorded (recorded: "
                                f"{', '.join(points) or 'none'}): give --points with it")  # fmt: skip
-    client = None
-    if arguments.scheduler is not None:
-        client = _connect(arguments.scheduler)
-    settings.directory.mkdir(parents=True, exist_ok=True)
-    for note in notes:
-        report(f"note: {note}")
-    store = settings.directory / "sweep.zarr"
-    try:
-        with ProgressBar(design.n_variants, "variant", arguments.quiet) as progress:
-            result = sweep(
-                mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
-                coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
-                forces=settings.forces, quasi_static=settings.quasi_static, variants_per_task=arguments.variants_per_task,
-                progress=progress,
-            )  # fmt: skip
-    except KeyboardInterrupt:
-        report(f"interrupted: {store} holds the variants finished so far (status empty for the others)")
-        return EXIT_INTERRUPTED
-    except (ModelError, CommandError):
-        raise
-    except Exception as error:  # a task that failed: a lost worker too often, a bug, a scheduler gone
-        report(f"sweep stopped: {type(error).__name__}: {error}")
-        return EXIT_STOPPED
-    finally:
-        if client is not None:
-            client.close()
-    written = [store, write_variants_csv(result, settings.directory / "variants.csv")]
-    if plot_point is not None:
-        from ..plots import plot_stop_times, plot_sweep_paths
+    with OutputFolder(settings.directory, "sweep", ["sweep.zarr", "variants.csv"]) as folder:
+        client = None
+        if arguments.scheduler is not None:
+            client = _connect(arguments.scheduler)
+        for note in notes:
+            report(f"note: {note}")
+        folder.clean(keep=["sweep.zarr"])  # the store is written in place from the first task on
+        store = settings.directory / "sweep.zarr"
+        record = {"variants_requested": design.n_variants}
+        try:
+            with ProgressBar(design.n_variants, "variant", arguments.quiet) as progress:
+                result = sweep(
+                    mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
+                    coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
+                    forces=settings.forces, quasi_static=settings.quasi_static,
+                    variants_per_task=arguments.variants_per_task, progress=progress,
+                )  # fmt: skip
+        except KeyboardInterrupt:
+            with signals.holding():
+                status = signals.exit_status()
+                folder.commit([], [store], _manifest(arguments, "interrupted", status, record))
+                report(f"{signals.interrupted()}: {store} holds the variants finished so far (status empty for the "
+                       "others)")  # fmt: skip
+            return status
+        except (ModelError, CommandError):
+            raise
+        except Exception as error:  # a task that failed: a lost worker too often, a bug, a scheduler gone
+            folder.commit([], [store], _manifest(arguments, "stopped", EXIT_STOPPED, record))
+            report(f"sweep stopped: {type(error).__name__}: {error}")
+            return EXIT_STOPPED
+        finally:
+            if client is not None:
+                client.close()
+        with signals.holding():
+            staged = [write_variants_csv(result, folder.staged("variants.csv"))]
+            if plot_point is not None:
+                from ..plots import plot_stop_times, plot_sweep_paths
 
-        written += [plot_sweep_paths(result, plot_point, settings.directory), plot_stop_times(result, settings.directory)]
+                staged += [plot_sweep_paths(result, plot_point, folder.staging), plot_stop_times(result, folder.staging)]
+            exit_status = EXIT_SUCCESS if signals.received() is None else signals.exit_status()
+            written = folder.commit(staged, [store], _manifest(arguments, "complete", exit_status, record))
     counts = ", ".join(f"{status} {count}" for status, count in result.counts.items())
     if arguments.scheduler:
         workers = "the scheduler's workers"
@@ -173,7 +184,11 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         "wrote:",
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
-    return EXIT_SUCCESS
+    return exit_status
+
+
+def _manifest(arguments: argparse.Namespace, status: str, exit_status: int, counts: dict) -> dict:
+    return manifest(arguments.command_line, arguments.model, status, exit_status, counts)
 
 
 def _require_distributed() -> None:

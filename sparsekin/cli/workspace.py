@@ -9,7 +9,9 @@ from ..errors import ConvergenceError, ModelError
 from ..model import _validate
 from ..model.modelfile import load_model
 from .common import EXIT_SUCCESS, CommandError, require_matplotlib
+from . import signals
 from .files import write_workspace
+from .outputs import OutputFolder, manifest
 from .settings import (
     LISTED_POINTS,
     add_folder_argument,
@@ -81,19 +83,23 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         ranges = [given[0], given[1]]
     if arguments.plot:
         require_matplotlib()
-    try:
-        space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)
-    except ModelError as error:
-        raise (error if error.file else error.in_file(str(arguments.model))) from None
-    except ConvergenceError as error:
-        raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
-    directory = output_folder(arguments, mechanism)
-    directory.mkdir(parents=True, exist_ok=True)
-    written = write_workspace(space, directory)
-    if arguments.plot:
-        from ..plots import plot_workspace
+    with OutputFolder(output_folder(arguments, mechanism), "workspace", ["workspace.csv", "boundary.csv"]) as folder:
+        try:
+            space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)
+        except ModelError as error:
+            raise (error if error.file else error.in_file(str(arguments.model))) from None
+        except ConvergenceError as error:
+            raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
+        with signals.holding():
+            staged = write_workspace(space, folder.staging)
+            if arguments.plot:
+                from ..plots import plot_workspace
 
-        written.append(plot_workspace(space, directory))
+                staged.append(plot_workspace(space, folder.staging))
+            exit_status = EXIT_SUCCESS if signals.received() is None else signals.exit_status()
+            record = manifest(arguments.command_line, arguments.model, "complete", exit_status,
+                              {"grid_points": int(space.status.size)})  # fmt: skip
+            written = folder.commit(staged, [], record)
     counts = ", ".join(f"{status} {int((space.status == status).sum())}" for status in dict.fromkeys(space.status.ravel()))
     print("\n".join([
         f"{mechanism.name}: {arguments.point} over {space.status.shape[1]} × {space.status.shape[0]} values of "
@@ -103,4 +109,4 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         "wrote:",
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
-    return EXIT_SUCCESS
+    return exit_status

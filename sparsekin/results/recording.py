@@ -343,26 +343,35 @@ class Recorder:
         return self.sink.close(self.n_written)
 
 
+#: The signals a chunk's write holds until it is done (issue 28: the command line stops on
+#: SIGTERM and SIGHUP as on Ctrl-C).
+_DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
 @contextmanager
 def _interrupt_deferred():
-    """Hold a SIGINT (Ctrl-C) that arrives in the block until the block is done, then hand
-    it to the handler there was (which raises `KeyboardInterrupt`).
+    """Hold a SIGINT (Ctrl-C), SIGTERM or SIGHUP that arrives in the block until the block
+    is done, then hand it to the handler there was (which raises `KeyboardInterrupt` for
+    Ctrl-C).
 
     Only the main thread receives signals, and only a Python handler can be called
-    later: elsewhere, or under another handler, the block runs as it is.
+    later: elsewhere, or for a signal under another handler, the block runs as it is.
     """
-    previous = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    previous = {signum: signal.getsignal(signum) for signum in _DEFERRED_SIGNALS}
+    previous = {signum: handler for signum, handler in previous.items() if callable(handler)}
     received = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(frame))
+    for signum in previous:
+        signal.signal(signum, lambda signum, frame: received.append((signum, frame)))
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-        if received:
-            previous(signal.SIGINT, received[0])
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum, frame in received:
+            previous[signum](signum, frame)
 
 
 class _LimitWatch:
