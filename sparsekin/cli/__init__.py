@@ -70,14 +70,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         model or bad arguments, 3 when the analysis stopped, 130 on Ctrl-C (a command
         that has solved samples writes them first).
     """
-    argv = sys.argv[1:] if argv is None else list(argv)
+    command = argv is None  # the process is the command: it ends with it
+    argv = sys.argv[1:] if command else list(argv)
     parser = build_parser()
     try:
         arguments = parser.parse_args(argv)
     except SystemExit as exit_request:  # usage errors and --help: argparse has printed
         return int(exit_request.code or 0)
     arguments.command_line = [PROGRAM, *argv]
-    with signals.stop_on_signals():
+    with signals.stop_on_signals(then_ignore=command):
         try:
             with one_line_warnings(PROGRAM):
                 return arguments.handler(arguments)

@@ -21,6 +21,13 @@ STOPPING_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM",
 SIGNAL_NAMES = {signal.SIGINT: "Ctrl-C"}
 
 
+class StopSignal(KeyboardInterrupt):
+    """What the first stopping signal raises: a `KeyboardInterrupt` (the analysis keeps
+    its samples as on Ctrl-C), of its own class because the interpreter ends a process
+    in which a plain `KeyboardInterrupt` once left code run by ``PyRun_String`` (some
+    compiled modules' imports) by SIGINT, whatever the exit status asked."""
+
+
 class _State:
     received: int | None = None  # the first stopping signal received
     holding = 0  # writing: no signal raises
@@ -34,14 +41,16 @@ def _on_signal(signum: int, frame) -> None:
         return  # a second signal: the first one is being dealt with
     _state.received = signum
     if not _state.holding:
-        raise KeyboardInterrupt
+        raise StopSignal
 
 
 @contextmanager
-def stop_on_signals() -> Iterator[None]:
+def stop_on_signals(then_ignore: bool = False) -> Iterator[None]:
     """Handle the `STOPPING_SIGNALS` as the module docstring says while the block runs (in
-    the main thread only: elsewhere the block runs as it is); the handlers there were are
-    restored after it."""
+    the main thread only: elsewhere the block runs as it is).  After it, the handlers
+    there were are restored; with `then_ignore` (the process ends with the command), the
+    signals are ignored instead: the interpreter, while it shuts down, would otherwise
+    end by a late second Ctrl-C (killed by SIGINT, whatever the exit status)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -53,7 +62,7 @@ def stop_on_signals() -> Iterator[None]:
         yield
     finally:
         for signum, handler in previous.items():
-            signal.signal(signum, handler)
+            signal.signal(signum, signal.SIG_IGN if then_ignore else handler)
 
 
 @contextmanager
