@@ -439,6 +439,24 @@ def _clear_store(path: str) -> None:
             os.remove(entry.path)
 
 
+def _partial_path(path: str) -> str:
+    """Where a store is built before it is renamed to `path`: a hidden name beside it."""
+    head, name = os.path.split(os.path.normpath(path))
+    return os.path.join(head, f".{name}.{os.getpid()}.partial")
+
+
+def _resize_time(path: str, n_times: int) -> None:
+    """Lay the variables of the store at `path` over `n_times` samples (their first
+    dimension, ``time``) and consolidate its metadata again."""
+    import zarr
+
+    group = zarr.open_group(path, mode="r+", zarr_format=2)
+    for _, array in group.arrays():
+        if array.attrs.get("_ARRAY_DIMENSIONS", [None])[0] == "time" and array.shape[0] != n_times:
+            array.resize((n_times, *array.shape[1:]))
+    zarr.consolidate_metadata(path, zarr_format=2)
+
+
 class MemorySink:
     """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (the
     rows it hands to `write` that are views of them are not copied again)."""
@@ -464,6 +482,16 @@ class MemorySink:
 class ZarrSink:
     """A Zarr store at `path`, written chunk by chunk (see the module docstring).
 
+    With `n_times`, the store holds every sample's row from its first write on, so that
+    a run killed at any moment (even by SIGKILL) leaves a store that opens, with ``t`` and
+    every variable and the same number of samples in each: the store is built at a
+    temporary name with the first chunk, its variables laid out over the `n_times`
+    samples (metadata only; the rows not yet written read as NaN, ``t`` too), and renamed
+    into place; each later chunk fills its rows, ``t`` last, so that a sample whose time
+    is written is whole.  `close` cuts the variables to the samples written.  Without
+    `n_times`, each chunk is appended (a kill between two variables' appends leaves them
+    of different lengths).
+
     Parameters
     ----------
     path : str or path-like
@@ -471,6 +499,8 @@ class ZarrSink:
         run, so that no old sample outlives it; a file or a folder holding anything else
         is refused.
     selection : Selection
+    n_times : int, optional
+        The samples of the run.
 
     Raises
     ------
@@ -478,7 +508,7 @@ class ZarrSink:
         If `path` is a file, or a non-empty folder that is not a Zarr store.
     """
 
-    def __init__(self, path, selection: Selection) -> None:
+    def __init__(self, path, selection: Selection, n_times: int | None = None) -> None:
         try:
             import xarray  # noqa: F401
             import zarr  # noqa: F401
@@ -486,6 +516,7 @@ class ZarrSink:
             raise ImportError(_EXTRA) from None
         self.path = os.fspath(path)
         self.selection = selection
+        self.n_times = n_times
         self._written = False
         _clear_store(self.path)
 
@@ -508,23 +539,51 @@ class ZarrSink:
     def write(self, first: int, data: dict) -> None:
         import warnings
 
-        dataset = self._dataset(data, with_labels=not self._written)
+        if not self._written:
+            self._create(data, self.n_times)
+            self._written = True
+            return
+        if self.n_times is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", FutureWarning)
+                self._dataset(data, with_labels=False).to_zarr(self.path, append_dim="time", zarr_format=2)
+            return
+        import zarr
+
+        group = zarr.open_group(self.path, mode="r+", zarr_format=2)
+        for key in (*(key for key in data if key != "t"), "t"):  # the time last: its sample is whole
+            group[key][first : first + len(data[key])] = data[key]
+
+    def _create(self, data: dict, n_times: int | None) -> None:
+        """Write the store with the first chunk and the labels: at a temporary name, laid out
+        over `n_times` samples, then renamed into place (see the class docstring)."""
+        import warnings
+
+        import zarr
+
+        n = self.selection.mechanism.n_coordinates
+        rows = max(1, len(data["t"]))
+        encoding = {key: {"chunks": (rows, *(min(size, 2**20) for size in values.shape[1:]))}
+                    for key, values in data.items()}  # fmt: skip
+        encoding |= {key: {"chunks": (rows, min(n, 2**20))} for key in ("q", "qd", "qdd") if key in data}
+        target = self.path if n_times is None else _partial_path(self.path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)
-            if not self._written:
-                n = self.selection.mechanism.n_coordinates
-                encoding = {key: {"chunks": (len(data["t"]), min(n, 2**20))} for key in ("q", "qd", "qdd") if key in data}
-                dataset.to_zarr(self.path, mode="w", zarr_format=2, encoding=encoding)
-                self._written = True
-            else:
-                dataset.to_zarr(self.path, append_dim="time", zarr_format=2)
+            self._dataset(data, with_labels=True).to_zarr(target, mode="w", zarr_format=2, encoding=encoding)
+        if n_times is None:
+            return
+        _resize_time(target, n_times)
+        os.replace(target, self.path)  # onto the emptied folder, or a new name
 
     def close(self, n_written: int) -> dict:
-        """The store's arrays, read lazily (zarr arrays)."""
+        """The store's arrays, read lazily (zarr arrays), cut to the `n_written` samples."""
         import zarr
 
         if not self._written:  # nothing solved: an empty store with the labels
-            self.write(0, {"t": np.empty(0), **self._empty()})
+            self._create({"t": np.empty(0), **self._empty()}, None)
+            self._written = True
+        elif self.n_times is not None and n_written < self.n_times:
+            _resize_time(self.path, n_written)
         group = zarr.open_group(self.path, mode="r")
         return {key: group[key] for key in ("t", "q", "qd", "qdd", "points", "joints", "forces") if key in group}
 

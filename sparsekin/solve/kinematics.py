@@ -200,7 +200,7 @@ def solve_kinematics(
             mechanism, linear_solver=linear_solver, tolerance=tolerance, max_iterations=max_iterations, pattern=pattern,
             forces=selection.forces is not None,
         )  # fmt: skip
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
+    sink = ZarrSink(store, selection, times.size) if store is not None else MemorySink(selection, times.size)
     force_solver = None
     if selection.forces is not None and stepper is not None:
         force_solver = ForceSolver(pattern, build_load_pattern(mechanism), selection.forces, bool(quasi_static))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results.recording import dataset_labels
+from ..results.recording import _clear_store, _partial_path, dataset_labels
 from .variants import VariantDesign, VariantSet
 
 #: A variant's outcome: every sample solved; stopped at a singular configuration (a lock-up,
@@ -192,11 +192,17 @@ class _ZarrOutput:
         dataset.attrs.update(attrs)
         for key in ("status", "t_stop", "t_failure"):
             encoding[key] = {"chunks": (variants_per_task,)}
+        # built at a temporary name and renamed into place (issue 28): a sweep killed at any
+        # moment leaves no store, or one with every variable
+        target = _partial_path(self.path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)
-            dataset.to_zarr(self.path, mode="w", compute=False, zarr_format=2, encoding=encoding)
+            dataset.to_zarr(target, mode="w", compute=False, zarr_format=2, encoding=encoding)
+        group = zarr.open_group(target, mode="r+", zarr_format=2)
+        group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
+        _clear_store(self.path)
+        os.replace(target, self.path)
         self.group = zarr.open_group(self.path, mode="r+", zarr_format=2)
-        self.group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
 
     def write(self, first: int, stop: int, block: dict) -> None:
         for key in (*_ARRAY_KEYS, "status", "t_stop", "t_failure"):

@@ -1,0 +1,174 @@
+"""A run killed at any moment (SIGKILL or SIGTERM, CSV or Zarr) never leaves a folder whose
+files disagree with each other or with a clean run on the samples they hold.
+
+Each trial copies the folder of a previous run (other sample times) to a new folder,
+starts ``sparsekin run`` on it in a new process and kills it at one of several times
+spread over the length of a clean run (the start and the imports included).  Then:
+
+* every file in the folder (hidden staging files aside) comes from one run: the previous
+  one (byte for byte) or the killed one;
+* each file of the killed run holds a prefix of the clean run's samples, bit for bit, and
+  all of them the same number of samples; ``run.json``, if there, lists exactly them and
+  that number;
+* a Zarr store opens (with and without its consolidated metadata), with ``t`` and every
+  variable of the same length: the samples whose time is written are a prefix of the
+  clean run's, every variable's bit for bit, and the others have no time (NaN).
+
+The suite runs `SUITE_KILLS` kill times per format; ``python tests/test_random_kills.py
+[KILLS]`` runs the full count (20 per format and signal by default) and prints a table.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "examples" / "four_bar_chain.toml"  # 2001 bodies: a few milliseconds a sample
+#: The kill times per format in the suite (SIGKILL and SIGTERM in turn).
+SUITE_KILLS = 2
+STEPS = 300
+
+
+def command(out: Path, format_: str, t_end: float) -> list[str]:
+    return [sys.executable, "-m", "sparsekin", "run", str(MODEL), "--t-end", str(t_end), "--steps", str(STEPS),
+            "--coordinates", "--points", "u999.Q,A0", "--format", format_, "--out", str(out), "--quiet"]  # fmt: skip
+
+
+def environment() -> dict:
+    return dict(os.environ, PYTHONPATH=str(ROOT))
+
+
+def clean_runs(base: Path, format_: str) -> tuple[Path, Path, float]:
+    """The folders of a previous run (t_end 0.5) and of a clean run (t_end 1), and how long
+    the clean run lasted, s."""
+    previous, clean = base / f"previous-{format_}", base / f"clean-{format_}"
+    subprocess.run(command(previous, format_, 0.5), check=True, capture_output=True, env=environment())
+    start = time.monotonic()
+    subprocess.run(command(clean, format_, 1.0), check=True, capture_output=True, env=environment())
+    return previous, clean, time.monotonic() - start
+
+
+def kill_at(out: Path, format_: str, previous: Path, moment: float, signum: int) -> int:
+    """Copy `previous` to `out`, start the run there and send `signum` after `moment` s;
+    the exit status."""
+    shutil.copytree(previous, out)
+    process = subprocess.Popen(command(out, format_, 1.0), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               env=environment())  # fmt: skip
+    time.sleep(moment)
+    process.send_signal(signum)
+    _, error = process.communicate(timeout=300)
+    assert "Traceback" not in error.decode(), error.decode()
+    return process.returncode
+
+
+def check_folder(out: Path, previous: Path, clean: Path) -> str:
+    """Check `out` as the module docstring says; which run its files come from and how many
+    samples they hold (``"previous"``, ``"new 120"``, ``"empty"``)."""
+    names = sorted(path.name for path in out.iterdir() if not path.name.startswith("."))
+    if not names:
+        return "empty"
+    runs, counts = set(), set()
+    for name in names:
+        if name == "run.json":
+            continue
+        if name == "results.zarr":
+            run, count = _check_store(out / name, previous / name, clean / name)
+        elif (previous / name).exists() and _same_bytes(out / name, previous / name):
+            run, count = "previous", None
+        elif name.endswith(".csv"):
+            lines = (out / name).read_text().splitlines()
+            assert lines == (clean / name).read_text().splitlines()[: len(lines)], name
+            run, count = "new", len(lines) - 1
+        else:
+            with np.load(out / name) as held, np.load(clean / name) as reference:
+                count = held["t"].size
+                for key in ("t", "q", "qd", "qdd"):
+                    np.testing.assert_array_equal(held[key], reference[key][:count], err_msg=name)
+            run = "new"
+        runs.add(run)
+        if count is not None:
+            counts.add(count)
+    assert len(runs) <= 1, f"files of two runs: {names}"
+    assert len(counts) <= 1, f"files with different numbers of samples: {counts}"
+    if "run.json" in names:
+        record = json.loads((out / "run.json").read_text())
+        if runs == {"new"} or not runs:
+            assert sorted(record["files"]) == [name for name in names if name != "run.json"]
+            assert not counts or record["samples_solved"] == counts.pop() or record["samples_solved"] is None
+        else:
+            assert _same_bytes(out / "run.json", previous / "run.json")
+    run = runs.pop() if runs else "run.json alone"
+    return f"{run} {counts.pop()}" if counts else run
+
+
+def _same_bytes(a: Path, b: Path) -> bool:
+    return a.read_bytes() == b.read_bytes()
+
+
+def _check_store(store: Path, previous: Path, clean: Path) -> tuple[str, int | None]:
+    import xarray
+
+    dataset = xarray.open_zarr(store, consolidated=False)
+    consolidated = xarray.open_zarr(store)
+    assert dict(dataset.sizes) == dict(consolidated.sizes)
+    times = dataset["t"].values
+    count = int(np.isfinite(times).sum())
+    assert np.isfinite(times[:count]).all() and np.isnan(times[count:]).all()
+    old, new = xarray.open_zarr(previous), xarray.open_zarr(clean)
+    reference, run = (old, "previous") if count > 1 and times[1] == old["t"].values[1] else (new, "new")
+    for key in ("t", "q", "qd", "qdd", "points"):
+        np.testing.assert_array_equal(dataset[key].values[:count], reference[key].values[:count], err_msg=key)
+    return run, count
+
+
+def moments(duration: float, kills: int) -> list[float]:
+    """`kills` times spread over the run, from a tenth of a second on."""
+    return [0.1 + (duration - 0.1) * (k + 0.5) / kills for k in range(kills)]
+
+
+@pytest.mark.parametrize("format_", ["csv", "zarr"])
+def test_a_run_killed_at_any_moment_leaves_a_consistent_folder(format_, tmp_path):
+    if format_ == "zarr":
+        pytest.importorskip("xarray")
+    previous, clean, duration = clean_runs(tmp_path, format_)
+    for k, moment in enumerate(moments(duration, SUITE_KILLS)):
+        signum = (signal.SIGKILL, signal.SIGTERM)[k % 2]
+        out = tmp_path / f"killed-{k}"
+        status = kill_at(out, format_, previous, moment, signum)
+        assert status in (0, -signum, 128 + signum), status
+        check_folder(out, previous, clean)
+
+
+def main(kills: int) -> None:
+    """Run `kills` kill times per format and signal; print what each folder held."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as base:
+        base = Path(base)
+        for format_ in ("csv", "zarr"):
+            previous, clean, duration = clean_runs(base, format_)
+            print(f"{format_}: a clean run lasts {duration:.2f} s (the start included)")
+            for signum in (signal.SIGKILL, signal.SIGTERM):
+                outcomes = []
+                for k, moment in enumerate(moments(duration, kills)):
+                    out = base / f"{format_}-{signum}-{k}"
+                    status = kill_at(out, format_, previous, moment, signum)
+                    outcomes.append(f"{moment:.2f} s: exit {status}, {check_folder(out, previous, clean)}")
+                    shutil.rmtree(out)
+                print(f"  {signal.Signals(signum).name}: {kills} kills, every folder consistent")
+                for line in outcomes:
+                    print(f"    {line}")
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20)
