@@ -13,17 +13,18 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import AnalysisInterrupted, ConvergenceError, SingularConfigurationError
-from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
 from . import signals
 from .common import EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
+from .sizes import add_memory_argument, animation_parts, check_memory, limit_for, run_parts
 from .run import solve_for_command
 from .settings import (
     DEFAULT_OUTPUT_ROOT,
     RunSettings,
     add_time_arguments,
     parse_point_names,
+    read_model,
     resolve_times,
 )
 
@@ -55,6 +56,7 @@ def add_animate_command(subparsers) -> None:
     parser.add_argument("--duration", type=float, metavar="D",
                         help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
     parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
+    add_memory_argument(parser)
     parser.set_defaults(handler=animate_command)
 
 
@@ -67,7 +69,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
         For a bad argument, a bad model file, a missing optional dependency or a file
         that cannot be written; `main` reports them.
     """
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     times = resolve_times(arguments, mechanism)
     if arguments.trace is None:
         trace = mechanism.analysis.points or ()
@@ -80,6 +82,8 @@ def animate_command(arguments: argparse.Namespace) -> int:
     _check_writable(path)
     # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
     settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
+    check_memory(run_parts(mechanism, settings) | _animation_parts(arguments, path, times), limit_for(arguments),
+                 "give a shorter --duration, a lower --fps, fewer --steps, or write an MP4")  # fmt: skip
     start = time.perf_counter()
     try:
         result = solve_for_command(mechanism, settings, arguments.model, None)
@@ -136,6 +140,19 @@ def _check_animation_options(arguments: argparse.Namespace, path: Path, times: n
         raise CommandError(f"--at must be a time within the analysis, 0 … {times[-1]:g} s, got {arguments.at!r}")
     if arguments.at is not None and suffix != ".png":
         raise CommandError("--at chooses the time of one frame: give --out FILE.png with it")
+
+
+def _animation_parts(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> dict[str, int]:
+    """What the frames of the clip hold (`animation_parts`): none for a PNG."""
+    from ..plots.animation import DEFAULT_FPS, FRAME_DPI, FRAME_SIZE
+
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        return {}
+    fps = arguments.fps if arguments.fps is not None else DEFAULT_FPS[suffix]
+    duration = arguments.duration if arguments.duration is not None else float(times[-1])
+    pixels = int(FRAME_SIZE[0] * FRAME_DPI) * int(FRAME_SIZE[1] * FRAME_DPI)
+    return animation_parts(max(1, round(duration * fps)), suffix == ".gif", pixels)
 
 
 def _check_writable(path: Path) -> None:

@@ -205,14 +205,13 @@ def _version() -> str:
 
 def write_atomically(path: Path, write) -> Path:
     """Write a file through `write(file)` (a binary file) at a temporary name beside `path`,
-    flushed to disk, then renamed to `path`: `path` is the old file or the whole new one."""
+    then rename it to `path`: whenever the process ends, `path` is the old file or the
+    whole new one.  (Not synced to the disk: a power cut may lose what the kernel held.)"""
     path = Path(path)
     temporary = path.with_name(f".{path.name}.{os.getpid()}.partial")
     try:
         with open(temporary, "wb") as file:
             write(file)
-            file.flush()
-            os.fsync(file.fileno())
         os.replace(temporary, path)
     except BaseException:
         with contextlib.suppress(OSError):

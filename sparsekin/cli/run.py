@@ -9,7 +9,6 @@ from pathlib import Path
 
 from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
-from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
 from ..solve.kinematics import solve_kinematics
 from . import signals
@@ -33,8 +32,10 @@ from .settings import (
     add_folder_argument,
     add_force_arguments,
     add_time_arguments,
+    read_model,
     resolve_run_settings,
 )
+from .sizes import RUN_ADVICE, add_memory_argument, check_memory, limit_for, run_parts
 
 
 def add_run_command(subparsers) -> None:
@@ -67,6 +68,7 @@ def add_run_command(subparsers) -> None:
                         'run goes on (needs "sparsekin[zarr]")')
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
     parser.set_defaults(handler=run_command)
 
@@ -81,13 +83,14 @@ def run_command(arguments: argparse.Namespace) -> int:
         `main` reports them.
     """
     timeline = _Timeline()
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     timeline.read = time.perf_counter()
     settings = resolve_run_settings(arguments, mechanism)
     if settings.plot:
         require_matplotlib()
     if settings.format == "zarr":
         require_zarr()
+    arguments.memory_estimate = check_memory(run_parts(mechanism, settings), limit_for(arguments), RUN_ADVICE)
     with OutputFolder(settings.directory, "run", planned_files(mechanism, settings)) as folder:
         for note in settings.notes:
             report(f"note: {note}")
@@ -118,9 +121,11 @@ def _write_run(mechanism: Mechanism, result, stop, settings: RunSettings, folder
     store = [directory / "results.zarr"] if settings.format == "zarr" else []
     if isinstance(stop, OSError):  # the disk filled while the store was written
         kept = stored_samples(store[0])
-        files = folder.commit([], store, _manifest(arguments, "disk_full", EXIT_STOPPED, kept, requested))
+        where = f"in {store[0]}" if store[0].exists() else f"({store[0].name} not written)"
+        folder.commit([], [path for path in store if path.exists()],
+                      _manifest(arguments, "disk_full", EXIT_STOPPED, kept, requested))  # fmt: skip
         report(f"error: {stop.filename or store[0]}: {stop.strerror}: kept the first {kept} of {requested} samples "
-               f"in {store[0]}")  # fmt: skip
+               f"{where}")  # fmt: skip
         return EXIT_STOPPED
     solved = count_samples(result)
     if isinstance(stop, ConvergenceError):
@@ -159,7 +164,8 @@ def _write_run(mechanism: Mechanism, result, stop, settings: RunSettings, folder
 
 def _manifest(arguments, status: str, exit_status: int, solved: int, requested: int) -> dict:
     return manifest(arguments.command_line, arguments.model, status, exit_status,
-                    {"samples_solved": solved, "samples_requested": requested})  # fmt: skip
+                    {"samples_solved": solved, "samples_requested": requested,
+                     "memory_estimate_bytes": getattr(arguments, "memory_estimate", None)})  # fmt: skip
 
 
 def stored_samples(store: Path) -> int:

@@ -7,7 +7,6 @@ import argparse
 from pathlib import Path
 
 from ..errors import ModelError
-from ..model.modelfile import load_model
 from . import signals
 from .common import (
     EXIT_STOPPED,
@@ -25,8 +24,10 @@ from .settings import (
     add_folder_argument,
     add_force_arguments,
     add_time_arguments,
+    read_model,
     resolve_run_settings,
 )
+from .sizes import add_memory_argument, check_memory, limit_for, sweep_parts
 
 #: Variants' values of q, qd and qdd that ``sweep`` writes by default, all variants together.
 MAX_DEFAULT_SWEEP_VALUES = MAX_DEFAULT_VALUES
@@ -72,6 +73,7 @@ def add_sweep_command(subparsers) -> None:
                         "four tasks per worker)")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
                         'the stop times against the varied parameter (needs "sparsekin[plot]")')  # fmt: skip
     parser.add_argument("--plot-point", metavar="P", help="with --plot, the point whose paths are drawn (default: "
@@ -92,7 +94,10 @@ def sweep_command(arguments: argparse.Namespace) -> int:
     from ..solve.kinematics import _checked_times
     from ..studies.sweeps import VariantSet, default_worker_count, sweep, write_variants_csv
 
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
+    columns = len(arguments.vary) + (2 * len(mechanism.points) if arguments.perturb else 0)
+    check_memory(sweep_parts(mechanism, _requested_variants(arguments), max(1, columns)), limit_for(arguments),
+                 "give fewer values to --vary or fewer --samples")  # before the values are made: fmt: skip
     try:
         variants = VariantSet.from_arguments(arguments.vary, arguments.samples, arguments.perturb, arguments.seed)
         design = variants.bind(mechanism)
@@ -185,6 +190,18 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
     return exit_status
+
+
+def _requested_variants(arguments: argparse.Namespace) -> int:
+    """The variants the options ask for, counted from their text (the N of each
+    ``--vary PATH=START:STOP:N`` that reads as a whole number, times ``--samples``)."""
+    count = max(1, arguments.samples or 1)
+    for text in arguments.vary:
+        try:
+            count *= max(1, int(text.rsplit(":", 1)[-1]))
+        except ValueError:  # `VariantSet.from_arguments` says what is wrong with it
+            pass
+    return count
 
 
 def _manifest(arguments: argparse.Namespace, status: str, exit_status: int, counts: dict) -> dict:

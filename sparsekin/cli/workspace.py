@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..errors import ConvergenceError, ModelError
 from ..model import _validate
-from ..model.modelfile import load_model
 from .common import EXIT_SUCCESS, CommandError, require_matplotlib
 from . import signals
 from .files import write_workspace
@@ -16,7 +16,9 @@ from .settings import (
     LISTED_POINTS,
     add_folder_argument,
     output_folder,
+    read_model,
 )
+from .sizes import add_memory_argument, check_memory, limit_for, workspace_parts
 
 
 def add_workspace_command(subparsers) -> None:
@@ -38,6 +40,7 @@ def add_workspace_command(subparsers) -> None:
                         help="a driver's range of values, m or rad (default: the span of its law over "
                         "[analysis].t_end, widened twofold)")  # fmt: skip
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw workspace_<point>.png (needs "sparsekin[plot]")')
     parser.set_defaults(handler=workspace_command)
 
@@ -51,7 +54,7 @@ def workspace_command(arguments: argparse.Namespace) -> int:
     """
     from ..studies.workspaces import workspace
 
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     if arguments.point not in mechanism.points:
         known = _validate.known_list(list(mechanism.points), limit=LISTED_POINTS)
         raise CommandError(f'--point: unknown point "{arguments.point}" (known: {known})')
@@ -83,6 +86,8 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         ranges = [given[0], given[1]]
     if arguments.plot:
         require_matplotlib()
+    check_memory(workspace_parts(mechanism, math.prod(grid) if len(grid) == 2 else grid[0] ** 2),
+                 limit_for(arguments), "give a coarser --grid")  # fmt: skip
     with OutputFolder(output_folder(arguments, mechanism), "workspace", ["workspace.csv", "boundary.csv"]) as folder:
         try:
             space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)

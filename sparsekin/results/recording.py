@@ -519,6 +519,8 @@ class ZarrSink:
         self.n_times = n_times
         self._written = False
         _clear_store(self.path)
+        if n_times is not None and os.path.isdir(self.path):  # emptied: the store is renamed there whole
+            os.rmdir(self.path)
 
     def _dataset(self, data: dict, with_labels: bool):
         import xarray as xr
@@ -567,13 +569,19 @@ class ZarrSink:
                     for key, values in data.items()}  # fmt: skip
         encoding |= {key: {"chunks": (rows, min(n, 2**20))} for key in ("q", "qd", "qdd") if key in data}
         target = self.path if n_times is None else _partial_path(self.path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            self._dataset(data, with_labels=True).to_zarr(target, mode="w", zarr_format=2, encoding=encoding)
-        if n_times is None:
-            return
-        _resize_time(target, n_times)
-        os.replace(target, self.path)  # onto the emptied folder, or a new name
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", FutureWarning)
+                self._dataset(data, with_labels=True).to_zarr(target, mode="w", zarr_format=2, encoding=encoding)
+            if n_times is not None:
+                _resize_time(target, n_times)
+                os.replace(target, self.path)  # onto a new name: the store appears whole
+        except BaseException:
+            if target != self.path:
+                import shutil
+
+                shutil.rmtree(target, ignore_errors=True)
+            raise
 
     def close(self, n_written: int) -> dict:
         """The store's arrays, read lazily (zarr arrays), cut to the `n_written` samples."""
