@@ -90,7 +90,8 @@ def run_command(arguments: argparse.Namespace) -> int:
         require_matplotlib()
     if settings.format == "zarr":
         require_zarr()
-    arguments.memory_estimate = check_memory(run_parts(mechanism, settings), limit_for(arguments), RUN_ADVICE)
+    arguments.memory_parts = run_parts(mechanism, settings)
+    arguments.memory_estimate = check_memory(arguments.memory_parts, limit_for(arguments), RUN_ADVICE)
     with OutputFolder(settings.directory, "run", planned_files(mechanism, settings)) as folder:
         for note in settings.notes:
             report(f"note: {note}")
@@ -165,7 +166,8 @@ def _write_run(mechanism: Mechanism, result, stop, settings: RunSettings, folder
 def _manifest(arguments, status: str, exit_status: int, solved: int, requested: int) -> dict:
     return manifest(arguments.command_line, arguments.model, status, exit_status,
                     {"samples_solved": solved, "samples_requested": requested,
-                     "memory_estimate_bytes": getattr(arguments, "memory_estimate", None)})  # fmt: skip
+                     "memory_estimate_bytes": getattr(arguments, "memory_estimate", None),
+                     "memory_estimate_parts": getattr(arguments, "memory_parts", None)})  # fmt: skip
 
 
 def stored_samples(store: Path) -> int:

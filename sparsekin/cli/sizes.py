@@ -13,8 +13,8 @@ see ``benchmarks/memory_estimates.py``):
 * the process as it is when the estimate is made (the interpreter, numpy, scipy, numba),
   read from the system, plus the kernels' compilation (`COMPILE_BYTES`);
 * the model while it is solved: per coordinate (`BYTES_PER_COORDINATE`: the pattern, the
-  Jacobian and its sparse LU factors, the solver's vectors) and per equation
-  (`BYTES_PER_EQUATION`);
+  Jacobian and its sparse LU factors, the solver's vectors) and per equation beyond the
+  coordinates (`BYTES_PER_EXCESS_EQUATION`: an overconstrained model's redundancy);
 * the samples kept in memory (every recorded value of every sample, 8 bytes each; one
   chunk for a Zarr store), and the CSV files' rows as Python numbers when they are written.
 
@@ -33,11 +33,17 @@ from .common import CommandError
 
 #: The environment variable that sets the memory a command may use (as ``--max-memory``).
 MEMORY_VARIABLE = "SPARSEKIN_MAX_MEMORY"
-#: Memory the kernels' first compilation takes beside the process, bytes.
-COMPILE_BYTES = 150 * 2**20
-#: Memory of the model while it is solved, per coordinate and per equation, bytes.
-BYTES_PER_COORDINATE = 1400
-BYTES_PER_EQUATION = 600
+#: Memory a run takes beside the process as it is at the estimate whatever the model: the
+#: modules it imports then and its compiled kernels (read from numba's cache), bytes.
+COMPILE_BYTES = 80 * 2**20
+#: Memory of the model while it is solved, per coordinate, and per equation beyond the
+#: coordinates (an overconstrained model's, whose redundant equations are found by a
+#: factorization that offers the equations one by one), bytes.  Fitted to the peaks of
+#: 10^4 and 10^5 bodies (``benchmarks/memory_estimates.py``): a chain takes 610 per
+#: coordinate, a lattice 1390 (its factors fill in more), an overconstrained grid of
+#: rotating squares 3860 (1 excess equation every 3 coordinates).
+BYTES_PER_COORDINATE = 1000
+BYTES_PER_EXCESS_EQUATION = 8600
 #: Memory of a model being built from its file, per element (body, joint, driver, load), bytes.
 BYTES_PER_ELEMENT_BUILT = 500
 #: A number of a CSV file as it is written: a Python float and its place in a list, bytes.
@@ -122,7 +128,7 @@ def process_bytes() -> int:
 
 def model_bytes(n_coordinates: int, n_equations: int) -> int:
     """Memory of a model of these sizes while it is solved (beyond the process)."""
-    return BYTES_PER_COORDINATE * n_coordinates + BYTES_PER_EQUATION * n_equations
+    return BYTES_PER_COORDINATE * n_coordinates + BYTES_PER_EXCESS_EQUATION * max(0, n_equations - n_coordinates)
 
 
 def check_memory(parts: dict[str, int], limit: MemoryLimit, advice: str) -> int:
@@ -258,7 +264,7 @@ def run_parts(mechanism, settings, force_columns: int | None = None) -> dict[str
     }
     if rows:
         parts["the CSV rows"] = rows
-    return parts
+    return {what: int(size) for what, size in parts.items()}
 
 
 RUN_ADVICE = ("write to Zarr with fewer outputs (--format zarr, --no-coordinates, --points, --joints), give fewer "

@@ -98,6 +98,8 @@ class Selection:
         from ..engine.outputs import element_index
 
         self.mechanism = mechanism
+        if not isinstance(coordinates, (bool, np.bool_)):  # issue 28: "no" was true
+            raise ValueError(f"`coordinates` must be True or False, got {coordinates!r}.")
         self.coordinates = bool(coordinates)
         if points is None:
             names: tuple[str, ...] = ()
@@ -105,6 +107,8 @@ class Selection:
             names = tuple(mechanism.points)
         else:
             if isinstance(points, str) or not isinstance(points, Sequence):
+                raise ValueError(f'`points` must be None, "all" or a list of point names, got {points!r}.')
+            if not all(isinstance(name, str) for name in points):  # issue 28: a bare TypeError
                 raise ValueError(f'`points` must be None, "all" or a list of point names, got {points!r}.')
             names = tuple(dict.fromkeys(points))
             for name in names:
