@@ -50,6 +50,8 @@ def overconstrained(bodies: int) -> tuple[str, str, str]:
 
 
 FAMILIES = {"chain": chain, "lattice": lattice, "overconstrained": overconstrained}
+if os.environ.get("FAMILIES"):  # e.g. FAMILIES=overconstrained
+    FAMILIES = {name: FAMILIES[name] for name in os.environ["FAMILIES"].split(",")}
 
 
 def measure(model: Path, out: Path) -> tuple[int | None, int | None, int | None, int, float, str]:
@@ -60,10 +62,10 @@ def measure(model: Path, out: Path) -> tuple[int | None, int | None, int | None,
     start = time.monotonic()
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                env=dict(os.environ, PYTHONPATH=str(ROOT)))  # fmt: skip
-    killed = []
+    killed, ended = [], threading.Event()
 
-    def watch() -> None:
-        while process.poll() is None:
+    def watch() -> None:  # not process.poll(): it would reap the process before wait4
+        while not ended.is_set():
             try:
                 with open(f"/proc/{process.pid}/status") as status:
                     rss = next(int(line.split()[1]) * 1024 for line in status if line.startswith("VmRSS:"))
@@ -78,6 +80,7 @@ def measure(model: Path, out: Path) -> tuple[int | None, int | None, int | None,
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
     _, status, usage = os.wait4(process.pid, 0)
+    ended.set()
     process.returncode = os.waitstatus_to_exitcode(status)
     output = process.stdout.read().decode()
     watcher.join()

@@ -5,8 +5,12 @@
 with ``--plot``, also PNG figures) as described in ``docs/model-format.md``.  On a large
 model it writes what a person can use by default (`~sparsekin.cli.settings.DEFAULT_RULE`).
 A progress bar shows on stderr for runs longer than two seconds.  Exit status: 0 on success, 2 on a bad model
-or bad arguments (one line on stderr, no traceback), 3 when the analysis stops and 130 on
-Ctrl-C (in both cases the samples solved so far are still written).
+or bad arguments (one line on stderr, no traceback; a size beyond the memory, or a folder
+another run is writing, too), 3 when the analysis stops or the disk is full, and 130 on
+Ctrl-C, 143 on SIGTERM, 129 on SIGHUP (in these cases the samples solved so far are still
+written).  Files are renamed into place once whole and ``run.json`` is written last
+(`~sparsekin.cli.outputs`); signals are handled in `~sparsekin.cli.signals`, sizes in
+`~sparsekin.cli.sizes`.
 
 ``sparsekin animate MODEL.toml`` runs the same analysis and writes an animation (GIF or
 MP4, `sparsekin.plots.animate`) or one frame of it (PNG).  Exit status as for ``run``;

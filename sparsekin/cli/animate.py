@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import math
 import os
@@ -17,7 +16,7 @@ from ..results.kinematics import KinematicsResult
 from . import signals
 from .common import EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
-from .sizes import add_memory_argument, animation_parts, check_memory, limit_for, run_parts
+from .outputs import written_whole
 from .run import solve_for_command
 from .settings import (
     DEFAULT_OUTPUT_ROOT,
@@ -27,6 +26,7 @@ from .settings import (
     read_model,
     resolve_times,
 )
+from .sizes import add_memory_argument, animation_parts, check_memory, limit_for, run_parts
 
 
 def add_animate_command(subparsers) -> None:
@@ -171,20 +171,10 @@ def _write_animation(result: KinematicsResult, path: Path, arguments, trace, sto
     signals held meanwhile); a line saying what was written."""
     from ..plots import animate, save_frame
 
-    partial = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")  # the suffix chooses the format
-    with signals.holding():
-        try:
-            if path.suffix.lower() == ".png":
-                at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
-                save_frame(result, partial, at, trace=trace, stopped=stopped)
-                what = f"frame at t = {result.times[-1] if at is None else at:g} s"
-            else:
-                clip = animate(result, partial, trace=trace, fps=arguments.fps, duration=arguments.duration,
-                               stopped=stopped)  # fmt: skip
-                what = f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"
-            os.replace(partial, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.remove(partial)
-            raise
-    return what
+    with signals.holding(), written_whole(path) as partial:
+        if path.suffix.lower() == ".png":
+            at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
+            save_frame(result, partial, at, trace=trace, stopped=stopped)
+            return f"frame at t = {result.times[-1] if at is None else at:g} s"
+        clip = animate(result, partial, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped)
+        return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"

@@ -32,7 +32,7 @@ import hashlib
 import json
 import os
 import shutil
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 from .common import CommandError
@@ -173,7 +173,7 @@ class OutputFolder:
     def write_manifest(self, manifest: dict, files: Sequence[Path]) -> Path:
         """Write ``run.json``: `manifest` and the names of `files`, by a rename."""
         record = dict(manifest, files=[path.name for path in files])
-        record["written"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+        record["written"] = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         path = self.directory / MANIFEST
         write_atomically(path, lambda file: file.write(json.dumps(record, indent=2).encode() + b"\n"))
         return path
@@ -203,21 +203,28 @@ def _version() -> str:
         return "unknown"
 
 
-def write_atomically(path: Path, write) -> Path:
-    """Write a file through `write(file)` (a binary file) at a temporary name beside `path`,
-    then rename it to `path`: whenever the process ends, `path` is the old file or the
-    whole new one.  (Not synced to the disk: a power cut may lose what the kernel held.)"""
+@contextlib.contextmanager
+def written_whole(path: Path) -> Iterator[Path]:
+    """A temporary name beside `path` (ending in its suffix, which may choose a format) to
+    write the file at in the block: renamed to `path` when the block ends, removed if it
+    fails.  Whenever the process ends, `path` is the old file or the whole new one.  (Not
+    synced to the disk: a power cut may lose what the kernel held.)"""
     path = Path(path)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    temporary = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
     try:
-        with open(temporary, "wb") as file:
-            write(file)
+        yield temporary
         os.replace(temporary, path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.remove(temporary)
         raise
-    return path
+
+
+def write_atomically(path: Path, write) -> Path:
+    """Write a file through `write(file)` (a binary file), whole or not at all (`written_whole`)."""
+    with written_whole(path) as temporary, open(temporary, "wb") as file:
+        write(file)
+    return Path(path)
 
 
 def _file_hash(path: Path) -> str | None:
@@ -252,7 +259,7 @@ def _remove_stale_staging(directory: Path) -> None:
     """Remove the staging folders left by killed runs (the lock is ours: no live run's)."""
     for path in directory.glob(f"{STAGING_PREFIX}*"):
         shutil.rmtree(path, ignore_errors=True)
-    for path in directory.glob(".*.partial"):
+    for path in directory.glob(".*.partial*"):
         _remove(path)
 
 

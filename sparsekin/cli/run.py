@@ -176,7 +176,7 @@ def stored_samples(store: Path) -> int:
         import zarr
 
         return int(zarr.open_group(store, mode="r")["t"].shape[0])
-    except Exception:  # a store the disk left unreadable holds nothing that can be counted
+    except Exception:  # noqa: BLE001 - a store the disk left unreadable holds nothing that can be counted
         return 0
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from ..errors import ConvergenceError, ModelError
 from ..model import _validate
-from .common import EXIT_SUCCESS, CommandError, require_matplotlib
 from . import signals
+from .common import EXIT_SUCCESS, CommandError, require_matplotlib
 from .files import write_workspace
 from .outputs import OutputFolder, manifest
 from .settings import (

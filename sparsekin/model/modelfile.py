@@ -16,8 +16,8 @@ the keys of every table against them and the writer writes the same keys.
 from __future__ import annotations
 
 import ast
-import errno
 import dataclasses
+import errno
 import numbers
 import os
 import re

@@ -565,8 +565,6 @@ class ZarrSink:
         over `n_times` samples, then renamed into place (see the class docstring)."""
         import warnings
 
-        import zarr
-
         n = self.selection.mechanism.n_coordinates
         rows = max(1, len(data["t"]))
         encoding = {key: {"chunks": (rows, *(min(size, 2**20) for size in values.shape[1:]))}

@@ -376,9 +376,9 @@ def _checked_times(times, mechanism: Mechanism) -> np.ndarray:
     try:  # issue 28: complex, text and bool times were cast to floats
         dtype = np.asarray(times).dtype if not isinstance(times, (str, bytes)) else np.dtype(str)
     except (TypeError, ValueError):
-        dtype = np.dtype(object)
-    if dtype.kind not in "iuf":
-        raise ValueError(f"`times` must be an array of real numbers, got {dtype} values.")
+        dtype = np.dtype(object)  # ragged: refused below
+    if dtype.kind in "bcSUV":
+        raise ValueError(f"`times` must be an array of numbers, got {type(times).__name__} of {dtype} values.")
     try:
         array = np.array(times, dtype=float)  # a copy, C-contiguous: the compiled loop reads it
     except (TypeError, ValueError):
