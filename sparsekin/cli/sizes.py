@@ -41,7 +41,9 @@ COMPILE_BYTES = 80 * 2**20
 #: factorization that offers the equations one by one), bytes.  Fitted to the peaks of
 #: 10^4 and 10^5 bodies (``benchmarks/memory_estimates.py``): a chain takes 610 per
 #: coordinate, a lattice 1390 (its factors fill in more), an overconstrained grid of
-#: rotating squares 3860 (1 excess equation every 3 coordinates).
+#: rotating squares 3860 (1 excess equation every 3 coordinates).  Within a factor 2 up
+#: to 10^6 bodies for chains and lattices, 2·10^5 for the squares: a grid of 2.5·10^5
+#: squares took more than 7.5 GB (issue 28's note), which this does not foresee.
 BYTES_PER_COORDINATE = 1000
 BYTES_PER_EXCESS_EQUATION = 8600
 #: Memory of a model being built from its file, per element (body, joint, driver, load), bytes.
