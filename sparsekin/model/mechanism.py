@@ -355,8 +355,10 @@ class Mechanism:
             for copies in self._copies:  # a copy's name whose copy has not that body (issue 28)
                 split = copies.split(body)
                 if split is not None and split[1] in copies._local["bodies"]:
-                    raise ModelError(f'body "{body}": copy "{body[: -len(split[1]) - 1]}" of unit "{copies.unit.name}" has no '
-                                     f'body "{split[1]}" (the repeat leaves it out there)', element=where.format(*where_arguments))  # fmt: skip
+                    copy = body[: -len(split[1]) - 1]
+                    raise ModelError(f'body "{body}": copy "{copy}" of unit "{copies.unit.name}" has no body '
+                                     f'"{split[1]}" (the repeat leaves it out there)',
+                                     element=where.format(*where_arguments))  # fmt: skip
             copy_bodies = [f"{copies.name(0, b.name)} …" for copies in self._copies for b in copies.unit.bodies]
             known = _validate.known_list([*self._body_index, GROUND, *copy_bodies])
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))

@@ -194,14 +194,14 @@ class _ZarrOutput:
             encoding[key] = {"chunks": (variants_per_task,)}
         # built at a temporary name and renamed into place (issue 28): a sweep killed at any
         # moment leaves no store, or one with every variable
+        _clear_store(self.path)  # a file, or a folder that is no store, is refused before any work
         target = _partial_path(self.path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)
             dataset.to_zarr(target, mode="w", compute=False, zarr_format=2, encoding=encoding)
         group = zarr.open_group(target, mode="r+", zarr_format=2)
         group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
-        _clear_store(self.path)
-        os.replace(target, self.path)
+        os.replace(target, self.path)  # onto the emptied folder, or a new name
         self.group = zarr.open_group(self.path, mode="r+", zarr_format=2)
 
     def write(self, first: int, stop: int, block: dict) -> None:
