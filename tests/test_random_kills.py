@@ -56,14 +56,20 @@ def started(out: Path) -> bool:
     return any(out.glob(".sparsekin-staging-*"))
 
 
-def run_until(out: Path, format_: str, t_end: float, moment: float | None, signum: int = signal.SIGKILL):
-    """Start the run; from the moment it has locked its folder, wait `moment` s and send
-    `signum` (None: let it end).  The exit status, the stderr and how long it ran after
-    locking, s."""
+def writing(out: Path) -> bool:
+    """Whether the run writes its results: a staged file (CSV) or the store in place (Zarr)."""
+    return (out / "results.zarr" / "t").exists() or any(p.stat().st_size for p in out.glob(".sparsekin-staging-*/*"))
+
+
+def run_until(out: Path, format_: str, t_end: float, moment: float | None, signum: int = signal.SIGKILL,
+              after=started):  # fmt: skip
+    """Start the run; from the moment `after(out)` holds (by default: it has locked its
+    folder), wait `moment` s and send `signum` (None: let it end).  The exit status, the
+    stderr and how long it ran after that moment, s."""
     process = subprocess.Popen(command(out, format_, t_end), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                env=environment())  # fmt: skip
     deadline = time.monotonic() + 300
-    while not started(out) and process.poll() is None and time.monotonic() < deadline:
+    while not after(out) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)
     start = time.monotonic()
     if moment is not None:
@@ -86,11 +92,11 @@ def clean_runs(base: Path, format_: str) -> tuple[Path, Path, float]:
     return previous, clean, time.monotonic() - start
 
 
-def kill_at(out: Path, format_: str, previous: Path, moment: float, signum: int) -> int:
-    """Copy `previous` to `out`, start the run there and send `signum` `moment` s after it
-    has locked the folder; the exit status."""
+def kill_at(out: Path, format_: str, previous: Path, moment: float, signum: int, after=started) -> int:
+    """Copy `previous` to `out`, start the run there and send `signum` `moment` s after
+    `after(out)` (it has locked the folder); the exit status."""
     shutil.copytree(previous, out)
-    status, error, _ = run_until(out, format_, 1.0, moment, signum)
+    status, error, _ = run_until(out, format_, 1.0, moment, signum, after)
     assert "Traceback" not in error, error
     return status
 
@@ -166,10 +172,12 @@ def test_a_run_killed_at_any_moment_leaves_a_consistent_folder(format_, tmp_path
     if format_ == "zarr":
         pytest.importorskip("xarray")
     previous, clean, duration = clean_runs(tmp_path, format_)
-    for k, moment in enumerate(moments(duration, SUITE_KILLS)):
-        signum = (signal.SIGKILL, signal.SIGTERM)[k % 2]
+    # SIGTERM while it solves, SIGKILL while it writes (the full count: ``__main__``)
+    plan = [(0.5 * duration, started, signal.SIGTERM), (0.1 if format_ == "csv" else 0.3 * duration, writing,
+                                                        signal.SIGKILL)]  # fmt: skip
+    for k, (moment, after, signum) in enumerate(plan[:SUITE_KILLS]):
         out = tmp_path / f"killed-{k}"
-        status = kill_at(out, format_, previous, moment, signum)
+        status = kill_at(out, format_, previous, moment, signum, after)
         assert status in (0, -signum, 128 + signum), status
         check_folder(out, previous, clean)
 
@@ -186,14 +194,21 @@ def main(kills: int) -> None:
             for signum in (signal.SIGKILL, signal.SIGTERM):
                 outcomes = []
                 failures = 0
-                for k, moment in enumerate(moments(duration, kills, 1.4)):
+                # half from the lock on, over the run; half from the first file written on, over
+                # the writing (CSV: 0.8 s) or the rest of the run (Zarr)
+                tail = 0.8 if format_ == "csv" else 0.8 * duration
+                plan = [(moment, started, "lock") for moment in moments(duration, kills // 2, 1.2)]
+                plan += [(tail * (k + 0.5) / (kills - kills // 2), writing, "writing")
+                         for k in range(kills - kills // 2)]  # fmt: skip
+                for k, (moment, after, since) in enumerate(plan):
                     out = base / f"{format_}-{signum}-{k}"
-                    status = kill_at(out, format_, previous, moment, signum)
+                    status = kill_at(out, format_, previous, moment, signum, after)
                     try:
-                        outcomes.append(f"{moment:.2f} s: exit {status}, {check_folder(out, previous, clean)}")
+                        outcomes.append(f"{since} + {moment:.2f} s: exit {status}, "
+                                        f"{check_folder(out, previous, clean)}")  # fmt: skip
                     except Exception as error:  # noqa: BLE001 - reported, and the run goes on
                         failures += 1
-                        outcomes.append(f"{moment:.2f} s: exit {status}, INCONSISTENT: {type(error).__name__}: "
+                        outcomes.append(f"{since} + {moment:.2f} s: exit {status}, INCONSISTENT: {type(error).__name__}: "
                                         f"{' '.join(str(error).split())[:300]}")  # fmt: skip
                     shutil.rmtree(out)
                 verdict = "every folder consistent" if not failures else f"{failures} INCONSISTENT"
