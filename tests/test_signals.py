@@ -58,14 +58,17 @@ def written_count(stderr: str, opening: str) -> int:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_sigterm_and_sighup_stop_a_run_like_ctrl_c(signum, tmp_path):
-    out = tmp_path / "out"
-    process = chain_run(out, "csv")
-    wait_for(lambda: any(out.glob(".sparsekin-staging-*")), process)
-    time.sleep(2.0)  # some samples solved
-    process.send_signal(signum)
-    _, error = process.communicate(timeout=240)
     name = signal.Signals(signum).name
-    assert process.returncode == 128 + signum, error
+    for settle in (2.0, 6.0, 15.0):  # some samples solved (a CSV run shows none before its end)
+        out = tmp_path / f"out-{settle:g}"
+        process = chain_run(out, "csv")
+        wait_for(lambda: any(out.glob(".sparsekin-staging-*")), process)
+        time.sleep(settle)
+        process.send_signal(signum)
+        _, error = process.communicate(timeout=240)
+        assert process.returncode == 128 + signum, error
+        if f"{name}: nothing solved yet, nothing written" not in error:  # else: a loaded machine, later
+            break
     written = written_count(error, f"interrupted by {name}")
     assert 0 < written < STEPS
     tip = np.loadtxt(out / "points.csv", delimiter=",", skiprows=1, ndmin=2)[:, 1:3]
