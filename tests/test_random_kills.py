@@ -58,8 +58,11 @@ def started(out: Path) -> bool:
 
 
 def writing(out: Path) -> bool:
-    """Whether the run writes its results: a staged file (CSV) or the store in place (Zarr)."""
-    return (out / "results.zarr" / "t").exists() or any(p.stat().st_size for p in out.glob(".sparsekin-staging-*/*"))
+    """Whether the run writes its results: a staged file (CSV), or its store in place (Zarr:
+    the previous run's ``run.json`` gone, a store with ``t`` there)."""
+    if any(path.stat().st_size for path in out.glob(".sparsekin-staging-*/*")):
+        return True
+    return started(out) and not (out / "run.json").exists() and (out / "results.zarr" / "t").exists()
 
 
 def run_until(out: Path, format_: str, t_end: float, moment: float | None, signum: int = signal.SIGKILL,
@@ -182,13 +185,13 @@ def test_a_run_killed_at_any_moment_leaves_a_consistent_folder(format_, tmp_path
         check_folder(out, previous, clean)
 
 
-def main(kills: int) -> None:
+def main(kills: int, formats=("csv", "zarr")) -> None:
     """Run `kills` kill times per format and signal; print what each folder held."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as base:
         base = Path(base)
-        for format_ in ("csv", "zarr"):
+        for format_ in formats:
             previous, clean, duration = clean_runs(base, format_)
             print(f"{format_}: a clean run lasts {duration:.2f} s once it has locked its folder")
             for signum in (signal.SIGKILL, signal.SIGTERM):
@@ -219,4 +222,4 @@ def main(kills: int) -> None:
 
 if __name__ == "__main__":
     STEPS["zarr"] = 1000
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20)
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20, *([sys.argv[2:]] if len(sys.argv) > 2 else []))
