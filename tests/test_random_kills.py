@@ -62,7 +62,14 @@ def writing(out: Path) -> bool:
     the previous run's ``run.json`` gone, a store with ``t`` there)."""
     if any(path.stat().st_size for path in out.glob(".sparsekin-staging-*/*")):
         return True
-    return started(out) and not (out / "run.json").exists() and (out / "results.zarr" / "t").exists()
+    try:  # the previous run's store (copied with its times) stays until the new one replaces it
+        return started(out) and (out / "results.zarr" / "t" / ".zarray").stat().st_mtime > _COPIED.get(out, 0.0)
+    except OSError:
+        return False
+
+
+#: When each trial's folder was copied from the previous run's, s since the epoch.
+_COPIED: dict[Path, float] = {}
 
 
 def run_until(out: Path, format_: str, t_end: float, moment: float | None, signum: int = signal.SIGKILL,
@@ -99,7 +106,8 @@ def clean_runs(base: Path, format_: str) -> tuple[Path, Path, float]:
 def kill_at(out: Path, format_: str, previous: Path, moment: float, signum: int, after=started) -> int:
     """Copy `previous` to `out`, start the run there and send `signum` `moment` s after
     `after(out)` (it has locked the folder); the exit status."""
-    shutil.copytree(previous, out)
+    shutil.copytree(previous, out)  # with the previous files' times
+    _COPIED[out] = time.time()
     status, error, _ = run_until(out, format_, 1.0, moment, signum, after)
     assert "Traceback" not in error, error
     return status
