@@ -215,7 +215,7 @@ def run_kinematics(discretization: Discretization, times: np.ndarray, options: S
     discretization = start_discretization(discretization, float(times[0]))
     selection = request.selection(discretization)
     plan = plan_linear_solver(discretization, options.linear_solver, options.thresholds)
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, times.size)
+    sink = ZarrSink(store, selection, times.size) if store is not None else MemorySink(selection, times.size)
     recorder = Recorder(selection, sink, request.chunk_samples)
     pattern = discretization.constraints
     observer = None
