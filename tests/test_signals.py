@@ -128,4 +128,7 @@ def test_ctrl_c_while_the_package_loads_is_one_line(tmp_path):
         if process.returncode == 0:  # the run was over before the signal: nothing to check
             continue
         assert process.returncode == 130, error
-        assert len(error.splitlines()) == 1 and error.startswith("sparsekin: interrupted: "), error
+        # on a quiet machine with warm caches Task 5 is solved within 0.9 s: the signal then
+        # comes while the files are written, which finishes them (its own one line)
+        lines = ("sparsekin: interrupted: ", "sparsekin: Ctrl-C while writing: finished first; wrote all ")
+        assert len(error.splitlines()) == 1 and error.startswith(lines), error
