@@ -47,6 +47,24 @@ A slider-crank, from description to the motion of its slider:
 True
 """
 
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _quiet_interrupt(signum, frame):
+    """Ctrl-C while the command line loads the package (a second or more with cold caches):
+    one line and exit status 130, as later, rather than a traceback of the imports.  The
+    commands install their own handlers (`sparsekin.cli.signals`)."""
+    _sys.stderr.write("sparsekin: interrupted: nothing solved yet, nothing written\n")
+    raise SystemExit(130)
+
+
+# ``sparsekin ...`` (the console script) or ``python -m sparsekin`` (``-m`` while the package loads)
+if (_sys.argv[:1] == ["-m"] or _os.path.basename(_sys.argv[0] if _sys.argv else "") in ("sparsekin", "sparsekin.exe")) \
+        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:  # fmt: skip
+    _signal.signal(_signal.SIGINT, _quiet_interrupt)
+
 from .errors import (
     AnalysisInterrupted,
     ConvergenceError,

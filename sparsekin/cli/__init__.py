@@ -5,8 +5,12 @@
 with ``--plot``, also PNG figures) as described in ``docs/model-format.md``.  On a large
 model it writes what a person can use by default (`~sparsekin.cli.settings.DEFAULT_RULE`).
 A progress bar shows on stderr for runs longer than two seconds.  Exit status: 0 on success, 2 on a bad model
-or bad arguments (one line on stderr, no traceback), 3 when the analysis stops and 130 on
-Ctrl-C (in both cases the samples solved so far are still written).
+or bad arguments (one line on stderr, no traceback; a size beyond the memory, or a folder
+another run is writing, too), 3 when the analysis stops or the disk is full, and 130 on
+Ctrl-C, 143 on SIGTERM, 129 on SIGHUP (in these cases the samples solved so far are still
+written).  Files are renamed into place once whole and ``run.json`` is written last
+(`~sparsekin.cli.outputs`); signals are handled in `~sparsekin.cli.signals`, sizes in
+`~sparsekin.cli.sizes`.
 
 ``sparsekin animate MODEL.toml`` runs the same analysis and writes an animation (GIF or
 MP4, `sparsekin.plots.animate`) or one frame of it (PNG).  Exit status as for ``run``;
@@ -36,12 +40,14 @@ files, written once).
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 
 from ..errors import ModelError
+from . import signals
 from .animate import add_animate_command
 from .check import add_check_command
-from .common import EXIT_INTERRUPTED, EXIT_USAGE, PROGRAM, CommandError, report
+from .common import EXIT_USAGE, PROGRAM, CommandError, report
 from .run import add_run_command
 from .sweep import add_sweep_command
 from .warning_lines import one_line_warnings
@@ -68,21 +74,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         model or bad arguments, 3 when the analysis stopped, 130 on Ctrl-C (a command
         that has solved samples writes them first).
     """
+    command = argv is None  # the process is the command: it ends with it
+    argv = sys.argv[1:] if command else list(argv)
     parser = build_parser()
     try:
         arguments = parser.parse_args(argv)
     except SystemExit as exit_request:  # usage errors and --help: argparse has printed
         return int(exit_request.code or 0)
-    try:
-        with one_line_warnings(PROGRAM):
-            return arguments.handler(arguments)
-    except (CommandError, ModelError) as error:
-        report(f"error: {error}")
-    except OSError as error:  # an output folder or file that cannot be written
-        report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
-    except KeyboardInterrupt:  # before any sample was solved (the commands handle it after)
-        report("interrupted: nothing solved yet, nothing written")
-        return EXIT_INTERRUPTED
+    arguments.command_line = [PROGRAM, *argv]
+    with signals.stop_on_signals(then_ignore=command):
+        try:
+            with one_line_warnings(PROGRAM):
+                return arguments.handler(arguments)
+        except (CommandError, ModelError) as error:
+            report(f"error: {error}")
+        except OSError as error:  # an output folder or file that cannot be written
+            report(f"error: {error.filename}: {error.strerror}" if error.filename else f"error: {error}")
+        except KeyboardInterrupt:  # before any sample was solved (the commands handle it after)
+            report(f"{signals.interrupted()}: nothing solved yet, nothing written")
+            return signals.exit_status()
     return EXIT_USAGE
 
 

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import math
+import os
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import AnalysisInterrupted, ConvergenceError, SingularConfigurationError
-from ..model.modelfile import load_model
 from ..results.kinematics import KinematicsResult
-from .common import EXIT_INTERRUPTED, EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
+from . import signals
+from .common import EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
+from .outputs import written_whole
 from .run import solve_for_command
 from .settings import (
     DEFAULT_OUTPUT_ROOT,
@@ -21,8 +24,10 @@ from .settings import (
     add_label_argument,
     add_time_arguments,
     parse_point_names,
+    read_model,
     resolve_times,
 )
+from .sizes import add_memory_argument, animation_parts, check_memory, limit_for, run_parts
 
 
 def add_animate_command(subparsers) -> None:
@@ -53,6 +58,7 @@ def add_animate_command(subparsers) -> None:
                         help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
     parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
     add_label_argument(parser)
+    add_memory_argument(parser)
     parser.set_defaults(handler=animate_command)
 
 
@@ -65,7 +71,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
         For a bad argument, a bad model file, a missing optional dependency or a file
         that cannot be written; `main` reports them.
     """
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     times = resolve_times(arguments, mechanism)
     if arguments.trace is None:
         trace = mechanism.analysis.points or ()
@@ -75,9 +81,11 @@ def animate_command(arguments: argparse.Namespace) -> int:
         trace = parse_point_names(arguments.trace, mechanism, option="--trace")
     path = arguments.out if arguments.out is not None else DEFAULT_OUTPUT_ROOT / mechanism.name / "animation.gif"
     _check_animation_options(arguments, path, times)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    _check_writable(path)
     # every body's coordinates in memory (frames are drawn from them), nothing written but the clip
     settings = RunSettings(times, (), path.parent, False, (), True, "csv", True, ())
+    check_memory(run_parts(mechanism, settings) | _animation_parts(arguments, path, times), limit_for(arguments),
+                 "give a shorter --duration, a lower --fps, fewer --steps, or write an MP4")  # fmt: skip
     start = time.perf_counter()
     try:
         result = solve_for_command(mechanism, settings, arguments.model, None)
@@ -86,8 +94,10 @@ def animate_command(arguments: argparse.Namespace) -> int:
         if solved:
             mark = f"interrupted at t = {interrupt.result.times[-1]:.6g} s"
             written = _write_animation(interrupt.result, path, arguments, trace, mark)
-            report(f"interrupted: animated {solved} of {times.size} samples: {written}")
-        return EXIT_INTERRUPTED
+            report(f"{signals.interrupted()}: animated {solved} of {times.size} samples: {written}")
+        else:
+            report(f"{signals.interrupted()}: nothing solved yet, {path} not written")
+        return signals.exit_status()
     except ConvergenceError as error:
         report(f"analysis stopped: {error}")
         solved = count_samples(error.result)
@@ -102,7 +112,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
     written = _write_animation(result, path, arguments, trace, None)
     print(f"{mechanism.name}: {result.n_times} samples, t = 0 … {result.times[-1]:g} s\n{written}\n"
           f"wall time: {time.perf_counter() - start:.3g} s\nwrote:\n  {path}")  # fmt: skip
-    return EXIT_SUCCESS
+    return EXIT_SUCCESS if signals.received() is None else signals.exit_status()
 
 
 def _check_animation_options(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> None:
@@ -134,14 +144,40 @@ def _check_animation_options(arguments: argparse.Namespace, path: Path, times: n
         raise CommandError("--at chooses the time of one frame: give --out FILE.png with it")
 
 
+def _animation_parts(arguments: argparse.Namespace, path: Path, times: np.ndarray) -> dict[str, int]:
+    """What the frames of the clip hold (`animation_parts`): none for a PNG."""
+    from ..plots.animation import DEFAULT_FPS, FRAME_DPI, FRAME_SIZE
+
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        return {}
+    fps = arguments.fps if arguments.fps is not None else DEFAULT_FPS[suffix]
+    duration = arguments.duration if arguments.duration is not None else float(times[-1])
+    pixels = int(FRAME_SIZE[0] * FRAME_DPI) * int(FRAME_SIZE[1] * FRAME_DPI)
+    return animation_parts(max(1, round(duration * fps)), suffix == ".gif", pixels)
+
+
+def _check_writable(path: Path) -> None:
+    """The clip's folder (created) can be written and `path` is not a folder: before any solving."""
+    if path.is_dir():
+        raise CommandError(f"--out {path}: is a folder; give a file name ending in .gif, .mp4 or .png")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise CommandError(f"--out {path}: {path.parent} is a file, not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not os.access(path.parent, os.W_OK):
+        raise OSError(errno.EACCES, "Permission denied", str(path.parent))
+
+
 def _write_animation(result: KinematicsResult, path: Path, arguments, trace, stopped: str | None) -> str:
-    """Write the clip or the frame; a line saying what was written."""
+    """Write the clip or the frame (at a temporary name, renamed to `path` once complete,
+    signals held meanwhile); a line saying what was written."""
     from ..plots import animate, save_frame
 
-    if path.suffix.lower() == ".png":
-        at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
-        save_frame(result, path, at, trace=trace, stopped=stopped, labels=arguments.labels)
-        return f"frame at t = {result.times[-1] if at is None else at:g} s"
-    clip = animate(result, path, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped,
-                   labels=arguments.labels)  # fmt: skip
-    return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"
+    with signals.holding(), written_whole(path) as partial:
+        if path.suffix.lower() == ".png":
+            at = arguments.at if arguments.at is not None and arguments.at <= result.times[-1] else None
+            save_frame(result, partial, at, trace=trace, stopped=stopped, labels=arguments.labels)
+            return f"frame at t = {result.times[-1] if at is None else at:g} s"
+        clip = animate(result, partial, trace=trace, fps=arguments.fps, duration=arguments.duration, stopped=stopped,
+                       labels=arguments.labels)  # fmt: skip
+        return f"animation: {clip.n_frames} frames at {clip.fps:g} fps, {clip.duration:g} s"

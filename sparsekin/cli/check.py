@@ -6,8 +6,8 @@ import argparse
 import math
 from pathlib import Path
 
-from ..model.modelfile import load_model
 from .common import EXIT_PROBLEM, EXIT_SUCCESS, CommandError
+from .settings import read_model
 
 
 def add_check_command(subparsers) -> None:
@@ -35,7 +35,7 @@ def check_command(arguments: argparse.Namespace) -> int:
     """
     from ..analysis.check import check_model
 
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     if not math.isfinite(arguments.time):
         raise CommandError(f"--time must be a finite number (s), got {arguments.time!r}")
     report = check_model(mechanism, time=arguments.time)

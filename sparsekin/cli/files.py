@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -26,10 +27,21 @@ POINT_COLUMNS = ("x", "y", "vx", "vy", "ax", "ay")
 def write_csv(path: Path, header: Sequence[str], rows: Iterable[Iterable[str]]) -> Path:
     """Write a CSV file: the column names of `header`, then each row of `rows`, its cells
     already written as text."""
-    with open(path, "w", encoding="utf-8", newline="") as file:
+    with naming_errors(path), open(path, "w", encoding="utf-8", newline="") as file:
         file.write(",".join(header) + "\n")
         file.writelines(",".join(row) + "\n" for row in rows)
     return path
+
+
+@contextmanager
+def naming_errors(path: Path) -> Iterator[None]:
+    """An `OSError` in the block (a full disk while writing, which names no file) names `path`."""
+    try:
+        yield
+    except OSError as error:
+        if error.filename is not None:
+            raise
+        raise OSError(error.errno, error.strerror or str(error), str(path)) from error
 
 
 def _float_rows(table: np.ndarray) -> Iterator[Iterable[str]]:
@@ -55,7 +67,8 @@ def write_workspace(space, directory: Path) -> list[Path]:
     ]
 
 
-def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings) -> list[Path]:
+def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, settings: RunSettings,
+                  directory: Path | None = None, written: list[Path] | None = None) -> list[Path]:
     """Write ``points.csv``, ``joints.csv``, ``coordinates.npz`` and, if asked and possible, the figures.
 
     Parameters
@@ -65,20 +78,23 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
         The samples solved; None or empty after an early failure (then the files hold no
         rows and no figure is drawn).
     settings : RunSettings
+    directory : Path, optional
+        Where the files are written (`OutputFolder.staging`); ``settings.directory`` by
+        default.  A Zarr store is not written here: the run streamed it.
+    written : list of Path, optional
+        Each file is appended once it is complete (so that, when a later one fails, the
+        caller knows which are whole).
 
     Returns
     -------
     list of Path
-        The files written.
+        The files written (`written`).
     """
-    directory = settings.directory
-    if settings.format == "zarr":
-        written = [directory / "results.zarr"]
-    else:
-        written = [
-            write_points_csv(result, settings.point_names, directory / "points.csv"),
-            write_joints_csv(mechanism, result, directory / "joints.csv", settings.joint_indices),
-        ]
+    directory = settings.directory if directory is None else directory
+    written = [] if written is None else written
+    if settings.format == "csv":
+        written.append(write_points_csv(result, settings.point_names, directory / "points.csv"))
+        written.append(write_joints_csv(mechanism, result, directory / "joints.csv", settings.joint_indices))
         if settings.forces is not None:
             written.append(write_forces_csv(result, directory / "forces.csv"))
         if settings.coordinates:
@@ -110,6 +126,18 @@ def write_outputs(mechanism: Mechanism, result: KinematicsResult | None, setting
             report(f"note: mechanism.png shows the first {MAX_DRAWN_BODIES} of {mechanism.n_bodies} bodies")
         written.append(draw_mechanism(mechanism, result, directory, bodies=shown, labels=settings.labels))
     return written
+
+
+def planned_files(mechanism: Mechanism, settings: RunSettings) -> list[str]:
+    """The names of the files (or the store) `write_outputs` writes for `settings`, figures aside."""
+    if settings.format == "zarr":
+        return ["results.zarr"]
+    names = ["points.csv", "joints.csv"]
+    if settings.forces is not None:
+        names.append("forces.csv")
+    if settings.coordinates:
+        names.append("coordinates.npz")
+    return names
 
 
 def write_points_csv(result: KinematicsResult | None, point_names: Sequence[str], path: Path) -> Path:
@@ -193,7 +221,8 @@ def write_coordinates(result: KinematicsResult | None, body_names: Sequence[str]
         arrays = {schema.TIME: np.empty(0)} | dict.fromkeys(names, np.empty((0, 3 * len(body_names))))
     else:
         arrays = {schema.TIME: result.times} | {name: result_arrays(result)[name] for name in names}
-    np.savez(path, **arrays, body_names=np.array(body_names, dtype=str))
+    with naming_errors(path), open(path, "wb") as file:
+        np.savez(file, **arrays, body_names=np.array(body_names, dtype=str))
     return path
 
 

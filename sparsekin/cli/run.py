@@ -12,11 +12,12 @@ from ..errors import AnalysisInterrupted, ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from ..model.modelfile import load_model
 from ..results.dynamics import DynamicsResult
+from ..results import schema
 from ..results.kinematics import KinematicsResult
 from ..solve.dynamics import solve_dynamics
 from ..solve.kinematics import solve_kinematics
+from . import signals
 from .common import (
-    EXIT_INTERRUPTED,
     EXIT_STOPPED,
     EXIT_SUCCESS,
     CommandError,
@@ -26,7 +27,8 @@ from .common import (
     require_zarr,
 )
 from .compiling import announce_compilation
-from .files import count_samples, write_outputs
+from .files import count_samples, planned_files, write_outputs
+from .outputs import OutputFolder, disk_full, manifest, written_whole
 from .settings import (
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
@@ -36,8 +38,10 @@ from .settings import (
     add_force_arguments,
     add_label_argument,
     add_time_arguments,
+    read_model,
     resolve_run_settings,
 )
+from .sizes import RUN_ADVICE, add_memory_argument, check_memory, limit_for, run_parts
 
 
 def add_run_command(subparsers) -> None:
@@ -70,6 +74,7 @@ def add_run_command(subparsers) -> None:
                         'run goes on (needs "sparsekin[zarr]")')
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw PNG figures (needs "sparsekin[plot]")')
     add_label_argument(parser)
     parser.add_argument("--abscissa", metavar="DRIVER",
@@ -114,40 +119,108 @@ def run_command(arguments: argparse.Namespace) -> int:
         `main` reports them.
     """
     timeline = _Timeline()
-    pose_time = _pose_time(arguments)
-    mechanism = load_model(arguments.model)
+    _pose_time(arguments)  # --save-pose checked before any solving
+    mechanism = read_model(arguments)
     timeline.read = time.perf_counter()
     settings = resolve_run_settings(arguments, mechanism)
     if settings.plot:
         require_matplotlib()
     if settings.format == "zarr":
         require_zarr()
-    settings.directory.mkdir(parents=True, exist_ok=True)
-    for note in settings.notes:
-        report(f"note: {note}")
-    dynamics = is_dynamics(arguments, mechanism)
-    try:
-        with _Progress(settings, timeline) as progress:
-            result = solve_for_command(mechanism, settings, arguments.model, progress,
-                                       dynamics=dynamics, max_step=getattr(arguments, "max_step", None))  # fmt: skip
-    except ConvergenceError as error:
-        written = write_outputs(mechanism, error.result, settings)
-        report(f"analysis stopped: {error}")
-        report(f"wrote {count_samples(error.result)} of {settings.times.size} samples to "
-                f"{settings.directory}: {', '.join(path.name for path in written)}")
+    arguments.memory_parts = run_parts(mechanism, settings)
+    arguments.memory_estimate = check_memory(arguments.memory_parts, limit_for(arguments), RUN_ADVICE)
+    with OutputFolder(settings.directory, "run", planned_files(mechanism, settings)) as folder:
+        for note in settings.notes:
+            report(f"note: {note}")
+        if settings.format == "zarr":  # the store is written in place from the first sample on
+            folder.clean(keep=["results.zarr"])
+        dynamics = is_dynamics(arguments, mechanism)
+        stop = None
+        try:
+            with _Progress(settings, timeline) as progress:
+                result = solve_for_command(mechanism, settings, arguments.model, progress,
+                                           dynamics=dynamics, max_step=getattr(arguments, "max_step", None))  # fmt: skip
+            timeline.solved = time.perf_counter()
+        except ConvergenceError as error:
+            result, stop = error.result, error
+        except AnalysisInterrupted as interrupt:
+            result, stop = interrupt.result, interrupt
+        except OSError as error:
+            if settings.format != "zarr" or not disk_full(error):
+                raise
+            result, stop = None, error
+        with signals.holding():  # a signal now waits for the files to be finished
+            return _write_run(mechanism, result, stop, settings, folder, arguments, timeline)
+
+
+def _write_run(mechanism: Mechanism, result, stop, settings: RunSettings, folder: OutputFolder, arguments,
+               timeline: _Timeline) -> int:  # fmt: skip
+    """Write the samples of `result` (all of them, or those before `stop`: the error or
+    interrupt that stopped the run) and say what was written; returns the exit status."""
+    directory, requested = settings.directory, settings.times.size
+    store = [directory / "results.zarr"] if settings.format == "zarr" else []
+    if isinstance(stop, OSError):  # the disk filled while the store was written
+        kept = stored_samples(store[0])
+        where = f"in {store[0]}" if store[0].exists() else f"({store[0].name} not written)"
+        folder.commit([], [path for path in store if path.exists()],
+                      _manifest(arguments, "disk_full", EXIT_STOPPED, kept, requested))  # fmt: skip
+        report(f"error: {stop.filename or store[0]}: {stop.strerror}: kept the first {kept} of {requested} samples "
+               f"{where}")  # fmt: skip
         return EXIT_STOPPED
-    except AnalysisInterrupted as interrupt:
-        written = write_outputs(mechanism, interrupt.result, settings)
-        report(f"interrupted: wrote {count_samples(interrupt.result)} of {settings.times.size} samples to "
-                f"{settings.directory}: {', '.join(path.name for path in written)}")
-        return EXIT_INTERRUPTED
-    timeline.solved = time.perf_counter()
-    _note_heavy_fill(mechanism, result)
-    written = write_outputs(mechanism, result, settings)
-    if pose_time is not None:
-        written.append(_save_pose(result, pose_time, Path(arguments.save_pose[1]), arguments.model))
-    print(_summary(mechanism, result, timeline, written))
-    return EXIT_SUCCESS
+    solved = count_samples(result)
+    if isinstance(stop, ConvergenceError):
+        status, exit_status = "stopped", EXIT_STOPPED
+        report(f"analysis stopped: {stop}")
+    elif isinstance(stop, AnalysisInterrupted):
+        status, exit_status = "interrupted", signals.exit_status()
+    else:
+        status, exit_status = "complete", EXIT_SUCCESS
+    staged: list[Path] = []
+    try:
+        write_outputs(mechanism, result, settings, folder.staging, staged)
+    except OSError as error:
+        if not disk_full(error):
+            raise
+        whole = [path.name for path in staged]
+        files = folder.commit(staged, store, _manifest(arguments, "disk_full", EXIT_STOPPED, solved, requested))
+        report(f"error: {directory / Path(error.filename or '?').name}: {error.strerror}: {solved} of {requested} "
+               f"samples solved; kept {', '.join(whole) or 'no file'} in {directory}")  # fmt: skip
+        return EXIT_STOPPED
+    if signals.received() is not None and stop is None:  # a signal came while the files were written
+        status, exit_status = "complete", signals.exit_status()
+    files = folder.commit(staged, store, _manifest(arguments, status, exit_status, solved, requested))
+    names = ", ".join(path.name for path in files)
+    if status == "interrupted":
+        report(f"{signals.interrupted()}: wrote {solved} of {requested} samples to {directory}: {names}")
+    elif status == "stopped":
+        report(f"wrote {solved} of {requested} samples to {directory}: {names}")
+    else:
+        if exit_status != EXIT_SUCCESS:
+            report(f"{signals.signal_name()} while writing: finished first; wrote all {solved} samples to "
+                   f"{directory}: {names}")  # fmt: skip
+        _note_heavy_fill(mechanism, result)
+        pose_time = _pose_time(arguments)
+        if pose_time is not None:
+            files.append(_save_pose(result, pose_time, Path(arguments.save_pose[1]), arguments.model))
+        print(_summary(mechanism, result, timeline, files))
+    return exit_status
+
+
+def _manifest(arguments, status: str, exit_status: int, solved: int, requested: int) -> dict:
+    return manifest(arguments.command_line, arguments.model, status, exit_status,
+                    {"samples_solved": solved, "samples_requested": requested,
+                     "memory_estimate_bytes": getattr(arguments, "memory_estimate", None),
+                     "memory_estimate_parts": getattr(arguments, "memory_parts", None)})  # fmt: skip
+
+
+def stored_samples(store: Path) -> int:
+    """The samples a Zarr store of a run holds (0 if it cannot be read)."""
+    try:
+        import zarr
+
+        return int(zarr.open_group(store, mode="r")[schema.TIME].shape[0])
+    except Exception:  # noqa: BLE001 - a store the disk left unreadable holds nothing that can be counted
+        return 0
 
 
 def _note_heavy_fill(mechanism: Mechanism, result: KinematicsResult) -> None:
@@ -190,7 +263,8 @@ def _save_pose(result: KinematicsResult, pose_time: float, path: Path, model_pat
         raise CommandError(f"--save-pose: {error}") from None
     except ModelError as error:
         raise (error if error.file else error.in_file(str(model_path))) from None
-    save_model(model, path)
+    with written_whole(path) as partial:
+        save_model(model, partial)
     return path
 
 

@@ -13,7 +13,9 @@ import numpy as np
 
 from ..model import _validate
 from ..model.mechanism import Mechanism
+from ..model.modelfile import load_model
 from .common import CommandError
+from .sizes import check_model_document, check_times, limit_for
 
 #: What ``run`` writes when neither the options nor ``[analysis]`` say (docs/model-format.md):
 #: every named point up to `MAX_DEFAULT_POINTS` (else none), every joint with an own
@@ -80,6 +82,25 @@ class RunSettings:
     quasi_static: bool = False
     labels: str = "all"
     abscissa: str | None = None
+
+
+def read_model(arguments: argparse.Namespace) -> Mechanism:
+    """The model file of a command, its repeats counted first: one whose copies would not
+    fit in memory is refused before they are built (`check_model_document`)."""
+    import tomllib
+
+    path = Path(arguments.model)
+    try:
+        if path.is_file() and path.stat().st_size <= MAX_PRECHECK_BYTES:
+            document = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
+            check_model_document(document, limit_for(arguments))
+    except (OSError, ValueError, RecursionError):  # not a model file: `load_model` says what is wrong
+        pass
+    return load_model(path)
+
+
+#: Model files larger than this are not read twice (a model at scale repeats a unit).
+MAX_PRECHECK_BYTES = 16 * 2**20
 
 
 def add_time_arguments(parser, samples: str = "number of samples") -> None:
@@ -213,6 +234,7 @@ def resolve_times(arguments: argparse.Namespace, mechanism: Mechanism) -> np.nda
         raise CommandError("no end time: give --t-end T or [analysis].t_end in the model file")
     steps = arguments.steps if arguments.steps is not None else (analysis.steps or DEFAULT_STEPS)
     _check_times(t_end, steps)
+    check_times(steps, limit_for(arguments))
     return np.linspace(0.0, t_end, steps)
 
 

@@ -7,9 +7,8 @@ import argparse
 from pathlib import Path
 
 from ..errors import ModelError
-from ..model.modelfile import load_model
+from . import signals
 from .common import (
-    EXIT_INTERRUPTED,
     EXIT_STOPPED,
     EXIT_SUCCESS,
     CommandError,
@@ -17,6 +16,7 @@ from .common import (
     report,
     require_matplotlib,
 )
+from .outputs import OutputFolder, manifest
 from .settings import (
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
@@ -24,8 +24,10 @@ from .settings import (
     add_folder_argument,
     add_force_arguments,
     add_time_arguments,
+    read_model,
     resolve_run_settings,
 )
+from .sizes import add_memory_argument, check_memory, limit_for, sweep_parts
 
 #: Variants' values of q, qd and qdd that ``sweep`` writes by default, all variants together.
 MAX_DEFAULT_SWEEP_VALUES = MAX_DEFAULT_VALUES
@@ -71,6 +73,7 @@ def add_sweep_command(subparsers) -> None:
                         "four tasks per worker)")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
                         'the stop times against the varied parameter (needs "sparsekin[plot]")')  # fmt: skip
     parser.add_argument("--plot-point", metavar="P", help="with --plot, the point whose paths are drawn (default: "
@@ -91,7 +94,10 @@ def sweep_command(arguments: argparse.Namespace) -> int:
     from ..solve.options import check_times
     from ..studies.sweeps import VariantSet, default_worker_count, sweep, write_variants_csv
 
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
+    columns = len(arguments.vary) + (2 * len(mechanism.points) if arguments.perturb else 0)
+    check_memory(sweep_parts(mechanism, _requested_variants(arguments), max(1, columns)), limit_for(arguments),
+                 "give fewer values to --vary or fewer --samples")  # before the values are made: fmt: skip
     try:
         variants = VariantSet.from_arguments(arguments.vary, arguments.samples, arguments.perturb, arguments.seed)
         design = variants.bind(mechanism)
@@ -125,37 +131,47 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         if plot_point is None or plot_point not in points:
             raise CommandError(f"--plot-point: {plot_point or 'no point'} is not recorded (recorded: "
                                f"{', '.join(points) or 'none'}): give --points with it")  # fmt: skip
-    client = None
-    if arguments.scheduler is not None:
-        client = _connect(arguments.scheduler)
-    settings.directory.mkdir(parents=True, exist_ok=True)
-    for note in notes:
-        report(f"note: {note}")
-    store = settings.directory / "sweep.zarr"
-    try:
-        with ProgressBar(design.n_variants, "variant", arguments.quiet) as progress:
-            result = sweep(
-                mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
-                coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
-                forces=settings.forces, quasi_static=settings.quasi_static, variants_per_task=arguments.variants_per_task,
-                progress=progress,
-            )  # fmt: skip
-    except KeyboardInterrupt:
-        report(f"interrupted: {store} holds the variants finished so far (status empty for the others)")
-        return EXIT_INTERRUPTED
-    except (ModelError, CommandError):
-        raise
-    except Exception as error:  # a task that failed: a lost worker too often, a bug, a scheduler gone
-        report(f"sweep stopped: {type(error).__name__}: {error}")
-        return EXIT_STOPPED
-    finally:
-        if client is not None:
-            client.close()
-    written = [store, write_variants_csv(result, settings.directory / "variants.csv")]
-    if plot_point is not None:
-        from ..plots import plot_stop_times, plot_sweep_paths
+    with OutputFolder(settings.directory, "sweep", ["sweep.zarr", "variants.csv"]) as folder:
+        client = None
+        if arguments.scheduler is not None:
+            client = _connect(arguments.scheduler)
+        for note in notes:
+            report(f"note: {note}")
+        folder.clean(keep=["sweep.zarr"])  # the store is written in place from the first task on
+        store = settings.directory / "sweep.zarr"
+        record = {"variants_requested": design.n_variants}
+        try:
+            with ProgressBar(design.n_variants, "variant", arguments.quiet) as progress:
+                result = sweep(
+                    mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
+                    coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
+                    forces=settings.forces, quasi_static=settings.quasi_static,
+                    variants_per_task=arguments.variants_per_task, progress=progress,
+                )  # fmt: skip
+        except KeyboardInterrupt:
+            with signals.holding():
+                status = signals.exit_status()
+                folder.commit([], [store], _manifest(arguments, "interrupted", status, record))
+                report(f"{signals.interrupted()}: {store} holds the variants finished so far (status empty for the "
+                       "others)")  # fmt: skip
+            return status
+        except (ModelError, CommandError):
+            raise
+        except Exception as error:  # a task that failed: a lost worker too often, a bug, a scheduler gone
+            folder.commit([], [store], _manifest(arguments, "stopped", EXIT_STOPPED, record))
+            report(f"sweep stopped: {type(error).__name__}: {error}")
+            return EXIT_STOPPED
+        finally:
+            if client is not None:
+                client.close()
+        with signals.holding():
+            staged = [write_variants_csv(result, folder.staged("variants.csv"))]
+            if plot_point is not None:
+                from ..plots import plot_stop_times, plot_sweep_paths
 
-        written += [plot_sweep_paths(result, plot_point, settings.directory), plot_stop_times(result, settings.directory)]
+                staged += [plot_sweep_paths(result, plot_point, folder.staging), plot_stop_times(result, folder.staging)]
+            exit_status = EXIT_SUCCESS if signals.received() is None else signals.exit_status()
+            written = folder.commit(staged, [store], _manifest(arguments, "complete", exit_status, record))
     counts = ", ".join(f"{status} {count}" for status, count in result.counts.items())
     if arguments.scheduler:
         workers = "the scheduler's workers"
@@ -173,7 +189,23 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         "wrote:",
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
-    return EXIT_SUCCESS
+    return exit_status
+
+
+def _requested_variants(arguments: argparse.Namespace) -> int:
+    """The variants the options ask for, counted from their text (the N of each
+    ``--vary PATH=START:STOP:N`` that reads as a whole number, times ``--samples``)."""
+    count = max(1, arguments.samples or 1)
+    for text in arguments.vary:
+        try:
+            count *= max(1, int(text.rsplit(":", 1)[-1]))
+        except ValueError:  # `VariantSet.from_arguments` says what is wrong with it
+            pass
+    return count
+
+
+def _manifest(arguments: argparse.Namespace, status: str, exit_status: int, counts: dict) -> dict:
+    return manifest(arguments.command_line, arguments.model, status, exit_status, counts)
 
 
 def _require_distributed() -> None:

@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..errors import ConvergenceError, ModelError
 from ..model import _validate
-from ..model.modelfile import load_model
+from . import signals
 from .common import EXIT_SUCCESS, CommandError, require_matplotlib
 from .files import write_workspace
+from .outputs import OutputFolder, manifest
 from .settings import (
     LISTED_POINTS,
     add_folder_argument,
     output_folder,
+    read_model,
 )
+from .sizes import add_memory_argument, check_memory, limit_for, workspace_parts
 
 
 def add_workspace_command(subparsers) -> None:
@@ -36,6 +40,7 @@ def add_workspace_command(subparsers) -> None:
                         help="a driver's range of values, m or rad (default: the span of its law over "
                         "[analysis].t_end, widened twofold)")  # fmt: skip
     add_folder_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", help='also draw workspace_<point>.png (needs "sparsekin[plot]")')
     parser.set_defaults(handler=workspace_command)
 
@@ -49,7 +54,7 @@ def workspace_command(arguments: argparse.Namespace) -> int:
     """
     from ..studies.workspaces import workspace
 
-    mechanism = load_model(arguments.model)
+    mechanism = read_model(arguments)
     if arguments.point not in mechanism.points:
         known = _validate.known_list(list(mechanism.points), limit=LISTED_POINTS)
         raise CommandError(f'--point: unknown point "{arguments.point}" (known: {known})')
@@ -81,19 +86,25 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         ranges = [given[0], given[1]]
     if arguments.plot:
         require_matplotlib()
-    try:
-        space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)
-    except ModelError as error:
-        raise (error if error.file else error.in_file(str(arguments.model))) from None
-    except ConvergenceError as error:
-        raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
-    directory = output_folder(arguments, mechanism)
-    directory.mkdir(parents=True, exist_ok=True)
-    written = write_workspace(space, directory)
-    if arguments.plot:
-        from ..plots import plot_workspace
+    check_memory(workspace_parts(mechanism, math.prod(grid) if len(grid) == 2 else grid[0] ** 2),
+                 limit_for(arguments), "give a coarser --grid")  # fmt: skip
+    with OutputFolder(output_folder(arguments, mechanism), "workspace", ["workspace.csv", "boundary.csv"]) as folder:
+        try:
+            space = workspace(mechanism, arguments.point, drivers, grid if len(grid) == 2 else grid[0], ranges)
+        except ModelError as error:
+            raise (error if error.file else error.in_file(str(arguments.model))) from None
+        except ConvergenceError as error:
+            raise CommandError(f"the model cannot be assembled at t = 0: {error}") from None
+        with signals.holding():
+            staged = write_workspace(space, folder.staging)
+            if arguments.plot:
+                from ..plots import plot_workspace
 
-        written.append(plot_workspace(space, directory))
+                staged.append(plot_workspace(space, folder.staging))
+            exit_status = EXIT_SUCCESS if signals.received() is None else signals.exit_status()
+            record = manifest(arguments.command_line, arguments.model, "complete", exit_status,
+                              {"grid_points": int(space.status.size)})  # fmt: skip
+            written = folder.commit(staged, [], record)
     counts = ", ".join(f"{status} {int((space.status == status).sum())}" for status in dict.fromkeys(space.status.ravel()))
     print("\n".join([
         f"{mechanism.name}: {arguments.point} over {space.status.shape[1]} × {space.status.shape[0]} values of "
@@ -103,4 +114,4 @@ def workspace_command(arguments: argparse.Namespace) -> int:
         "wrote:",
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
-    return EXIT_SUCCESS
+    return exit_status

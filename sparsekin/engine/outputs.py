@@ -89,6 +89,8 @@ def element_index(mechanism: Mechanism, kind: str, name: str | int) -> int:
         if 0 <= name < len(elements):
             return int(name)
         raise KeyError(f"{kind}[{name}] does not exist: the model has {len(elements)} {kind}")
+    if not isinstance(name, str):  # e.g. 1.5: one line, not an AttributeError further on
+        raise KeyError(f"expected a {kind[:-1]}'s name, {kind}[i] or the index i, got {name!r}")
     try:
         return mechanism.index_of(kind, name)
     except KeyError:

@@ -137,6 +137,11 @@ class Polynomial(_BuiltIn):
         return padded.ravel()
 
 
+#: The closest two samples of a spline may be, relative to its span: closer ones give
+#: derivatives that overflow (``[0, 1e-300, 10]``).
+MIN_SPLINE_STEP = 1e-9
+
+
 @dataclass(frozen=True)
 class Spline(_BuiltIn):
     """``offset`` plus a C² cubic spline (not-a-knot ends) through the samples ``(times, values)``.
@@ -166,8 +171,14 @@ class Spline(_BuiltIn):
                 f"expected as many values as times ({len(times)}), got {len(values)}",
                 element="values",
             )
-        if np.any(np.diff(times) <= 0.0):
+        steps = np.diff(times)
+        if np.any(steps <= 0.0):
             raise ModelError("expected strictly increasing times", element="times")
+        closest = int(np.argmin(steps))
+        if steps[closest] < MIN_SPLINE_STEP * (times[-1] - times[0]):  # issue 28: overflow, then NaN
+            raise ModelError(f"times[{closest}] = {times[closest]!r} and times[{closest + 1}] = {times[closest + 1]!r} "
+                             f"are {steps[closest]:.3g} s apart: expected samples at least {MIN_SPLINE_STEP:g} of the "
+                             "span apart (the spline's accelerations would overflow)", element="times")  # fmt: skip
         _set(self, "times", times)
         _set(self, "values", values)
         if self.offset is not None:

@@ -379,7 +379,15 @@ class Mechanism:
 
     def _check_body(self, body: str, where: str, *where_arguments) -> None:
         if body != GROUND and body not in self._body_index and not self._is_copy_body(body):
-            known = _validate.known_list([*self._body_index, GROUND])
+            for copies in self._copies:  # a copy's name whose copy has not that body (issue 28)
+                split = copies.split(body)
+                if split is not None and split[1] in copies._local["bodies"]:
+                    copy = body[: -len(split[1]) - 1]
+                    raise ModelError(f'body "{body}": copy "{copy}" of unit "{copies.unit.name}" has no body '
+                                     f'"{split[1]}" (the repeat leaves it out there)',
+                                     element=where.format(*where_arguments))  # fmt: skip
+            copy_bodies = [f"{copies.name(0, b.name)} …" for copies in self._copies for b in copies.unit.bodies]
+            known = _validate.known_list([*self._body_index, GROUND, *copy_bodies])
             raise ModelError(f'unknown body "{body}" (known: {known})', element=where.format(*where_arguments))
 
     def _is_copy_body(self, name: str) -> bool:

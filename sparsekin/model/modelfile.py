@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+import errno
 import numbers
 import os
 import re
+import stat
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -143,6 +145,8 @@ def load_model(path: str | os.PathLike) -> Mechanism:
         mechanism = reader.mechanism(document, default_name=Path(shown).stem)
     except ModelError as error:
         raise _one_line(error if error.file else error.in_file(shown)) from None
+    except RecursionError:  # a value nested deeper than the reader goes (issue 28)
+        raise ModelError("a value nested too deep; expected a model file", file=shown) from None
     warn_unjoined_points(mechanism, source=shown)
     return mechanism
 
@@ -356,11 +360,29 @@ def _parse(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise _toml_error(str(error), text) from None
+    except RecursionError:
+        raise ModelError("arrays or tables nested too deep to read; expected a model file") from None
+
+
+#: The largest model (or spline CSV) file read, bytes: a model at scale repeats a unit.
+MAX_FILE_BYTES = 256 * 2**20
 
 
 def _read_text(path: Path) -> str:
-    """The UTF-8 text of a file (a byte-order mark is allowed); raises OSError if unreadable."""
-    data = path.read_bytes()
+    """The UTF-8 text of a file (a byte-order mark is allowed); raises OSError if unreadable,
+    a `ModelError` if not a regular file (a device, a pipe) or larger than `MAX_FILE_BYTES`."""
+    info = path.stat()
+    if stat.S_ISDIR(info.st_mode):
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+    if not stat.S_ISREG(info.st_mode):
+        raise ModelError("not a regular file (a device, a pipe or a socket); expected a file saved as UTF-8 text")
+    data = b""
+    if info.st_size <= MAX_FILE_BYTES:
+        with open(path, "rb") as file:
+            data = file.read(MAX_FILE_BYTES + 1)  # the file may have grown since
+    if info.st_size > MAX_FILE_BYTES or len(data) > MAX_FILE_BYTES:
+        raise ModelError(f"larger than {MAX_FILE_BYTES // 2**20} MB; expected a model file (repeat a unit for a "
+                         "large model)")  # fmt: skip
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as error:

@@ -257,33 +257,42 @@ class Recorder:
         return self.sink.close(self.n_written)
 
 
+#: The signals a chunk's write holds until it is done (issue 28: the command line stops on
+#: SIGTERM and SIGHUP as on Ctrl-C).
+_DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
 def open_recorder(selection: Selection, store, n_times: int, chunk_samples: int | None = None) -> Recorder:
     """A `Recorder` of a run of `n_times` samples: streaming to the Zarr `store`, or in
     memory when `store` is None."""
-    sink = ZarrSink(store, selection) if store is not None else MemorySink(selection, n_times)
+    sink = ZarrSink(store, selection, n_times) if store is not None else MemorySink(selection, n_times)
     return Recorder(selection, sink, chunk_samples)
 
 
 @contextmanager
 def _interrupt_deferred():
-    """Hold a SIGINT (Ctrl-C) that arrives in the block until the block is done, then hand
-    it to the handler there was (which raises `KeyboardInterrupt`).
+    """Hold a SIGINT (Ctrl-C), SIGTERM or SIGHUP that arrives in the block until the block
+    is done, then hand it to the handler there was (which raises `KeyboardInterrupt` for
+    Ctrl-C).
 
     Only the main thread receives signals, and only a Python handler can be called
-    later: elsewhere, or under another handler, the block runs as it is.
+    later: elsewhere, or for a signal under another handler, the block runs as it is.
     """
-    previous = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    previous = {signum: signal.getsignal(signum) for signum in _DEFERRED_SIGNALS}
+    previous = {signum: handler for signum, handler in previous.items() if callable(handler)}
     received = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(frame))
+    for signum in previous:
+        signal.signal(signum, lambda signum, frame: received.append((signum, frame)))
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-        if received:
-            previous(signal.SIGINT, received[0])
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum, frame in received:
+            previous[signum](signum, frame)
 
 
 #: What the top of a Zarr store holds: a format 2 group or array (and its consolidated
@@ -312,6 +321,24 @@ def _clear_store(path: str) -> None:
             os.remove(entry.path)
 
 
+def _partial_path(path: str) -> str:
+    """Where a store is built before it is renamed to `path`: a hidden name beside it."""
+    head, name = os.path.split(os.path.normpath(path))
+    return os.path.join(head, f".{name}.{os.getpid()}.partial")
+
+
+def _resize_time(path: str, n_times: int) -> None:
+    """Lay the variables of the store at `path` over `n_times` samples (their first
+    dimension, ``time``) and consolidate its metadata again."""
+    import zarr
+
+    group = zarr.open_group(path, mode="r+", zarr_format=2)
+    for _, array in group.arrays():
+        if array.attrs.get("_ARRAY_DIMENSIONS", [None])[0] == "time" and array.shape[0] != n_times:
+            array.resize((n_times, *array.shape[1:]))
+    zarr.consolidate_metadata(path, zarr_format=2)
+
+
 class MemorySink:
     """Arrays for every sample of a run, in memory: a `Recorder` fills them in place (the
     rows it hands to `write` that are views of them are not copied again)."""
@@ -337,6 +364,16 @@ class MemorySink:
 class ZarrSink:
     """A Zarr store at `path`, written chunk by chunk (see the module docstring).
 
+    With `n_times`, the store holds every sample's row from its first write on, so that
+    a run killed at any moment (even by SIGKILL) leaves a store that opens, with ``t`` and
+    every variable and the same number of samples in each: the store is built at a
+    temporary name with the first chunk, its variables laid out over the `n_times`
+    samples (metadata only; the rows not yet written read as NaN, ``t`` too), and renamed
+    into place; each later chunk fills its rows, ``t`` last, so that a sample whose time
+    is written is whole.  `close` cuts the variables to the samples written.  Without
+    `n_times`, each chunk is appended (a kill between two variables' appends leaves them
+    of different lengths).
+
     Parameters
     ----------
     path : str or path-like
@@ -344,6 +381,8 @@ class ZarrSink:
         run, so that no old sample outlives it; a file or a folder holding anything else
         is refused.
     selection : Selection
+    n_times : int, optional
+        The samples of the run.
 
     Raises
     ------
@@ -351,7 +390,7 @@ class ZarrSink:
         If `path` is a file, or a non-empty folder that is not a Zarr store.
     """
 
-    def __init__(self, path, selection: Selection) -> None:
+    def __init__(self, path, selection: Selection, n_times: int | None = None) -> None:
         try:
             import xarray  # noqa: F401
             import zarr  # noqa: F401
@@ -359,8 +398,11 @@ class ZarrSink:
             raise ImportError(_EXTRA) from None
         self.path = os.fspath(path)
         self.selection = selection
+        self.n_times = n_times
         self._written = False
         _clear_store(self.path)
+        if n_times is not None and os.path.isdir(self.path):  # emptied: the store is renamed there whole
+            os.rmdir(self.path)
 
     def _dataset(self, data: dict, with_labels: bool):
         import xarray as xr
@@ -373,24 +415,55 @@ class ZarrSink:
     def write(self, first: int, data: dict) -> None:
         import warnings
 
-        dataset = self._dataset(data, with_labels=not self._written)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            if not self._written:
-                n = self.selection.mechanism.n_coordinates
-                encoding = {v.name: {"chunks": (len(data[TIME]), min(n, 2**20))}
-                            for v in schema.COORDINATE_VARIABLES if v.name in data}  # fmt: skip
-                dataset.to_zarr(self.path, mode="w", zarr_format=2, encoding=encoding)
-                self._written = True
-            else:
-                dataset.to_zarr(self.path, append_dim="time", zarr_format=2)
+        if not self._written:
+            self._create(data, self.n_times)
+            self._written = True
+            return
+        if self.n_times is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", FutureWarning)
+                self._dataset(data, with_labels=False).to_zarr(self.path, append_dim="time", zarr_format=2)
+            return
+        import zarr
+
+        group = zarr.open_group(self.path, mode="r+", zarr_format=2)
+        for key in (*(key for key in data if key != TIME), TIME):  # the time last: its sample is whole
+            group[key][first : first + len(data[key])] = data[key]
+
+    def _create(self, data: dict, n_times: int | None) -> None:
+        """Write the store with the first chunk and the labels: at a temporary name, laid out
+        over `n_times` samples, then renamed into place (see the class docstring)."""
+        import warnings
+
+        n = self.selection.mechanism.n_coordinates
+        rows = max(1, len(data[TIME]))
+        encoding = {key: {"chunks": (rows, *(min(size, 2**20) for size in values.shape[1:]))}
+                    for key, values in data.items()}  # fmt: skip
+        encoding |= {v.name: {"chunks": (rows, min(n, 2**20))} for v in schema.COORDINATE_VARIABLES if v.name in data}
+        target = self.path if n_times is None else _partial_path(self.path)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", FutureWarning)
+                self._dataset(data, with_labels=True).to_zarr(target, mode="w", zarr_format=2, encoding=encoding)
+            if n_times is not None:
+                _resize_time(target, n_times)
+                os.replace(target, self.path)  # onto a new name: the store appears whole
+        except BaseException:
+            if target != self.path:
+                import shutil
+
+                shutil.rmtree(target, ignore_errors=True)
+            raise
 
     def close(self, n_written: int) -> dict:
-        """The store's arrays, read lazily (zarr arrays)."""
+        """The store's arrays, read lazily (zarr arrays), cut to the `n_written` samples."""
         import zarr
 
         if not self._written:  # nothing solved: an empty store with the labels
             empty = {name: np.empty((0, *shape)) for name, shape in self.selection.sample_shapes().items()}
-            self.write(0, {TIME: np.empty(0), **empty})
+            self._create({TIME: np.empty(0), **empty}, None)
+            self._written = True
+        elif self.n_times is not None and n_written < self.n_times:
+            _resize_time(self.path, n_written)
         group = zarr.open_group(self.path, mode="r")
         return {name: group[name] for name in (TIME, *(v.name for v in schema.VARIABLES)) if name in group}

@@ -15,6 +15,7 @@ ValueError: `linear_solver` must be one of 'auto', 'superlu', 'refactor', 'dense
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,6 +109,12 @@ class Request:
     energy: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.coordinates, (bool, np.bool_)):  # issue 28: "no" was true
+            raise ValueError(f"`coordinates` must be True or False, got {self.coordinates!r}.")
+        points = self.points
+        if isinstance(points, Sequence) and not isinstance(points, str) and not all(isinstance(n, str) for n in points):
+            # issue 28: [["K"]] was a bare TypeError (the names themselves are checked by `selection`)
+            raise ValueError(f'`points` must be None, "all" or a list of point names, got {points!r}.')
         if not isinstance(self.quasi_static, (bool, np.bool_)):
             raise ValueError(f"`quasi_static` must be True or False, got {self.quasi_static!r}.")
         if self.chunk_samples is not None and (isinstance(self.chunk_samples, bool) or int(self.chunk_samples) < 1):
@@ -175,6 +182,12 @@ def check_times(times, mechanism: Mechanism) -> np.ndarray:
     """`times` as a new C-contiguous float array: non-empty, 1-D, finite, strictly
     increasing and within the time range of every spline law of `mechanism`; else a
     ValueError naming the argument."""
+    try:  # issue 28: complex, text and bool times were cast to floats
+        dtype = np.asarray(times).dtype if not isinstance(times, (str, bytes)) else np.dtype(str)
+    except (TypeError, ValueError):
+        dtype = np.dtype(object)  # ragged: refused below
+    if dtype.kind in "bcSUV":
+        raise ValueError(f"`times` must be an array of numbers, got {type(times).__name__} of {dtype} values.")
     try:
         array = np.array(times, dtype=float)  # a copy, C-contiguous: the compiled loop reads it
     except (TypeError, ValueError):

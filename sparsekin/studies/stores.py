@@ -14,6 +14,7 @@ import numpy as np
 
 from ..results import schema
 from ..results.motion import Motion
+from ..results.recording import _clear_store, _partial_path
 from .variants import VariantDesign, VariantSet
 
 #: A variant's outcome: every sample solved; stopped at a singular configuration (a lock-up,
@@ -195,11 +196,17 @@ class _ZarrOutput:
         dataset.attrs.update(attrs)
         for key in ("status", "t_stop", "t_failure"):
             encoding[key] = {"chunks": (variants_per_task,)}
+        # built at a temporary name and renamed into place (issue 28): a sweep killed at any
+        # moment leaves no store, or one with every variable
+        _clear_store(self.path)  # a file, or a folder that is no store, is refused before any work
+        target = _partial_path(self.path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)
-            dataset.to_zarr(self.path, mode="w", compute=False, zarr_format=2, encoding=encoding)
+            dataset.to_zarr(target, mode="w", compute=False, zarr_format=2, encoding=encoding)
+        group = zarr.open_group(target, mode="r+", zarr_format=2)
+        group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
+        os.replace(target, self.path)  # onto the emptied folder, or a new name
         self.group = zarr.open_group(self.path, mode="r+", zarr_format=2)
-        self.group["status"][:] = np.full(n, "", dtype=STATUS_DTYPE)  # not written with compute=False
 
     def write(self, first: int, stop: int, block: dict) -> None:
         for key in (*(v.name for v in schema.VARIABLES), "status", "t_stop", "t_failure"):
