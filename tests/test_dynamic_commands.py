@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sparsekin import Body, Mechanism, Revolute
+from sparsekin import Body, Mechanism, Revolute, load_model
 from sparsekin.cli import main
 from sparsekin.solve.initial_state import initial_state_change
 
@@ -105,3 +105,27 @@ def test_animate_dynamics_mistakes_are_one_line(tmp_path, capsys, model, options
     (line,) = capsys.readouterr().err.splitlines()
     assert line == f"sparsekin: error: {message}"
     assert not list(tmp_path.iterdir())
+
+
+def test_check_reports_how_far_the_drawing_moved_as_worked_by_hand(tmp_path, capsys):
+    """A01 with its link driven from 0.1 rad at 1 rad/s: the drawing (the link along +x) is
+    turned by 0.1 rad about O, so P moves by the chord 2·sin(0.05) m; the link's rate
+    comes from the law, 1 rad/s, which moves the mass at 1 m/s: √(Δq̇ᵀMΔq̇) = 1 kg^½·m/s,
+    0.5 J, the largest change ω by +1 rad/s."""
+    driven = PENDULUM.read_text(encoding="utf-8").replace("[analysis]", """[[drivers]]
+type = "rotational"
+bodies = ["pendulum", "ground"]
+law = { type = "linear", rate = 1.0, start = 0.1 }
+
+[analysis]""")  # fmt: skip
+    model = tmp_path / "driven.toml"
+    model.write_text(driven, encoding="utf-8")
+    change = initial_state_change(load_model(model))
+    assert change.n_moved == 1 and change.moves[0][0] == "P"
+    np.testing.assert_allclose(change.moves[0][1], 2.0 * np.sin(0.05), rtol=1e-12)
+    np.testing.assert_allclose([change.velocity_change, change.energy_of_change], [1.0, 0.5], rtol=1e-12)
+    assert main(["check", str(model)]) == 0
+    out = capsys.readouterr().out
+    assert "initial positions (dynamics): the drawing assembled at t = 0 s by the smallest change: 1 point moved, " \
+           "the largest first: P 0.1 m" in out  # fmt: skip
+    assert "largest change: pendulum.omega by +1 rad/s" in out

@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -585,3 +586,45 @@ def test_dynamic_sweep_options_are_refused_before_any_cluster(task5, monkeypatch
     monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
     with pytest.raises(ValueError, match=message):
         sk.sweep(task5, {BOTH[0]: [0.04, 0.05]}, TIMES, workers=1, analysis=analysis, **keywords)
+
+
+def test_a_dynamic_sweep_varies_a_blow_and_the_springs_of_a_unit(client):
+    """The struck lattice over the plate's speed and two of the unit's springs (varied
+    together): each variant is `solve_dynamics` of the model changed by hand."""
+    lattice = sk.load_model(ROOT / "examples" / "dynamics" / "struck_lattice.toml")
+    springs = ("units.cell.loads[0].stiffness", "units.cell.loads[1].stiffness")
+    result = sk.sweep(lattice, {"bodies.plate.velocity.vx": [-1.0, -3.0], springs: [2.0, 5.0]}, DYNAMIC_TIMES, client,
+                      points=["s0_0.ab"], coordinates=True)  # fmt: skip
+    assert result.columns == ("bodies.plate.velocity.vx", *springs) and (result.status == "complete").all()
+    for k, (speed, stiffness) in enumerate([(-1.0, 2.0), (-1.0, 5.0), (-3.0, 2.0), (-3.0, 5.0)]):
+        plate, *squares = lattice.own("bodies")
+        repeat = lattice.repeats[0]
+        loads = [dataclasses.replace(load, stiffness=stiffness) if n < 2 else load
+                 for n, load in enumerate(repeat.unit.loads)]
+        unit = dataclasses.replace(repeat.unit, loads=tuple(loads))
+        changed = dataclasses.replace(lattice, bodies=(dataclasses.replace(plate, velocity=(speed, 0.0, 0.0)), *squares),
+                                      repeats=(dataclasses.replace(repeat, unit=unit),))  # fmt: skip
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
+            _, run = dynamic_run(changed, points=["s0_0.ab"])
+        np.testing.assert_array_equal(result.coordinates[k], run.coordinates)
+        np.testing.assert_array_equal(result.energy_tracks[k], run.energy_tracks)
+    np.testing.assert_allclose(result.energy_tracks[2, 0, 0], 9.0 * result.energy_tracks[0, 0, 0], rtol=1e-12)  # ∝ speed²
+
+
+@pytest.mark.parametrize("path, message", [
+    ("bodies.c99.mass", r'bodies\.c99\.mass: the model has no body "c99" \(known: '),
+    ("bodies.c1.colour", r"bodies\.c1\.colour: expected bodies\.NAME\.mass, bodies\.NAME\.inertia or "),
+    ("loads[4].damping", r"loads\[4\]\.damping: the model has 1 loads \(loads\[0\] … loads\[0\]\)"),
+    ("loads.payload.stiffness", r"loads\.payload\.stiffness: loads\[0\] \(force on c1 at K\) has no number stiffness"),
+    ("loads[0].value.amplitude", r"loads\[0\]\.value\.amplitude: loads\[0\] \(force on c1 at K\) has the value "
+                                 r"\(0\.0, -200\.0\): expected a law with the number parameter amplitude"),
+])  # fmt: skip
+def test_a_bad_body_or_load_path_names_it_and_what_was_expected(path, message):
+    with pytest.raises(sk.ModelError, match=message):
+        VariantSet({path: [1.0]}).bind(sk.load_model(ROOT / "examples" / "task5_dynamics.toml"))
+
+
+def test_a_value_a_body_refuses_names_the_path():
+    with pytest.raises(sk.ModelError, match=r"^bodies\.c1\.mass: expected a number >= 0, got -1\.0 \(value -1\.0\)$"):
+        VariantSet({"bodies.c1.mass": [2.0, -1.0]}).bind(sk.load_model(ROOT / "examples" / "task5_dynamics.toml"))

@@ -31,6 +31,12 @@ Parameter paths (`PATH_FORMS`), relative to the model:
                                        for a path driver)
 ``points.NAME``                        drawn position of a point, (x, y), m
 ``points.NAME.x``, ``points.NAME.y``   one coordinate of it, m
+``bodies.NAME.mass``, ``.inertia``     a body's mass (kg) and inertia (kg·m²)
+``bodies.NAME.velocity.vx`` (``vy``,   a component of its initial velocity (forward
+``omega``)                             dynamics), m/s or rad/s
+``loads[i].KEY``, ``loads.NAME.KEY``   a number of load i (``stiffness``, ``damping``,
+                                       ``free_angle``, a number ``value`` …)
+``loads[i].value.KEY``                 parameter KEY of the law of load i's value
 ``units.UNIT.drivers[i].law.KEY``      a repeated unit's parameter: every copy takes it
 ``units.UNIT.points.NAME`` (``.x``,    (a repeat's own ``vary`` still applies on top)
 ``.y``)
