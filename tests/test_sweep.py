@@ -617,8 +617,8 @@ def test_a_dynamic_sweep_varies_a_blow_and_the_springs_of_a_unit(client):
     ("bodies.c1.colour", r"bodies\.c1\.colour: expected bodies\.NAME\.mass, bodies\.NAME\.inertia or "),
     ("loads[4].damping", r"loads\[4\]\.damping: the model has 1 loads \(loads\[0\] … loads\[0\]\)"),
     ("loads.payload.stiffness", r"loads\.payload\.stiffness: loads\[0\] \(force on c1 at K\) has no number stiffness"),
-    ("loads[0].value.amplitude", r"loads\[0\]\.value\.amplitude: loads\[0\] \(force on c1 at K\) has the value "
-                                 r"\(0\.0, -200\.0\): expected a law with the number parameter amplitude"),
+    ("loads[0].value.amplitude", (r"loads\[0\]\.value\.amplitude: loads\[0\] \(force on c1 at K\) has the value "
+                                  r"\(0\.0, -200\.0\): expected a law with the number parameter amplitude")),
 ])  # fmt: skip
 def test_a_bad_body_or_load_path_names_it_and_what_was_expected(path, message):
     with pytest.raises(sk.ModelError, match=message):

@@ -190,7 +190,6 @@ def opening_comment(text: str) -> str:
 
 def make_gallery(folder: Path) -> None:
     """A page per example and an index, with the pictures, into `folder`."""
-    import numpy as np
 
     import sparsekin as sk
     from sparsekin.engine.pattern import build_point_map

@@ -58,7 +58,7 @@ def add_animate_command(subparsers) -> None:
                         help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
     parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
     add_label_argument(parser)
-    add_dynamics_arguments(parser)
+    add_dynamics_arguments(parser, "")
     add_memory_argument(parser)
     parser.set_defaults(handler=animate_command)
 

@@ -1,4 +1,5 @@
-"""``sparsekin check``: a model's degrees of freedom, rank, redundant equations and free motions."""
+"""``sparsekin check``: a model's degrees of freedom, rank, redundant equations and free motions (and,
+for forward dynamics, where a run starts)."""
 
 from __future__ import annotations
 
@@ -9,14 +10,13 @@ import warnings
 from pathlib import Path
 
 from ..errors import ModelError, RedundantConstraintWarning
-
 from .common import EXIT_PROBLEM, EXIT_SUCCESS, CommandError
 from .run import is_dynamics
 from .settings import read_model
 
 
 def add_check_command(subparsers) -> None:
-    """Add ``check MODEL.toml [--time T]``."""
+    """Add ``check MODEL.toml [--time T] [--dynamics]``."""
     parser = subparsers.add_parser(
         "check",
         help="report degrees of freedom, redundant equations and free motions of a model",

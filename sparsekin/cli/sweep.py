@@ -73,7 +73,7 @@ def add_sweep_command(subparsers) -> None:
     parser.add_argument("--variants-per-task", type=int, metavar="N", help="variants per Dask task (default: "
                         "four tasks per worker)")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    add_dynamics_arguments(parser)
+    add_dynamics_arguments(parser, "; each variant's energy and drift go to sweep.zarr")
     add_folder_argument(parser)
     add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "

@@ -475,17 +475,7 @@ def _resolve_within(path: str, rest: str, unit: str | None, elements: Mapping, o
     match = _DRIVER_PATH.fullmatch(rest)
     if match:
         index_text, name, law_field, key = match.groups()
-        if index_text is not None:
-            index = int(index_text)
-            if index >= len(drivers):
-                listed = f"drivers[0] … drivers[{len(drivers) - 1}]" if drivers else "none"
-                raise ModelError(f"{owner} has {len(drivers)} drivers ({listed})", element=path)
-        else:
-            names = [driver.name for driver in drivers]
-            if name not in names:
-                known = _validate.known_list([n for n in names if n]) if any(names) else "none is named"
-                raise ModelError(f'{owner} has no driver named "{name}" (named: {known})', element=path)
-            index = names.index(name)
+        index = _element_at("drivers", drivers, index_text, name, owner, path)
         driver = drivers[index]
         if law_field not in driver.law_fields:
             raise ModelError(f"drivers[{index}] has no {law_field} (its laws: {', '.join(driver.law_fields)})",
@@ -513,6 +503,22 @@ def _resolve_within(path: str, rest: str, unit: str | None, elements: Mapping, o
     raise ModelError(f"expected {PATH_FORMS}", element=path)
 
 
+def _element_at(kind: str, elements: Sequence, index_text: str | None, name: str | None, owner: str, path: str) -> int:
+    """The index of the driver or load (`kind`) that a path names by index (`index_text`) or
+    by name; a ModelError naming the path and what there is otherwise."""
+    if index_text is not None:
+        index = int(index_text)
+        if index >= len(elements):
+            listed = f"{kind}[0] … {kind}[{len(elements) - 1}]" if elements else "none"
+            raise ModelError(f"{owner} has {len(elements)} {kind} ({listed})", element=path)
+        return index
+    names = [element.name for element in elements]
+    if name not in names:
+        known = _validate.known_list([n for n in names if n]) if any(names) else "none is named"
+        raise ModelError(f'{owner} has no {kind[:-1]} named "{name}" (named: {known})', element=path)
+    return names.index(name)
+
+
 def _resolve_body(path: str, rest: str, unit: str | None, bodies: Sequence, owner: str) -> _Target:
     match = _BODY_PATH.fullmatch(rest)
     if not match:
@@ -530,17 +536,7 @@ def _resolve_load(path: str, rest: str, unit: str | None, loads: Sequence, owner
     if not match:
         raise ModelError("expected loads[i].KEY, loads.NAME.KEY or loads[i].value.KEY", element=path)
     index_text, name, of_law, key = match.groups()
-    if index_text is not None:
-        index = int(index_text)
-        if index >= len(loads):
-            listed = f"loads[0] … loads[{len(loads) - 1}]" if loads else "none"
-            raise ModelError(f"{owner} has {len(loads)} loads ({listed})", element=path)
-    else:
-        names = [load.name for load in loads]
-        if name not in names:
-            known = _validate.known_list([n for n in names if n]) if any(names) else "none is named"
-            raise ModelError(f'{owner} has no load named "{name}" (named: {known})', element=path)
-        index = names.index(name)
+    index = _element_at("loads", loads, index_text, name, owner, path)
     load = loads[index]
     if of_law:
         law = getattr(load, "value", None)
