@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,8 @@ pytest.importorskip("zarr")
 
 import sparsekin as sk  # noqa: E402
 from sparsekin.cli import main  # noqa: E402
-from sparsekin.studies.sweeps import VariantSet, resolve_path  # noqa: E402
+from sparsekin.results.schema import result_arrays  # noqa: E402
+from sparsekin.studies.sweeps import VariantSet, resolve_path, write_variants_csv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 TASK5 = ROOT / "examples" / "task5.toml"
@@ -439,3 +441,190 @@ def test_import_sparsekin_does_not_import_dask():
     subprocess.run(
         [sys.executable, "-c", code], check=True, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT))
     )
+
+
+# ---------------------------------------------------------------------- forward dynamics
+PENDULUM = ROOT / "examples" / "dynamics" / "pendulum.toml"
+#: Half a second of A01 at 5 ms steps: cheap, and the mass has fallen well off its start.
+DYNAMIC_TIMES = np.linspace(0.0, 0.5, 26)
+#: A four-bar with masses and no driver, falling under gravity: links 1, 2.5, 2 m on a 2.5 m base.
+FALLING_FOUR_BAR = """
+name = "falling four-bar"
+gravity = [0.0, -9.81]
+[points]
+O = [0.0, 0.0]
+A = [0.0, 1.0]
+B = [2.5, 1.0]
+C = [2.5, -1.0]
+[bodies.crank]
+origin = "O"
+points = ["O", "A"]
+mass = 1.0
+inertia = 0.1
+com = [0.0, 0.5]
+velocity = [0.0, 0.0, -1.0]
+[bodies.coupler]
+origin = "A"
+points = ["A", "B"]
+mass = 2.0
+inertia = 1.0
+com = [1.25, 0.0]
+[bodies.rocker]
+origin = "C"
+points = ["C", "B"]
+mass = 1.5
+inertia = 0.5
+com = [0.0, 1.0]
+[[joints]]
+type = "revolute"
+bodies = ["crank", "ground"]
+at = "O"
+[[joints]]
+type = "revolute"
+bodies = ["crank", "coupler"]
+at = "A"
+[[joints]]
+type = "revolute"
+bodies = ["coupler", "rocker"]
+at = "B"
+[[joints]]
+type = "revolute"
+bodies = ["rocker", "ground"]
+at = "C"
+[analysis]
+type = "dynamics"
+max_step = 5.0e-3
+"""
+
+
+def moved_point(mechanism, name: str, x: float):
+    """`mechanism` with point `name` drawn at abscissa `x`, built by hand (not by the sweep's paths)."""
+    points = dict(mechanism.points)
+    points[name] = (x, points[name][1])
+    return dataclasses.replace(mechanism, points=points)
+
+
+def dynamic_run(mechanism, **record):
+    """(status, result) of one `solve_dynamics`, as a sweep should report it."""
+    try:
+        return "complete", sk.solve_dynamics(mechanism, DYNAMIC_TIMES, 5e-3, **record)
+    except sk.ModelError:
+        return "invalid", None
+
+
+def test_a_dynamic_sweeps_variant_is_a_single_solve_dynamics_bit_for_bit(client, tmp_path):
+    """Each variant's motion, forces, energy and drift, streamed to the store, are those of
+    `solve_dynamics` on that variant, and ``variants.csv`` has each one's energy error."""
+    model = tmp_path / "four_bar.toml"
+    model.write_text(FALLING_FOUR_BAR, encoding="utf-8")
+    four_bar = sk.load_model(model)
+    values = [2.5, 2.7]  # C.x: the nominal, a longer base and rocker
+    result = sk.sweep(four_bar, {"points.C.x": values}, DYNAMIC_TIMES, client, store=tmp_path / "s.zarr",
+                      points=["A", "B"], joints="all")  # fmt: skip
+    assert result.analysis == "dynamics" and result.status.tolist() == ["complete", "complete"]
+    stored = result.to_xarray()
+    assert stored.attrs["analysis"] == "dynamics" and stored.attrs["max_step"] == 5e-3
+    assert stored.energy.dims == ("variant", "time", "energy_term") and stored.drift_unit.values.tolist() == ["1", "1/s"]
+    for k, x in enumerate(values):
+        status, run = dynamic_run(moved_point(four_bar, "C", x), points=["A", "B"], joints="all")
+        assert status == "complete" and result.t_stop[k] == DYNAMIC_TIMES[-1]
+        for name, array in result_arrays(run).items():
+            np.testing.assert_array_equal(stored[name].values[k], np.asarray(array), err_msg=name)
+        assert result.energy_error[k] == np.max(np.abs(run.energy.balance)) > 0.0
+    # the motion is not a copy of the nominal one: the longer base changes it
+    assert not np.allclose(stored.points.values[0], stored.points.values[1])
+    rows = write_variants_csv(result, tmp_path / "variants.csv").read_text().splitlines()
+    assert rows[0] == "variant,points.C.x,status,t_stop,t_failure,energy_error,message"
+    assert rows[1].split(",")[5] == repr(float(result.energy_error[0]))
+
+
+def test_cli_sweep_of_a_dynamics_model(client, capsys, tmp_path):
+    """``sparsekin sweep`` on a model of ``type = "dynamics"`` (here with ``--max-step``) runs
+    forward dynamics: each variant's motion and energy as its own run's.  The mass drawn on
+    the pivot (P.x = 0, no inertia) leaves the rotation undetermined: that variant is a
+    result, ``invalid`` with its reason, and the others go on."""
+    import xarray as xr
+
+    status, out, err = run_cli(["sweep", PENDULUM, "--vary", "points.P.x=0:1.2:3", "--t-end", 0.5, "--steps", 26,
+                                "--max-step", 5e-3, "--points", "P", "--scheduler", client.scheduler.address,
+                                "--quiet", "--out", tmp_path], capsys)  # fmt: skip
+    assert status == 0, err
+    assert "pendulum: 3 variants, forward dynamics, 26 samples each" in out
+    rows = read_variants(tmp_path / "variants.csv")
+    assert [row["status"] for row in rows] == ["invalid", "complete", "complete"]
+    assert "the motion is not determined" in rows[0]["message"] and rows[0]["t_stop"] == "nan"
+    store = xr.open_zarr(tmp_path / "sweep.zarr")
+    assert np.isnan(store.points.values[0]).all() and rows[0]["energy_error"] == "nan"
+    pendulum = sk.load_model(PENDULUM)
+    for k, x in ((1, 0.6), (2, 1.2)):
+        _, run = dynamic_run(moved_point(pendulum, "P", x), points=["P"], coordinates=False)
+        np.testing.assert_array_equal(store.points.values[k], run.point_tracks)
+        np.testing.assert_array_equal(store.energy.values[k], run.energy_tracks)
+        assert float(rows[k]["energy_error"]) == np.max(np.abs(run.energy.balance))
+
+
+@pytest.mark.parametrize("model, arguments, message", [
+    (TASK5, ["--max-step", "1e-3"], r"--max-step is for forward dynamics: give --dynamics"),
+    (PENDULUM, ["--quasi-static"], r"--quasi-static"),
+    (PENDULUM, ["--max-step", "inf"], r"--max-step: `max_step` must be a positive number, got inf"),
+])  # fmt: skip
+def test_cli_dynamic_sweep_mistakes_are_one_line(model, arguments, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
+    status, _, err = run_cli(["sweep", model, "--vary", "points.P.x=0.8:1.2:3" if model == PENDULUM else
+                              f"{BOTH[0]}=0.03:0.05:3", *arguments, "--out", tmp_path / "out"], capsys)  # fmt: skip
+    assert status == 2 and err.count("\n") == 1 and err.startswith("sparsekin: error: "), err
+    assert __import__("re").search(message, err), err
+
+
+@pytest.mark.parametrize("analysis, keywords, message", [
+    ("kinematics", dict(max_step=1e-3), r"`max_step` and `rho_inf` are for forward dynamics"),
+    ("dynamics", dict(max_iterations=5), r"`max_iterations` is for kinematic sweeps"),
+    ("dynamics", dict(rho_inf=1.5), r"`rho_inf` must be a number in \[0, 1\], got 1\.5"),
+    ("statics", {}, r"`analysis` must be one of 'kinematics', 'dynamics', got 'statics'"),
+])  # fmt: skip
+def test_dynamic_sweep_options_are_refused_before_any_cluster(task5, monkeypatch, analysis, keywords, message):
+    monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
+    with pytest.raises(ValueError, match=message):
+        sk.sweep(task5, {BOTH[0]: [0.04, 0.05]}, TIMES, workers=1, analysis=analysis, **keywords)
+
+
+def test_a_dynamic_sweep_varies_a_blow_and_the_springs_of_a_unit(client):
+    """The struck lattice over the plate's speed and two of the unit's springs (varied
+    together): each variant is `solve_dynamics` of the model changed by hand."""
+    lattice = sk.load_model(ROOT / "examples" / "dynamics" / "struck_lattice.toml")
+    springs = ("units.cell.loads[0].stiffness", "units.cell.loads[1].stiffness")
+    result = sk.sweep(lattice, {"bodies.plate.velocity.vx": [-1.0, -3.0], springs: [2.0, 5.0]}, DYNAMIC_TIMES, client,
+                      points=["s0_0.ab"], coordinates=True)  # fmt: skip
+    assert result.columns == ("bodies.plate.velocity.vx", *springs) and (result.status == "complete").all()
+    for k, (speed, stiffness) in enumerate([(-1.0, 2.0), (-1.0, 5.0), (-3.0, 2.0), (-3.0, 5.0)]):
+        plate, *squares = lattice.own("bodies")
+        repeat = lattice.repeats[0]
+        loads = [dataclasses.replace(load, stiffness=stiffness) if n < 2 else load
+                 for n, load in enumerate(repeat.unit.loads)]
+        unit = dataclasses.replace(repeat.unit, loads=tuple(loads))
+        changed = dataclasses.replace(lattice, bodies=(dataclasses.replace(plate, velocity=(speed, 0.0, 0.0)), *squares),
+                                      repeats=(dataclasses.replace(repeat, unit=unit),))  # fmt: skip
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
+            _, run = dynamic_run(changed, points=["s0_0.ab"])
+        np.testing.assert_array_equal(result.coordinates[k], run.coordinates)
+        np.testing.assert_array_equal(result.energy_tracks[k], run.energy_tracks)
+    np.testing.assert_allclose(result.energy_tracks[2, 0, 0], 9.0 * result.energy_tracks[0, 0, 0], rtol=1e-12)  # ∝ speed²
+
+
+@pytest.mark.parametrize("path, message", [
+    ("bodies.c99.mass", r'bodies\.c99\.mass: the model has no body "c99" \(known: '),
+    ("bodies.c1.colour", r"bodies\.c1\.colour: expected bodies\.NAME\.mass, bodies\.NAME\.inertia or "),
+    ("loads[4].damping", r"loads\[4\]\.damping: the model has 1 loads \(loads\[0\] … loads\[0\]\)"),
+    ("loads.payload.stiffness", r"loads\.payload\.stiffness: loads\[0\] \(force on c1 at K\) has no number stiffness"),
+    ("loads[0].value.amplitude", (r"loads\[0\]\.value\.amplitude: loads\[0\] \(force on c1 at K\) has the value "
+                                  r"\(0\.0, -200\.0\): expected a law with the number parameter amplitude")),
+])  # fmt: skip
+def test_a_bad_body_or_load_path_names_it_and_what_was_expected(path, message):
+    with pytest.raises(sk.ModelError, match=message):
+        VariantSet({path: [1.0]}).bind(sk.load_model(ROOT / "examples" / "task5_dynamics.toml"))
+
+
+def test_a_value_a_body_refuses_names_the_path():
+    with pytest.raises(sk.ModelError, match=r"^bodies\.c1\.mass: expected a number >= 0, got -1\.0 \(value -1\.0\)$"):
+        VariantSet({"bodies.c1.mass": [2.0, -1.0]}).bind(sk.load_model(ROOT / "examples" / "task5_dynamics.toml"))

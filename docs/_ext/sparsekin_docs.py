@@ -5,7 +5,10 @@
   with the ``[analysis].points`` traced (`sparsekin.plots.save_frame`) and the file
   itself; and an index with every frame, written to ``docs/gallery/``.  A new example is
   a new file in ``examples/`` (and its test in ``tests/test_gallery.py``);
-  ``GALLERY_ORDER`` only sets the order.
+  ``GALLERY_ORDER`` only sets the order.  The forward-dynamics examples of
+  ``DYNAMICS_GALLERY`` (in ``examples/dynamics/``, tested in
+  ``tests/test_dynamic_gallery.py`` and ``tests/test_dynamics.py``) follow, each with its
+  animation.
 * **Command line reference**, ``docs/reference/cli.md``, from `sparsekin.cli.build_parser`.
 * **Command output.** A line ``<!-- sparsekin: check examples/task5.toml -->`` in a page
   is replaced by the command and what it printed, run in a scratch folder that holds
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import re
 import shlex
 import shutil
@@ -62,7 +66,22 @@ GALLERY_TITLES = {
     "rotating_rectangles": "Rotating rectangles",
     "jansen_leg": "Theo Jansen's leg from its link lengths",
     "strandbeest": "A Strandbeest: twelve legs from one drawn leg",
+    "n_four_bar": "N-four-bar (IFToMM A02, N = 40) falling through its singular positions",
+    "andrews": "Andrews' squeezing mechanism (IFToMM A03)",
+    "struck_lattice": "A struck metamaterial: rotating squares with sprung hinges",
 }
+#: The forward-dynamics examples of the gallery (``examples/dynamics/NAME.toml``), in order:
+#: name -> (time shown, s, or None for the file's ``t_end``; clip length, s; frames per
+#: second).  Each page has the whole clip; the N-four-bar shows its first 3 s (three of its
+#: twenty flat crossings) to keep the build short.
+DYNAMICS_GALLERY = {
+    "n_four_bar": (3.0, 3.0, 10),
+    "andrews": (None, 3.0, 10),
+    "struck_lattice": (None, 6.0, 5),
+}
+#: Examples drawn without labels besides the metamaterials (a chain's or a lattice's names
+#: would hide it).
+UNLABELLED = ("n_four_bar", "struck_lattice")
 #: Lattice metamaterials: drawn whole and animated without labels, with the figure of
 #: their size against their opening (`sparsekin.plots.metamaterials.plot_lattice_size`):
 #: name -> (two bodies across, two bodies up, the body whose angle is the opening).
@@ -125,7 +144,34 @@ def gallery_names() -> list[str]:
     names = sorted(path.stem for path in EXAMPLES.glob("*.toml"))
     return [name for name in GALLERY_ORDER if name in names] + [
         name for name in names if name not in GALLERY_ORDER
-    ]
+    ] + list(DYNAMICS_GALLERY)
+
+
+def example_file(name: str) -> str:
+    """The example's model file, relative to the repository."""
+    return f"examples/dynamics/{name}.toml" if name in DYNAMICS_GALLERY else f"examples/{name}.toml"
+
+
+def solve_example(name: str, mechanism):
+    """The example's analysis as its page shows it: ``(result, t_end, steps, words)``."""
+    import numpy as np
+
+    import sparsekin as sk
+
+    analysis = mechanism.analysis
+    with warnings.catch_warnings():
+        # over-constrained by design (lattices): their states of self-stress are left out
+        warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
+        if name not in DYNAMICS_GALLERY:
+            times = np.linspace(0.0, analysis.t_end, analysis.steps)
+            return sk.solve_kinematics(mechanism, times), analysis.t_end, analysis.steps, ""
+        shown = DYNAMICS_GALLERY[name][0] or analysis.t_end
+        steps = round((analysis.steps - 1) * shown / analysis.t_end) + 1
+        result = sk.solve_dynamics(mechanism, np.linspace(0.0, shown, steps))
+    part = f" (the first {shown:g} s of the file's {analysis.t_end:g} s)" if shown < analysis.t_end else ""
+    words = (f"{part}, by forward dynamics in {result.n_steps} steps of at most {analysis.max_step:g} s; largest "
+             f"energy error {np.max(np.abs(result.energy.balance)):.2g} J")  # fmt: skip
+    return result, shown, steps, words
 
 
 def _count(number: int, word: str, plural: str | None = None) -> str:
@@ -144,7 +190,6 @@ def opening_comment(text: str) -> str:
 
 def make_gallery(folder: Path) -> None:
     """A page per example and an index, with the pictures, into `folder`."""
-    import numpy as np
 
     import sparsekin as sk
     from sparsekin.engine.pattern import build_point_map
@@ -167,14 +212,11 @@ def make_gallery(folder: Path) -> None:
         "",
     ]
     for name in gallery_names():
-        path = EXAMPLES / f"{name}.toml"
+        path = ROOT / example_file(name)
         text = path.read_text(encoding="utf-8")
         mechanism = sk.load_model(path)
         analysis = mechanism.analysis
-        with warnings.catch_warnings():
-            if name in METAMATERIALS:  # over-constrained by design: their states of self-stress are left out
-                warnings.simplefilter("ignore", sk.RedundantConstraintWarning)
-            result = sk.solve_kinematics(mechanism, np.linspace(0.0, analysis.t_end, analysis.steps))
+        result, t_end, steps, dynamics = solve_example(name, mechanism)
         trace = analysis.points or ()
         shown, part = None, ""
         if mechanism.n_bodies > GALLERY_MAX_BODIES and name not in METAMATERIALS:
@@ -182,13 +224,13 @@ def make_gallery(folder: Path) -> None:
             point_map = build_point_map(mechanism)
             trace = [point for point in trace if 0 <= point_map.locate(point)[0] < GALLERY_MAX_BODIES]
             part = f" The pictures show its first {GALLERY_MAX_BODIES} bodies."
-        labels = name not in METAMATERIALS  # a lattice's hundreds of names would hide it
+        labels = name not in METAMATERIALS and name not in UNLABELLED
         if labels:
             drawing = draw_mechanism(mechanism, result, folder / "images", bodies=shown)
             drawing.rename(folder / "images" / f"{name}.png")
         else:
-            save_frame(result, folder / "images" / f"{name}.png", 0.0, labels=False)
-        frame_time = round(FRAME_AT * analysis.t_end, 3)
+            save_frame(result, folder / "images" / f"{name}.png", 0.0, labels=False, bodies=shown)
+        frame_time = round(FRAME_AT * t_end, 3 - min(0, math.floor(math.log10(t_end))))
         save_frame(result, folder / "images" / f"{name}-frame.png", frame_time, trace=trace, bodies=shown,
                    labels=labels)  # fmt: skip
         if name not in GALLERY_TITLES:
@@ -203,7 +245,7 @@ def make_gallery(folder: Path) -> None:
             (
                 f"{_count(mechanism.n_bodies, 'body', 'bodies')}, {_count(mechanism.n_joints, 'joint')}, "
                 f"{_count(mechanism.n_drivers, 'driver')}; "
-                f"analysed over {analysis.t_end:g} s in {analysis.steps} samples.{part}"
+                f"analysed over {t_end:g} s in {steps} samples{dynamics}.{part}"
             ),
             "",
             f"![{title} at t = 0](images/{name}.png)",
@@ -213,13 +255,14 @@ def make_gallery(folder: Path) -> None:
             f"![{title} at t = {frame_time:g} s](images/{name}-frame.png)",
             "",
             *metamaterial_section(name, result, folder / "images"),
+            *dynamics_section(name, result, trace, labels, shown, folder / "images"),
             "```bash",
-            f"sparsekin check examples/{name}.toml",
-            f"sparsekin run examples/{name}.toml --plot",
-            f"sparsekin animate examples/{name}.toml --out {name}.gif",
+            f"sparsekin check {example_file(name)}",
+            f"sparsekin run {example_file(name)} --plot",
+            f"sparsekin animate {example_file(name)} --out {name}.gif",
             "```",
             "",
-            f"## The model file: `examples/{name}.toml`",
+            f"## The model file: `{example_file(name)}`",
             "",
             "```toml",
             text.rstrip(),
@@ -231,6 +274,19 @@ def make_gallery(folder: Path) -> None:
         index += [f"## [{title}]({name}.md)", "", f"{first_sentence}.", "",
                   f"[![{title}](images/{name}-frame.png)]({name}.md)", ""]  # fmt: skip
     (folder / "index.md").write_text("\n".join(index), encoding="utf-8")
+
+
+def dynamics_section(name: str, result, trace, labels: bool, bodies, images: Path) -> list[str]:
+    """For a forward-dynamics example: its animation (of `bodies`, or all when None)."""
+    if name not in DYNAMICS_GALLERY:
+        return []
+    from sparsekin.plots import animate
+
+    _, duration, fps = DYNAMICS_GALLERY[name]
+    clip = animate(result, images / f"{name}.gif", trace=trace, fps=fps, duration=duration, labels=labels,
+                   bodies=bodies)  # fmt: skip
+    pace = "real time" if math.isclose(duration, result.times[-1]) else f"{duration / result.times[-1]:.3g} × slower"
+    return [f"The run, animated ({clip.n_frames} frames, {pace}):", "", f"![{name} animated](images/{name}.gif)", ""]
 
 
 def metamaterial_section(name: str, result, images: Path) -> list[str]:

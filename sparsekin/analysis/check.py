@@ -142,6 +142,15 @@ class ModelReport:
         One line per body with `lengths`: each stated length and its drawn distance.
     hubs : tuple of str
         A line when bodies carry many others (`sparsekin.analysis.notices.hub_lines`).
+    initial_state : tuple of str
+        For a model run by forward dynamics, how far its run moves the drawing and the
+        given velocities (`sparsekin.solve.initial_state`, which ``sparsekin check``
+        adds), or why it cannot start; shown before the verdict.
+    under_forces : bool
+        The model is run by forward dynamics: its free motions are the degrees of
+        freedom its masses and loads move, not a problem.
+    cannot_start : str
+        Why a forward-dynamics run cannot start (a problem), or empty.
     """
 
     name: str
@@ -173,6 +182,9 @@ class ModelReport:
     n_moved: int = 0
     lengths: tuple[str, ...] = ()
     hubs: tuple[str, ...] = ()
+    initial_state: tuple[str, ...] = ()
+    under_forces: bool = False
+    cannot_start: str = ""
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -206,8 +218,10 @@ class ModelReport:
                 text += (", drivers among them (the drivers prescribe a motion that the joints fix, or the "
                          "configuration is a dead centre)")
             problems.append(text)
-        if self.free_motions:
+        if self.free_motions and not self.under_forces:
             problems.append(f"{len(self.free_motions)} free motion{'s' * (len(self.free_motions) != 1)}")
+        if self.cannot_start:
+            problems.append(self.cannot_start)
         outside = sum(not state.within for state in self.limits)
         if outside:
             problems.append(f"{outside} element{'s' * (outside != 1)} outside {'their' if outside != 1 else 'its'} limits")
@@ -452,7 +466,8 @@ def format_report(report: ModelReport) -> str:
     else:
         lines.append("redundant equations: none")
     if report.free_motions:
-        lines.append(f"free motions ({len(report.free_motions)}):")
+        moved_by = ", the degrees of freedom that the masses and loads move" if report.under_forces else ""
+        lines.append(f"free motions ({len(report.free_motions)}){moved_by}:")
         for k, motion in enumerate(report.free_motions, start=1):
             lines.append(f"  {k}. {motion.bodies}")
             lines.append(f"      moves {motion.coordinates}")
@@ -463,6 +478,7 @@ def format_report(report: ModelReport) -> str:
         lines += [f"  {state}" for state in report.limits]
     lines.append(_masses_line(report))
     lines += notice_lines(report)
+    lines += report.initial_state
     lines.append("verdict: " + ("sound" if report.sound else "; ".join(report.problems)))
     return "\n".join(lines)
 

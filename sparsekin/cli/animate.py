@@ -17,7 +17,7 @@ from . import signals
 from .common import EXIT_STOPPED, EXIT_SUCCESS, CommandError, report
 from .files import count_samples
 from .outputs import written_whole
-from .run import solve_for_command
+from .run import add_dynamics_arguments, is_dynamics, solve_for_command
 from .settings import (
     DEFAULT_OUTPUT_ROOT,
     RunSettings,
@@ -58,6 +58,7 @@ def add_animate_command(subparsers) -> None:
                         help="length of the clip, s (default: the analysed time, real time)")  # fmt: skip
     parser.add_argument("--at", type=float, metavar="T", help="time of the frame of a .png (default: the end)")
     add_label_argument(parser)
+    add_dynamics_arguments(parser, "")
     add_memory_argument(parser)
     parser.set_defaults(handler=animate_command)
 
@@ -73,6 +74,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
     """
     mechanism = read_model(arguments)
     times = resolve_times(arguments, mechanism)
+    dynamics = is_dynamics(arguments, mechanism)
     if arguments.trace is None:
         trace = mechanism.analysis.points or ()
     elif arguments.trace.strip().lower() == "none":
@@ -88,7 +90,8 @@ def animate_command(arguments: argparse.Namespace) -> int:
                  "give a shorter --duration, a lower --fps, fewer --steps, or write an MP4")  # fmt: skip
     start = time.perf_counter()
     try:
-        result = solve_for_command(mechanism, settings, arguments.model, None)
+        result = solve_for_command(mechanism, settings, arguments.model, None, dynamics=dynamics,
+                                   max_step=arguments.max_step)  # fmt: skip
     except AnalysisInterrupted as interrupt:
         solved = count_samples(interrupt.result)
         if solved:

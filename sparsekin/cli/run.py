@@ -87,11 +87,12 @@ def add_run_command(subparsers) -> None:
     parser.set_defaults(handler=run_command)
 
 
-def add_dynamics_arguments(parser) -> None:
-    """``--dynamics`` and ``--max-step``: integrate the equations of motion (forward dynamics)."""
+def add_dynamics_arguments(parser, writes: str = "; also writes energy.csv") -> None:
+    """``--dynamics`` and ``--max-step``: integrate the equations of motion (forward dynamics);
+    `writes` ends the help of ``--dynamics`` (what the command writes besides)."""
     parser.add_argument("--dynamics", action="store_true", default=None,
                         help='integrate the equations of motion under the masses, gravity and loads (as [analysis] '
-                        'type = "dynamics"); also writes energy.csv')
+                        f'type = "dynamics"){writes}')
     parser.add_argument("--max-step", type=float, metavar="H",
                         help="largest integration step of --dynamics, s (default: [analysis].max_step, else the "
                         "output interval)")

@@ -17,6 +17,7 @@ from .common import (
     require_matplotlib,
 )
 from .outputs import OutputFolder, manifest
+from .run import add_dynamics_arguments, is_dynamics
 from .settings import (
     MAX_DEFAULT_JOINTS,
     MAX_DEFAULT_POINTS,
@@ -72,6 +73,7 @@ def add_sweep_command(subparsers) -> None:
     parser.add_argument("--variants-per-task", type=int, metavar="N", help="variants per Dask task (default: "
                         "four tasks per worker)")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_dynamics_arguments(parser, "; each variant's energy and drift go to sweep.zarr")
     add_folder_argument(parser)
     add_memory_argument(parser)
     parser.add_argument("--plot", action="store_true", dest="plot_figures", help="also draw the paths of a point over the variants and "
@@ -95,6 +97,7 @@ def sweep_command(arguments: argparse.Namespace) -> int:
     from ..studies.sweeps import VariantSet, default_worker_count, sweep, write_variants_csv
 
     mechanism = read_model(arguments)
+    dynamics = is_dynamics(arguments, mechanism)
     columns = len(arguments.vary) + (2 * len(mechanism.points) if arguments.perturb else 0)
     check_memory(sweep_parts(mechanism, _requested_variants(arguments), max(1, columns)), limit_for(arguments),
                  "give fewer values to --vary or fewer --samples")  # before the values are made: fmt: skip
@@ -131,6 +134,7 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         if plot_point is None or plot_point not in points:
             raise CommandError(f"--plot-point: {plot_point or 'no point'} is not recorded (recorded: "
                                f"{', '.join(points) or 'none'}): give --points with it")  # fmt: skip
+    analysis = _analysis_keywords(arguments, settings, dynamics)
     with OutputFolder(settings.directory, "sweep", ["sweep.zarr", "variants.csv"]) as folder:
         client = None
         if arguments.scheduler is not None:
@@ -145,8 +149,8 @@ def sweep_command(arguments: argparse.Namespace) -> int:
                 result = sweep(
                     mechanism, variants, settings.times, client, workers=arguments.workers, store=store,
                     coordinates=coordinates, points=list(settings.point_names), joints=list(settings.joint_indices),
-                    forces=settings.forces, quasi_static=settings.quasi_static,
-                    variants_per_task=arguments.variants_per_task, progress=progress,
+                    forces=settings.forces, variants_per_task=arguments.variants_per_task, progress=progress,
+                    **analysis,
                 )  # fmt: skip
         except KeyboardInterrupt:
             with signals.holding():
@@ -180,8 +184,9 @@ def sweep_command(arguments: argparse.Namespace) -> int:
     else:
         count = default_worker_count()
         workers = f"{count} worker{'s' * (count != 1)} (one per core)"
+    analysed = "forward dynamics, " if dynamics else ""
     print("\n".join([
-        f"{mechanism.name}: {result.n_variants} variants, {settings.times.size} samples each, "
+        f"{mechanism.name}: {result.n_variants} variants, {analysed}{settings.times.size} samples each, "
         f"t = 0 … {settings.times[-1]:g} s",
         f"status: {counts}",
         f"{result.n_tasks} tasks on {workers}: {result.wall_time:.3g} s, "
@@ -190,6 +195,22 @@ def sweep_command(arguments: argparse.Namespace) -> int:
         *(f"  {path}" for path in written),
     ]))  # fmt: skip
     return exit_status
+
+
+def _analysis_keywords(arguments: argparse.Namespace, settings, dynamics: bool) -> dict:
+    """The keywords of `sparsekin.sweep` that say what each variant's run is (checked)."""
+    if dynamics:
+        from ..solve.options import DynamicsOptions
+
+        if settings.quasi_static:
+            raise CommandError("--quasi-static is for kinematic runs: forward dynamics has the accelerations of "
+                               "its motion")  # fmt: skip
+        try:
+            DynamicsOptions(arguments.max_step)
+        except ValueError as error:
+            raise CommandError(f"--max-step: {error}") from None
+        return {"analysis": "dynamics", "max_step": arguments.max_step}
+    return {"analysis": "kinematics", "quasi_static": settings.quasi_static}
 
 
 def _requested_variants(arguments: argparse.Namespace) -> int:

@@ -62,6 +62,13 @@ class SweepResult:
     force_tracks : array, shape (n_variants, n_times, n_force_columns) or None
         The forces each variant recorded (`sparsekin.engine.forces`), columns `force_labels`.
     force_labels, force_units : tuple of str
+    energy_tracks : array, shape (n_variants, n_times, 6) or None
+        Forward dynamics: each variant's energy balance (the terms of
+        `sparsekin.results.schema.ENERGY_TERMS`, J), as a run's ``energy.csv``.
+    drift_tracks : array, shape (n_variants, n_times, 2) or None
+        Forward dynamics: each variant's constraint drift, ‖Φ‖ and ‖Φq q̇ + Φt‖.
+    analysis : str
+        ``"kinematics"`` or ``"dynamics"``: what each variant's run was.
     store : str or None
         The Zarr store, when the results were written to one.
     n_tasks : int
@@ -100,6 +107,9 @@ class SweepResult:
     force_tracks: object = None
     force_labels: tuple[str, ...] = ()
     force_units: tuple[str, ...] = ()
+    energy_tracks: object = None
+    drift_tracks: object = None
+    analysis: str = "kinematics"
     store: str | None = None
     n_tasks: int = 0
     wall_time: float = 0.0
@@ -115,6 +125,17 @@ class SweepResult:
     def counts(self) -> dict[str, int]:
         """How many variants ended with each status."""
         return {status: int(np.count_nonzero(self.status == status)) for status in STATUSES}
+
+    @property
+    def energy_error(self) -> np.ndarray | None:
+        """Forward dynamics: each variant's largest energy error over its solved samples,
+        the largest absolute value of its ``balance``, J, shape (n_variants,) (NaN when none was
+        solved); None otherwise."""
+        if self.energy_tracks is None:
+            return None
+        balance = np.abs(np.asarray(self.energy_tracks[..., schema.ENERGY_TERMS.index("balance")]))
+        solved = ~np.isnan(balance)
+        return np.where(solved.any(axis=1), np.max(np.where(solved, balance, -np.inf), axis=1, initial=-np.inf), np.nan)
 
     def point(self, name: str) -> np.ndarray:
         """Position of recorded point `name` for every variant, shape (n_variants, n_times, 2), m."""
@@ -142,15 +163,20 @@ class SweepResult:
 
 def write_variants_csv(result: SweepResult, path) -> Path:
     """Write ``variants.csv``: ``variant``, the columns of `result.parameters`, ``status``,
-    ``t_stop``, ``t_failure`` and ``message``; numbers by `repr` (the shortest decimal
+    ``t_stop``, ``t_failure``, for forward dynamics ``energy_error`` (J,
+    `SweepResult.energy_error`), and ``message``; numbers by `repr` (the shortest decimal
     that reads back as the same double), NaN as ``nan``."""
     path = Path(path)
+    energy_error = result.energy_error
+    extra = [] if energy_error is None else ["energy_error"]
     with open(path, "w", encoding="utf-8", newline="") as file:
         writer = csv.writer(file)
-        writer.writerow(["variant", *result.columns, "status", "t_stop", "t_failure", "message"])
+        writer.writerow(["variant", *result.columns, "status", "t_stop", "t_failure", *extra, "message"])
         for k in range(result.n_variants):
+            values = [] if energy_error is None else [repr(float(energy_error[k]))]
             writer.writerow([k, *map(repr, result.parameters[k].tolist()), result.status[k],
-                             repr(float(result.t_stop[k])), repr(float(result.t_failure[k])), result.messages[k]])  # fmt: skip
+                             repr(float(result.t_stop[k])), repr(float(result.t_failure[k])), *values,
+                             result.messages[k]])  # fmt: skip
     return path
 
 

@@ -31,6 +31,12 @@ Parameter paths (`PATH_FORMS`), relative to the model:
                                        for a path driver)
 ``points.NAME``                        drawn position of a point, (x, y), m
 ``points.NAME.x``, ``points.NAME.y``   one coordinate of it, m
+``bodies.NAME.mass``, ``.inertia``     a body's mass (kg) and inertia (kg·m²)
+``bodies.NAME.velocity.vx`` (``vy``,   a component of its initial velocity (forward
+``omega``)                             dynamics), m/s or rad/s
+``loads[i].KEY``, ``loads.NAME.KEY``   a number of load i (``stiffness``, ``damping``,
+                                       ``free_angle``, a number ``value`` …)
+``loads[i].value.KEY``                 parameter KEY of the law of load i's value
 ``units.UNIT.drivers[i].law.KEY``      a repeated unit's parameter: every copy takes it
 ``units.UNIT.points.NAME`` (``.x``,    (a repeat's own ``vary`` still applies on top)
 ``.y``)
@@ -93,6 +99,8 @@ TASKS_PER_THREAD = 4
 TASK_BYTES = 256 * 2**20
 #: Tasks submitted but not yet written, per worker thread: one running, one waiting.
 PENDING_PER_THREAD = 2
+#: What a sweep's variants can be: kinematic runs, or forward-dynamics runs.
+ANALYSES = ("kinematics", "dynamics")
 
 
 def task_ranges(
@@ -118,19 +126,23 @@ def task_ranges(
 def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarray, options: dict) -> dict:
     """Solve variants ``first … stop - 1`` one after the other: a task's work.
 
+    `options` are the keywords of each variant's run, and ``analysis``: ``"kinematics"``
+    (`sparsekin.solve_kinematics`) or ``"dynamics"`` (`sparsekin.solve_dynamics`).
     Returns a dict: ``status`` (str array), ``t_stop``, ``t_failure`` (s, NaN when not
     applicable), ``messages`` (list of str) and the recorded arrays (``q``, ``qd``,
-    ``qdd``, ``points``, ``joints``), each of shape (stop - first, n_times, ...), NaN
-    after a variant's last solved sample.
+    ``qdd``, ``points``, ``joints``, ``forces``, and for dynamics ``energy`` and
+    ``drift``), each of shape (stop - first, n_times, ...), NaN after a variant's last
+    solved sample.
     """
     from ..engine.discretization import discretize
     from ..results.recording import Selection
-    from ..solve.kinematics import solve_kinematics
 
     n, n_times = stop - first, times.size
     mechanism = design.mechanism
     nominal = discretize(mechanism)
-    selection = Selection(nominal, options["coordinates"], options["points"], options["joints"], options["forces"])
+    solve, dynamic = _variant_solver(options)
+    selection = Selection(nominal, options["coordinates"], options["points"], options["joints"], options["forces"],
+                          energy=dynamic)  # fmt: skip
     shapes = selection.sample_shapes()
     arrays = {key: np.full((n, n_times, *shape), np.nan) for key, shape in shapes.items()}
     status = np.full(n, "", dtype=STATUS_DTYPE)
@@ -143,7 +155,7 @@ def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarr
             warnings.simplefilter("always")
             try:
                 variant = design.variant(k)
-                result = solve_kinematics(variant, times, pattern=shared, **options)
+                result = solve(variant, times, shared)
                 status[row] = "complete"
             except SingularJacobianError as error:
                 status[row], result, t_failure[row] = "singular", error.result, error.time
@@ -165,6 +177,20 @@ def solve_variants(design: VariantDesign, first: int, stop: int, times: np.ndarr
     return {"status": status, "t_stop": t_stop, "t_failure": t_failure, "messages": messages, **arrays}
 
 
+def _variant_solver(options: dict):
+    """``(solve, dynamic)``: ``solve(variant, times, pattern)`` runs one variant's analysis
+    with the run's keywords of `options` (its ``analysis`` names the analysis; `pattern`, a
+    constraint pattern the variants share or None, serves the kinematics)."""
+    keywords = dict(options)
+    if keywords.pop("analysis", "kinematics") == "dynamics":
+        from ..solve.dynamics import solve_dynamics
+
+        return (lambda variant, times, pattern: solve_dynamics(variant, times, **keywords)), True
+    from ..solve.kinematics import solve_kinematics
+
+    return (lambda variant, times, pattern: solve_kinematics(variant, times, pattern=pattern, **keywords)), False
+
+
 def sweep(
     mechanism: Mechanism,
     vary,
@@ -183,10 +209,14 @@ def sweep(
     max_iterations: int | None = None,
     linear_solver: str = "auto",
     progress=None,
+    analysis: str | None = None,
+    max_step: float | None = None,
+    rho_inf: float | None = None,
 ) -> SweepResult:
     """Solve every variant of `mechanism` that `vary` describes, on Dask.
 
-    Each variant is an independent `sparsekin.solve_kinematics` run at `times`.  The
+    Each variant is an independent `sparsekin.solve_kinematics` run at `times` (or, for
+    forward dynamics, a `sparsekin.solve_dynamics` run: see `analysis`).  The
     variants are split into tasks of consecutive variants (`task_ranges`); the client
     writes each task's results as it arrives, into memory or into the Zarr store `store`,
     so no process holds every variant's results when there is a store.  A variant that
@@ -210,17 +240,26 @@ def sweep(
         Write the results to this Zarr store (replaced if it exists): variables
         ``q``, ``qd``, ``qdd`` (variant, time, coordinate), ``points`` (variant, time,
         point, component), ``joints`` (variant, time, joint, derivative), and per variant
-        ``parameters`` (variant, parameter), ``status``, ``t_stop``, ``t_failure``.
-        Default: in memory.
+        ``parameters`` (variant, parameter), ``status``, ``t_stop``, ``t_failure``; for
+        forward dynamics also ``energy`` (variant, time, energy_term) and ``drift``
+        (variant, time, drift_term), and the attributes ``analysis``, ``max_step`` and
+        ``rho_inf``.  Default: in memory.
     coordinates, points, joints, forces, quasi_static
         What each variant records, as in `solve_kinematics` (variable ``forces``
         (variant, time, force) in the store).
     variants_per_task : int, optional
         Variants per Dask task (default: `TASKS_PER_THREAD` tasks per worker thread).
     tolerance, max_iterations, linear_solver
-        As in `solve_kinematics`.
+        As in `solve_kinematics` (`tolerance` and `linear_solver` as in `solve_dynamics`
+        for forward dynamics; `max_iterations` and `quasi_static` are the kinematics').
     progress : callable, optional
         Called as ``progress(variants_done, n_variants)`` as results arrive.
+    analysis : {"kinematics", "dynamics"}, optional
+        What each variant's run is; default: the model's ``[analysis] type``.
+    max_step, rho_inf : float, optional
+        Forward dynamics only: as in `solve_dynamics` (defaults: the model's
+        ``analysis.max_step``, else the shortest interval of `times`; 0.9).  A variant
+        whose step fails after halving is a result (status ``no_convergence``).
 
     Returns
     -------
@@ -231,7 +270,7 @@ def sweep(
     ModelError
         For a path that names no parameter, or a value it does not take.
     ValueError
-        For an argument `solve_kinematics` would refuse (times outside a spline law's
+        For an argument `solve_kinematics` (`solve_dynamics`) would refuse (times outside a spline law's
         range, an unknown point, a bad tolerance ...): raised before any task is
         submitted.  An exception raised later comes from a task that failed (not a
         variant: those are results) and stops the sweep.
@@ -252,9 +291,8 @@ def sweep(
         import distributed
     except ImportError:
         raise ImportError(DISTRIBUTED_EXTRA) from None
-    from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
     from ..engine.discretization import discretize
-    from ..solve.options import Request, SolveOptions, check_times
+    from ..solve.options import Request, check_times
 
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
@@ -266,16 +304,15 @@ def sweep(
     if variants_per_task is not None and (isinstance(variants_per_task, bool) or int(variants_per_task) < 1):
         raise ValueError(f"`variants_per_task` must be a whole number >= 1, got {variants_per_task!r}.")
     # every argument a task would refuse is refused here, before a cluster starts
-    checked = SolveOptions(DEFAULT_TOLERANCE if tolerance is None else tolerance,
-                           NEWTON_MAXITER if max_iterations is None else max_iterations, linear_solver)  # fmt: skip
-    tolerance, max_iterations = checked.tolerance, checked.max_iterations
-    selection = Request(coordinates, points, joints, forces, quasi_static).selection(discretize(mechanism))
+    options, attrs = _run_options(mechanism, times, analysis, tolerance, max_iterations, linear_solver, quasi_static,
+                                  max_step, rho_inf)  # fmt: skip
+    dynamic = options["analysis"] == "dynamics"
+    selection = Request(coordinates, points, joints, forces, quasi_static, energy=dynamic).selection(discretize(mechanism))
     chosen = selection.forces
-    options = dict(coordinates=bool(coordinates), points=selection.point_names or None,
-                   joints=list(selection.joint_indices) or None, linear_solver=linear_solver,
-                   forces=None if chosen is None else [*(f"drivers[{d}]" for d in chosen.driver_indices),
-                                                       *(f"joints[{j}]" for j in chosen.joint_indices)],
-                   quasi_static=bool(quasi_static), tolerance=tolerance, max_iterations=max_iterations)  # fmt: skip
+    options |= dict(coordinates=bool(coordinates), points=selection.point_names or None,
+                    joints=list(selection.joint_indices) or None,
+                    forces=None if chosen is None else [*(f"drivers[{d}]" for d in chosen.driver_indices),
+                                                        *(f"joints[{j}]" for j in chosen.joint_indices)])  # fmt: skip
     layout = _layout(design, times, selection)
     own_cluster = None
     if client is None:
@@ -292,7 +329,7 @@ def sweep(
         size = ranges[0][1] - ranges[0][0]
         attrs = {"model": mechanism.name, "grid": list(variants.paths), "samples": variants.samples,
                  "perturb_points": -1.0 if variants.perturb_points is None else variants.perturb_points,
-                 "seed": str(variants.seed)}  # fmt: skip
+                 "seed": str(variants.seed), **attrs}  # fmt: skip
         output = _ZarrOutput(store, layout, size, attrs) if store is not None else _MemoryOutput(layout)
         status = np.full(design.n_variants, "", dtype=STATUS_DTYPE)
         t_stop, t_failure = np.full(design.n_variants, np.nan), np.full(design.n_variants, np.nan)
@@ -313,13 +350,48 @@ def sweep(
     arrays = output.close()
     return SweepResult(
         variants=variants, columns=layout.columns, parameters=layout.parameters, status=status, t_stop=t_stop,
-        t_failure=t_failure, messages=tuple(messages), times=times, **result_fields(arrays),
+        t_failure=t_failure, messages=tuple(messages), times=times, **result_fields(arrays, options["analysis"]),
+        analysis=options["analysis"],
         recorded_points=selection.point_names, recorded_joints=selection.joint_labels,
         force_labels=selection.force_labels, force_units=selection.force_units,
         store=output.path, n_tasks=len(ranges), wall_time=wall_time,
         coordinate_labels=tuple(layout.labels.get("coordinate", ())), labels=layout.labels,
         motion=_sweep_motion(selection, times, arrays, status, design.geometry_varies),
     )  # fmt: skip
+
+
+def _run_options(mechanism: Mechanism, times: np.ndarray, analysis, tolerance, max_iterations, linear_solver,
+                 quasi_static, max_step, rho_inf) -> tuple[dict, dict]:  # fmt: skip
+    """``(options, attrs)``: each variant's checked run keywords (with ``analysis``, as
+    `solve_variants` takes them) and what the store's attributes say of the analysis; a
+    ValueError for an argument that the analysis would refuse or does not take."""
+    from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER
+    from ..solve.dynamics import DEFAULT_TOLERANCE as DYNAMICS_TOLERANCE
+    from ..solve.dynamics import MAX_ITERATIONS
+    from ..solve.options import DynamicsOptions, SolveOptions
+
+    if analysis is None:
+        analysis = mechanism.analysis.type
+    if analysis not in ANALYSES:
+        raise ValueError(f"`analysis` must be one of {', '.join(map(repr, ANALYSES))}, got {analysis!r}.")
+    if analysis == "kinematics":
+        if max_step is not None or rho_inf is not None:
+            raise ValueError('`max_step` and `rho_inf` are for forward dynamics: give analysis="dynamics" (or a model '
+                             'with [analysis] type = "dynamics").')  # fmt: skip
+        checked = SolveOptions(DEFAULT_TOLERANCE if tolerance is None else tolerance,
+                               NEWTON_MAXITER if max_iterations is None else max_iterations, linear_solver)  # fmt: skip
+        return dict(analysis=analysis, linear_solver=linear_solver, quasi_static=bool(quasi_static),
+                    tolerance=checked.tolerance, max_iterations=checked.max_iterations), {"analysis": analysis}  # fmt: skip
+    for name, value in (("max_iterations", max_iterations), ("quasi_static", quasi_static or None)):
+        if value is not None:
+            raise ValueError(f"`{name}` is for kinematic sweeps; forward dynamics takes `max_step`, `rho_inf` and "
+                             "`tolerance`.")  # fmt: skip
+    checked = SolveOptions(DYNAMICS_TOLERANCE if tolerance is None else tolerance, MAX_ITERATIONS, linear_solver)
+    dynamics = DynamicsOptions(max_step, *(() if rho_inf is None else (rho_inf,)))
+    options = dict(analysis=analysis, linear_solver=linear_solver, tolerance=checked.tolerance,
+                   max_step=dynamics.max_step, rho_inf=dynamics.rho_inf)  # fmt: skip
+    return options, {"analysis": analysis, "max_step": dynamics.for_run(times, mechanism).max_step,
+                     "rho_inf": dynamics.rho_inf}  # fmt: skip
 
 
 def _sweep_motion(selection, times: np.ndarray, arrays: dict, status: np.ndarray, geometry_varies: bool) -> Motion:

@@ -20,9 +20,18 @@ from ..model.paths import DRIVER_PATH as _DRIVER_PATH
 from ..model.units import Cycle
 
 #: The path forms, in words (for messages).
-PATH_FORMS = "drivers[i].law.KEY, drivers.NAME.law.KEY, points.NAME[.x|.y], or units.UNIT. before one of them"
+PATH_FORMS = ("drivers[i].law.KEY, drivers.NAME.law.KEY, points.NAME[.x|.y], bodies.NAME.KEY (mass, inertia, "
+              "velocity.vx|vy|omega), loads[i].KEY, loads[i].value.KEY, or units.UNIT. before one of them")
 
 _UNIT_PATH = re.compile(r"units\.([^.]+)\.(.+)")
+#: ``bodies.NAME.KEY``: a body's mass, inertia or a component of its initial velocity; groups:
+#: the name (copies' names hold dots), the key.
+_BODY_PATH = re.compile(r"bodies\.(.+)\.(mass|inertia|velocity\.(?:vx|vy|omega))")
+#: ``loads[i].KEY``, ``loads.NAME.KEY`` or ``…value.KEY`` (a parameter of its law); groups:
+#: index, name, "value." when the key is the law's, key.
+_LOAD_PATH = re.compile(r"loads(?:\[(\d+)\]|\.([^.\[\]]+))\.(value\.)?(\w+)")
+#: The components of a body's ``velocity`` (the keys after ``velocity.``).
+_VELOCITY_KEYS = ("vx", "vy", "omega")
 _PERTURB_KINDS = ("points",)
 
 
@@ -274,7 +283,8 @@ def _number(text: str, where: str, expected: str) -> float:
 
 @dataclass(frozen=True)
 class _Target:
-    """What a path changes: a law parameter or a point (the model's own, or a unit's)."""
+    """What a path changes: a law parameter, a point, a body's number or a load's (the model's own
+    element, or a unit's)."""
 
     path: str
     unit: str | None  # None: the model's own element
@@ -283,10 +293,27 @@ class _Target:
     key: str = ""
     point: str = ""  # kind "point"
     component: int | None = None  # None: the pair; 0: x; 1: y
+    body: str = ""  # kind "body": key "mass", "inertia" or "velocity.vx" …
+    load: int = -1  # kind "load": key a number of the load, or of its law when `law_field` is "value"
 
     @property
     def is_point(self) -> bool:
         return bool(self.point)
+
+    def changed(self, element, value: float):
+        """The driver, body or load `element` with this target's value (a ModelError naming
+        the path if it does not take it)."""
+        try:
+            if self.law_field:
+                law = getattr(element, self.law_field)
+                return dataclasses.replace(element, **{self.law_field: dataclasses.replace(law, **{self.key: value})})
+            if self.key.startswith("velocity."):
+                velocity = list(element.velocity or (0.0, 0.0, 0.0))
+                velocity[_VELOCITY_KEYS.index(self.key.split(".")[1])] = value
+                return dataclasses.replace(element, velocity=tuple(velocity))
+            return dataclasses.replace(element, **{self.key: value})
+        except ModelError as error:
+            raise ModelError(f"{error.reason} (value {value!r})", element=self.path) from None
 
 
 class VariantDesign:
@@ -319,8 +346,8 @@ class VariantDesign:
                     expected = "x,y pairs (a point's position, m)" if wants_pair else "numbers"
                     raise ModelError(f"expected {expected} as values", element=path)
                 targets[path] = target
-                for value in (values[0], values[-1]) if values.ndim == 1 else ():
-                    _check_law_value(mechanism, target, float(value))  # e.g. a negative rate
+                for value in (values[0], values[-1]) if not target.is_point else ():
+                    target.changed(_element(mechanism, target), float(value))  # e.g. a negative rate
         self.targets = targets
         #: Whether variants differ in their drawing (then each needs its own pattern).
         self.geometry_varies = variants.perturb_points is not None or any(
@@ -344,15 +371,14 @@ class VariantDesign:
         if not 0 <= k < self.n_variants:
             raise IndexError(f"variant {k} out of range({self.n_variants})")
         mechanism = self.mechanism
-        own_points = dict(mechanism.own("points"))
-        own_drivers = list(mechanism.own("drivers"))
+        own = {kind: _copied(mechanism.own(kind)) for kind in _VARIED}
         units = {c.unit.name: c.unit for c in mechanism.copies}
-        unit_points = {name: dict(unit.points) for name, unit in units.items()}
-        unit_drivers = {name: list(unit.drivers) for name, unit in units.items()}
+        of_unit = {name: {kind: _copied(getattr(unit, kind)) for kind in _VARIED} for name, unit in units.items()}
         for path, value in self.variants.grid_values(k):
             target = self.targets[path]
+            elements = own if target.unit is None else of_unit[target.unit]
             if target.is_point:
-                points = own_points if target.unit is None else unit_points[target.unit]
+                points = elements["points"]
                 if target.component is None:
                     points[target.point] = value
                 else:
@@ -360,16 +386,15 @@ class VariantDesign:
                     pair[target.component] = value
                     points[target.point] = tuple(pair)
             else:
-                drivers = own_drivers if target.unit is None else unit_drivers[target.unit]
-                drivers[target.driver] = _changed_driver(drivers[target.driver], target, value)
+                kind, index = _element_index(target, elements["bodies"])
+                elements[kind][index] = target.changed(elements[kind][index], value)
         repeats = list(mechanism.repeats)
-        changed_units = {name for name in units if unit_points[name] != dict(units[name].points)
-                         or unit_drivers[name] != list(units[name].drivers)}  # fmt: skip
         for r, repeat in enumerate(repeats):
-            if repeat.unit.name in changed_units:
-                unit = dataclasses.replace(repeat.unit, points=unit_points[repeat.unit.name],
-                                           drivers=tuple(unit_drivers[repeat.unit.name]))  # fmt: skip
+            unit, changed = repeat.unit, of_unit[repeat.unit.name]
+            if any(changed[kind] != _copied(getattr(unit, kind)) for kind in _VARIED):
+                unit = dataclasses.replace(unit, **{kind: _frozen(kind, changed[kind]) for kind in _VARIED})
                 repeats[r] = dataclasses.replace(repeat, unit=unit)
+        own_points, own_drivers = own["points"], own["drivers"]
         if self.variants.perturb_points is not None:
             deviations = self.deviations(k)
             for p, name in enumerate(own_points):
@@ -393,9 +418,8 @@ class VariantDesign:
                     for p, name in enumerate(copies.unit.points):
                         vary[f"points.{name}"] = Cycle(tuple(map(tuple, moved[:, p].tolist())))
                     repeats[r] = dataclasses.replace(copies.repeat, vary=vary)
-        return dataclasses.replace(
-            mechanism, points=own_points, drivers=tuple(own_drivers), repeats=tuple(repeats)
-        )
+        return dataclasses.replace(mechanism, **{kind: _frozen(kind, own[kind]) for kind in _VARIED},
+                                   repeats=tuple(repeats))  # fmt: skip
 
     def table(self) -> tuple[tuple[str, ...], np.ndarray]:
         """``(columns, values)``: the grid's values of every variant, then for a tolerance
@@ -437,29 +461,21 @@ def resolve_path(mechanism: Mechanism, path: str) -> _Target:
             known = _validate.known_list(list(units)) if units else "none: the model repeats no unit"
             raise ModelError(f'unknown unit "{unit_match[1]}" (known: {known})', element=path)
         unit = units[unit_match[1]]
-        return _resolve_within(
-            path, unit_match[2], unit.name, unit.points, unit.drivers, f'unit "{unit.name}"'
-        )
-    return _resolve_within(path, path, None, mechanism.own("points"), mechanism.own("drivers"), "the model")
+        elements = {kind: getattr(unit, kind) for kind in _VARIED}
+        return _resolve_within(path, unit_match[2], unit.name, elements, f'unit "{unit.name}"')
+    return _resolve_within(path, path, None, {kind: mechanism.own(kind) for kind in _VARIED}, "the model")
 
 
-def _resolve_within(
-    path: str, rest: str, unit: str | None, points: Mapping, drivers: Sequence, owner: str
-) -> _Target:
+def _resolve_within(path: str, rest: str, unit: str | None, elements: Mapping, owner: str) -> _Target:
+    points, drivers = elements["points"], elements["drivers"]
+    if rest.startswith("bodies."):
+        return _resolve_body(path, rest, unit, elements["bodies"], owner)
+    if rest.startswith("loads"):
+        return _resolve_load(path, rest, unit, elements["loads"], owner)
     match = _DRIVER_PATH.fullmatch(rest)
     if match:
         index_text, name, law_field, key = match.groups()
-        if index_text is not None:
-            index = int(index_text)
-            if index >= len(drivers):
-                listed = f"drivers[0] … drivers[{len(drivers) - 1}]" if drivers else "none"
-                raise ModelError(f"{owner} has {len(drivers)} drivers ({listed})", element=path)
-        else:
-            names = [driver.name for driver in drivers]
-            if name not in names:
-                known = _validate.known_list([n for n in names if n]) if any(names) else "none is named"
-                raise ModelError(f'{owner} has no driver named "{name}" (named: {known})', element=path)
-            index = names.index(name)
+        index = _element_at("drivers", drivers, index_text, name, owner, path)
         driver = drivers[index]
         if law_field not in driver.law_fields:
             raise ModelError(f"drivers[{index}] has no {law_field} (its laws: {', '.join(driver.law_fields)})",
@@ -487,25 +503,87 @@ def _resolve_within(
     raise ModelError(f"expected {PATH_FORMS}", element=path)
 
 
+def _element_at(kind: str, elements: Sequence, index_text: str | None, name: str | None, owner: str, path: str) -> int:
+    """The index of the driver or load (`kind`) that a path names by index (`index_text`) or
+    by name; a ModelError naming the path and what there is otherwise."""
+    if index_text is not None:
+        index = int(index_text)
+        if index >= len(elements):
+            listed = f"{kind}[0] … {kind}[{len(elements) - 1}]" if elements else "none"
+            raise ModelError(f"{owner} has {len(elements)} {kind} ({listed})", element=path)
+        return index
+    names = [element.name for element in elements]
+    if name not in names:
+        known = _validate.known_list([n for n in names if n]) if any(names) else "none is named"
+        raise ModelError(f'{owner} has no {kind[:-1]} named "{name}" (named: {known})', element=path)
+    return names.index(name)
+
+
+def _resolve_body(path: str, rest: str, unit: str | None, bodies: Sequence, owner: str) -> _Target:
+    match = _BODY_PATH.fullmatch(rest)
+    if not match:
+        raise ModelError("expected bodies.NAME.mass, bodies.NAME.inertia or bodies.NAME.velocity.vx (vy, omega)",
+                         element=path)  # fmt: skip
+    name, key = match.groups()
+    names = [body.name for body in bodies]
+    if name not in names:
+        raise ModelError(f'{owner} has no body "{name}" (known: {_validate.known_list(names)})', element=path)
+    return _Target(path, unit, key=key, body=name)
+
+
+def _resolve_load(path: str, rest: str, unit: str | None, loads: Sequence, owner: str) -> _Target:
+    match = _LOAD_PATH.fullmatch(rest)
+    if not match:
+        raise ModelError("expected loads[i].KEY, loads.NAME.KEY or loads[i].value.KEY", element=path)
+    index_text, name, of_law, key = match.groups()
+    index = _element_at("loads", loads, index_text, name, owner, path)
+    load = loads[index]
+    if of_law:
+        law = getattr(load, "value", None)
+        keys = [f.name for f in dataclasses.fields(law) if f.init] if dataclasses.is_dataclass(law) else []
+        if key not in keys or not isinstance(getattr(law, key), (float, type(None))):
+            what = "no value" if law is None else f"the value {law!r}"
+            raise ModelError(f"loads[{index}] ({load.describe()}) has {what}: expected a law with the number "
+                             f"parameter {key}", element=path)  # fmt: skip
+        return _Target(path, unit, law_field="value", key=key, load=index)
+    numbers = [f.name for f in dataclasses.fields(load) if f.init and f.name != "name"
+               and isinstance(getattr(load, f.name), (float, type(None)))]  # fmt: skip
+    if key not in numbers:
+        raise ModelError(f"loads[{index}] ({load.describe()}) has no number {key} (its numbers: "
+                         f"{', '.join(numbers) or 'none'})", element=path)  # fmt: skip
+    return _Target(path, unit, key=key, load=index)
+
+
 def _looks_like_copy_point(name: str) -> bool:
     """Whether an unknown point name looks like a copy's point (``u17.Q``)."""
     return "." in name
 
 
-def _check_law_value(mechanism: Mechanism, target: _Target, value: float) -> None:
-    """Check that the target's law takes `value` (a ModelError naming the path otherwise)."""
-    if target.is_point:
-        return
-    drivers = mechanism.own("drivers") if target.unit is None else next(
-        c.unit.drivers for c in mechanism.copies if c.unit.name == target.unit
-    )  # fmt: skip
-    _changed_driver(drivers[target.driver], target, value)
+#: The kinds of element a variant may change.
+_VARIED = ("points", "drivers", "bodies", "loads")
 
 
-def _changed_driver(driver, target: _Target, value: float):
-    law = getattr(driver, target.law_field)
-    try:
-        changed = dataclasses.replace(law, **{target.key: value})
-    except ModelError as error:
-        raise ModelError(f"{error.reason} (value {value!r})", element=target.path) from None
-    return dataclasses.replace(driver, **{target.law_field: changed})
+def _copied(elements):
+    """A changeable copy of a kind's elements: a dict of points, else a list."""
+    return dict(elements) if isinstance(elements, Mapping) else list(elements)
+
+
+def _frozen(kind: str, elements):
+    return dict(elements) if kind == "points" else tuple(elements)
+
+
+def _element_index(target: _Target, bodies: Sequence) -> tuple[str, int]:
+    """``(kind, index)`` of the driver, body or load that `target` changes among its owner's."""
+    if target.body:
+        return "bodies", next(b for b, body in enumerate(bodies) if body.name == target.body)
+    if target.load >= 0:
+        return "loads", target.load
+    return "drivers", target.driver
+
+
+def _element(mechanism: Mechanism, target: _Target):
+    """The nominal driver, body or load that `target` changes."""
+    owner = mechanism if target.unit is None else next(c.unit for c in mechanism.copies if c.unit.name == target.unit)
+    elements = {kind: mechanism.own(kind) if target.unit is None else getattr(owner, kind) for kind in _VARIED}
+    kind, index = _element_index(target, elements["bodies"])
+    return elements[kind][index]
