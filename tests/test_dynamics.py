@@ -101,6 +101,28 @@ def test_n_four_bar_keeps_every_crank_on_the_exact_motion_through_singular_cross
     assert result.energy.drift_position.max() <= 1e-9
 
 
+def n_four_bar_b0_errors(n_loops: int, t_end: float, steps, rho_inf: float):
+    """B0's largest position and velocity errors against the exact motion, per step size."""
+    times = np.linspace(0.0, t_end, int(round(t_end / 0.05)) + 1)
+    position, velocity = n_four_bar_b0(times, n_loops=n_loops)
+    errors = []
+    for h in steps:
+        b0 = sk.solve_dynamics(n_four_bar(n_loops), times, max_step=h, rho_inf=rho_inf, forces=None).point("B0")
+        errors.append((np.abs(b0.position - position).max(), np.abs(b0.velocity - velocity).max()))
+    return np.array(errors)
+
+
+def test_n_four_bar_error_falls_as_h_squared_through_singular_crossings():
+    """A02 with N = 4 over 1.5 s (two flat crossings, 0.71 s and 1.23 s): B0's error falls by
+    4 at each halving of the step down to 0.25 ms.  Newton errors of a bound per step that
+    did not shrink with h added up to an error that fell by 4.66 and 4.91 instead at the
+    last halving (a floor below which the 20 s error did not fall)."""
+    assert np.sum(np.diff(np.floor(n_four_bar_motion(np.linspace(0.0, 1.5, 31), n_loops=4).angle / np.pi)) != 0) == 2
+    errors = n_four_bar_b0_errors(4, 1.5, (1e-3, 5e-4, 2.5e-4), 0.9)
+    np.testing.assert_allclose(errors[:-1] / errors[1:], 4.0, rtol=0.05)
+    assert errors[0, 0] <= 3e-5  # m, B0's position at 1 ms (2.2e-5)
+
+
 def test_andrews_mechanism_converges_to_the_published_angles():
     mechanism = sk.load_model(EXAMPLES / "dynamics" / "andrews.toml")
     errors = []

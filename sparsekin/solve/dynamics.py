@@ -69,11 +69,13 @@ from .steppers import SampleBlock, SampleSteps, StepperStats
 __all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
            "LINEAR_SOLVERS"]
 
-#: Default Newton tolerance: the velocity error left by Newton's last correction (lengths
-#: relative to the model size per second, rad/s) and the constraint residual (relative
-#: lengths, rad).  Positions are solved to ``tolerance · h / γ′``-ish, far below the
-#: tolerance itself: a Newton error of δq in every step is a systematic velocity error
-#: γ′ δq ≈ 2 δq / h per step, which adds up over a run.
+#: Default Newton and projection tolerance: the velocity error that the steps of one second
+#: of motion may leave in all (lengths relative to the model size per second, rad/s).  A
+#: step of h seconds leaves at most ``tolerance · h`` (`step_velocity_bound`): a Newton
+#: error δq is a velocity error γ′ δq ≈ 2 δq / h, and it has the same sign step after step
+#: (held matrix, smooth predictor error), so per-step errors add up over the ~1/h steps of
+#: a second.  A bound per step that does not shrink with h gives an error that grows as the
+#: step shrinks (the N-four-bar's error stopped falling as h², docs/design-notes.md).
 DEFAULT_TOLERANCE = 1e-10
 #: A correction below this multiple of the rounding of q (relative) cannot be improved.
 ROUNDING = 8.0 * np.finfo(float).eps
@@ -179,9 +181,9 @@ class GeneralizedAlphaStepper:
     integrator : GeneralizedAlpha
         Default: from ``dynamics.rho_inf``.
     tolerance : float
-        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error a step
-        leaves (lengths relative to the model size per second, rad/s) and the constraint
-        residual (relative lengths, rad).
+        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error the
+        steps of one second leave in all (lengths relative to the model size per second,
+        rad/s; a step of h seconds leaves ``tolerance · h``).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
         (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
@@ -402,8 +404,9 @@ class GeneralizedAlphaStepper:
         force = np.zeros(n)
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
-        # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
-        bound = tol / gamma_prime
+        # as velocity errors (γ′ δq), within the step's share of the tolerance, or at the
+        # rounding floor of q.
+        bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         for iteration in range(max_iterations + 1):
             phi_norm = system.fill_constraints(q)
@@ -484,7 +487,7 @@ class GeneralizedAlphaStepper:
         system, n, kept = self.system, self.system.n, self.system.kept_rows
         weights = self.assembler.weights[kept]
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
-        bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
+        bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         drift = system.velocity_drift(v)[kept]
         if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
             return
@@ -577,6 +580,12 @@ class GeneralizedAlphaStepper:
             q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
         raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
                          f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
+
+
+def step_velocity_bound(tolerance: float, h: float) -> float:
+    """The velocity error a step of `h` s may leave (Newton, projection): ``tolerance · h``,
+    so that the errors of one second add up to at most `tolerance` whatever the step."""
+    return tolerance * h
 
 
 def _redundant_rows(jacobian) -> np.ndarray:
