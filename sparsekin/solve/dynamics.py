@@ -18,11 +18,13 @@ grow as h⁻⁴.  The parameters follow from ρ∞, the spectral radius at infin
 is the trapezoidal rule (no numerical damping; energy error bounded, O(h²)); smaller
 ρ∞ damps the highest frequencies.
 
-After each step the velocities are projected on Φq q̇ + Φt = 0 (with the iteration
-matrix's leading block as the metric): the position constraints hold to the Newton
-tolerance by construction, the velocity constraints to the same by the projection, so
-neither drifts.  Newton is modified: the factorization of the last step is reused
-while its corrections contract (`CONTRACTION`), refactored otherwise.  A step whose
+After each step the velocities are projected on Φq q̇ + Φt = 0 and then the
+accelerations on Φq q̈ = γ (with the iteration matrix's leading block as the metric, as
+in ALI3-P): the position constraints hold to the Newton tolerance by construction, the
+velocity constraints to the same by the projection, so neither drifts, and the
+accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1.  Newton is
+modified: the factorization of the last step is reused while its corrections contract
+(`CONTRACTION`) fast enough to converge in the corrections left, refactored otherwise.  A step whose
 Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling
 after `GROWTH_AFTER` good steps, up to `max_step`.
 
@@ -204,9 +206,10 @@ class GeneralizedAlphaStepper:
         After `start`: the current state, one value (each step makes new arrays: a
         recorder may keep them).
     system : DynamicSystem
-    n_steps, n_subdivisions, n_newton, n_stalls : int
+    n_steps, n_subdivisions, n_newton, n_stalls, n_singular_projections : int
         Steps accepted, step halvings, Newton corrections, Newton iterations accepted at
-        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`).
+        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`), projections
+        accepted where Φq had lost rank (`_project`).
     redundant_rows : ndarray of int
         Equations left out as redundant (`redundant_labels` in words).
 
@@ -236,7 +239,7 @@ class GeneralizedAlphaStepper:
         self.solver, self.path = None, "none"
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
-        self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = 0
+        self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored = False
         self._balance0: float | None = None
@@ -452,10 +455,14 @@ class GeneralizedAlphaStepper:
                 else:
                     self._factored = False  # a fresh matrix at the next iterate
             else:
+                if not (settled or fresh) and iteration > 0 and not _converges_in_time(
+                        correction, rate, max(bound, floor), max_iterations - iteration - 1):  # fmt: skip
+                    self._factored = False  # the held matrix contracts, but too slowly for the corrections left
                 fresh = False
             last = correction
         self._project_velocities(q, v, lam, coefficients, h)
         pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
+        self._project_accelerations(q, v, a, pseudo, lam, coefficients)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
@@ -474,24 +481,61 @@ class GeneralizedAlphaStepper:
         self._factored = True
 
     def _project_velocities(self, q, v, lam, coefficients, h: float) -> None:
-        """The velocities moved onto Φq v + Φt = 0 along Φq's normals: v ← v − Δv with
+        """The velocities moved onto Φq v + Φt = 0 along Φq's normals (`_project`).  The
+        drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
+        velocity kick of about 2 d in the next step."""
+        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
+        bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
+        change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity")
+        if change is not None:
+            v -= change[: v.size]
 
-            [[A, Φqᵀ], [Φq, 0]] [Δv; μ] = [0; Φq v + Φt],
+    def _project_accelerations(self, q, v, a, pseudo, lam, coefficients) -> None:
+        """The accelerations moved onto Φq q̈ = γ at the projected velocities (`_project`),
+        ã by the same change, λ by the projection's multipliers (so that M q̈ + Φqᵀλ keeps
+        its value).  The index-3 accelerations and multipliers carry an oscillation that
+        ρ∞ = 1 does not damp (with ã = q̈, a_{n+1} = 4 (q_{n+1} − q_n − h q̇_n) / h² − a_n:
+        an error in a_n comes back with the sign flipped at every step), which the
+        multipliers amplify by 1/σ where Φq loses rank for an instant (σ its smallest
+        singular value): Newton then failed at the N-four-bar's flat crossings.  ALI3-P
+        projects the accelerations for the same reason.  The drift left is at most
+        ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
+        the next step, tolerance · h per second like the others."""
+        assembler = self.assembler
+        assembler.fill_acceleration_rhs(q, v)
+        scale = max(1.0, _dynamics_kernels.weighted_norm(a, self.pattern.coordinate_weights))
+        bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
+        change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
+                               "acceleration")  # fmt: skip
+        if change is not None:
+            a -= change[: a.size]
+            pseudo -= change[: a.size]
+            lam[self.system.kept_rows] -= change[a.size :]
+
+    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str):
+        """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
+        velocities or accelerations minus their target, every equation) and its
+        multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
+
+            [[A, Φqᵀ], [Φq, 0]] [Δ; μ] = [0; drift],
 
         A the iteration matrix's leading block and Φq at the converged q.  The held
         factorization (of an earlier state) preconditions iterative refinement on the
         matrix at q, refactored when the refinement stops contracting: a correction along
         stale normals would turn part of it along the motion, an energy error that adds
-        up step after step.  The drift left is at most ``tolerance · h · max(1, ‖v‖)``:
-        a drift d comes back as a velocity kick of about 2 d in the next step."""
+        up step after step.  Where Φq has lost rank for an instant the refinement stalls
+        even on a fresh factorization (its (2, 2) block −r I makes it a penalty projection
+        there, ALI3-P's): what it removed is kept if it left less drift than there was —
+        the rest lies along Φq's vanishing singular values σ, where the drift is σ times
+        the velocity error and removing it would take a change drift / σ along a direction
+        that the rounding decides."""
         system, n, kept = self.system, self.system.n, self.system.kept_rows
         weights = self.assembler.weights[kept]
-        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
-        bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
-        drift = system.velocity_drift(v)[kept]
-        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
-            return
-        matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+        drift = drift[kept]
+        before = _dynamics_kernels.weighted_norm(drift, weights)
+        if before <= bound:
+            return None
+        matrix = self._projection_matrix(q, v, lam, coefficients)
         goal = np.zeros(system.size)
         goal[n:] = drift
         solution = np.zeros(system.size)
@@ -503,13 +547,12 @@ class GeneralizedAlphaStepper:
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
             if size <= bound:
-                v -= solution[:n]
-                return
+                return solution
             if size > REFINEMENT_CONTRACTION * last:
                 if fresh:
                     break
                 self._factor(q, v, np.zeros(n), lam, coefficients)
-                matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+                matrix = self._projection_matrix(q, v, lam, coefficients)
                 fresh = True
                 solution[:] = 0.0
                 residual[:] = goal
@@ -517,12 +560,15 @@ class GeneralizedAlphaStepper:
                 continue
             last = size
             residual = goal - matrix @ solution
-        # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
-        drift = system.velocity_drift(v - solution[:n])[kept]
-        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
-            v -= solution[:n]
-            return
-        raise _StepFailed(f"the velocity projection does not converge (increment {size:.3g})")
+        left = drift - (self.assembler.jacobian @ solution[:n])[kept]
+        if fresh and _dynamics_kernels.weighted_norm(left, weights) <= before:
+            self.n_singular_projections += 1
+            return solution
+        raise _StepFailed(f"the {what} projection does not converge (increment {size:.3g})")
+
+    def _projection_matrix(self, q, v, lam, coefficients):
+        """The matrix the projections solve with, at the converged state (`_project`)."""
+        return self.system.fill_matrix(q, v, np.zeros(self.system.n), lam, *coefficients)
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
@@ -580,6 +626,13 @@ class GeneralizedAlphaStepper:
             q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
         raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
                          f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
+
+
+def _converges_in_time(correction: float, rate: float, target: float, corrections_left: int) -> bool:
+    """Whether corrections shrinking by `rate` each reach `target` within `corrections_left`
+    more (modified Newton: a held matrix that contracts slowly is refactored before the
+    step runs out of corrections, as in Hairer & Wanner's simplified Newton)."""
+    return correction * rate ** max(corrections_left, 0) <= target
 
 
 def step_velocity_bound(tolerance: float, h: float) -> float:
