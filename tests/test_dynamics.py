@@ -296,6 +296,27 @@ def test_redundant_equations_are_left_out_and_change_nothing():
     assert redundant.energy.drift_position.max() <= 1e-10
 
 
+def test_redundant_multipliers_are_the_minimum_norm_ones():
+    """The tower's three massless third bars are left out of the integration (λ = 0 there);
+    the published λ has the same constraint forces Φqᵀλ and is the minimum-norm one, the
+    pseudo-inverse's (an SVD of the whole Φq, independent of the code's normal equations)."""
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+    stepper = GeneralizedAlphaStepper(_tower(True), 1e-3)
+    with pytest.warns(sk.RedundantConstraintWarning, match="the minimum-norm ones are given"):
+        stepper.start(0.0)
+    stepper.advance(0.2)
+    integrated, published = stepper.state.multipliers, stepper.linearization().multipliers
+    jacobian = stepper.assembler.jacobian.toarray()
+    forces = jacobian.T @ integrated
+    assert stepper.redundant_rows.size == 3 and np.all(integrated[stepper.redundant_rows] == 0.0)
+    np.testing.assert_allclose(jacobian.T @ published, forces, rtol=0, atol=1e-10 * np.abs(forces).max())
+    expected = np.linalg.pinv(jacobian.T) @ forces
+    np.testing.assert_allclose(published, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+    assert np.linalg.norm(published) < 0.99 * np.linalg.norm(integrated)
+    assert np.abs(published[stepper.redundant_rows]).min() > 1e-2 * np.abs(published).max()  # the third bars take load
+
+
 def test_energy_and_drift_are_recorded_variables_streamed_bit_for_bit(pendulum, tmp_path):
     """The energy balance and drift are rows of the schema: a run streamed to Zarr holds
     them labelled, equal to the run in memory."""

@@ -53,6 +53,7 @@ from ..engine import _dynamics_kernels, _kernels
 from ..engine.discretization import Discretization, discretize
 from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.linearization import Linearization
+from ..engine.multipliers import redundant_minimum_norm
 from ..engine.newton import NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
 from ..engine.saddle import DynamicSystem
@@ -61,6 +62,7 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY
+from ._dynamics_start import REDUNDANCY_CHECK_COORDINATES, initial_velocities, redundant_rows, undetermined
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -107,9 +109,6 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
-#: Models up to this many coordinates are always searched for redundant equations at the
-#: start (larger ones when they have at least as many equations as coordinates).
-REDUNDANCY_CHECK_COORDINATES = 3000
 
 
 @dataclass(frozen=True)
@@ -149,7 +148,8 @@ class DynamicState(NamedTuple):
     pseudo_accelerations : ndarray, shape (n_coordinates,)
         Generalized-α's ã.
     multipliers : ndarray, shape (n_equations,)
-        λ of every equation (0 on those left out as redundant).
+        λ of every equation as the integrator solves them (0 on those left out as
+        redundant; `linearization` publishes the minimum-norm ones).
     step : float
         The step the next one starts with, s.
     work, dissipated : float
@@ -289,7 +289,7 @@ class GeneralizedAlphaStepper:
         matrix = system.fill_matrix(q, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 0.0, 0.0)
         try:
             self.solver.factor(matrix)
-            given = _initial_velocities(self.mechanism, n)
+            given = initial_velocities(self.mechanism, n)
             rhs = np.concatenate([matrix[:n, :n] @ given, system.assembler.velocity_rhs[kept]])
             v = self.solver.solve(rhs)[:n].copy()
             system.fill_constraints(q)
@@ -297,7 +297,7 @@ class GeneralizedAlphaStepper:
             system.assembler.fill_acceleration_rhs(q, v)
             solution = self.solver.solve(np.concatenate([applied, system.assembler.acceleration_rhs[kept]]))
         except SingularMatrix:
-            raise ModelError(_undetermined(self.mechanism, pattern)) from None
+            raise ModelError(undetermined(self.mechanism, pattern)) from None
         a = solution[:n].copy()
         lam = np.zeros(m)
         lam[kept] = solution[n:]
@@ -355,8 +355,19 @@ class GeneralizedAlphaStepper:
         return Linearization(
             state.time, q, v, state.accelerations, (q_ground, v_ground, turns), assembler.values,
             assembler.csr_positions, lambda: assembler.jacobian, assembler.velocity_rhs, None,
-            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, state.multipliers,
+            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, self._multipliers(),
         )  # fmt: skip
+
+    def _multipliers(self) -> np.ndarray:
+        """λ of every equation at the current sample: the integrator's, or for a model with
+        redundant equations (left out, λ = 0 in the integration) the ones of minimum norm
+        with the same constraint forces Φqᵀλ (`redundant_minimum_norm`; Φq is the state's,
+        refilled by `_publish`)."""
+        state = self.state
+        if not self.redundant_rows.size:
+            return state.multipliers
+        return redundant_minimum_norm(self.assembler.jacobian, self.system.kept_rows, self.redundant_rows,
+                                      state.multipliers)  # fmt: skip
 
     def recorded(self) -> dict:
         """The current sample's energy balance and drift, one row each (the schema's
@@ -583,12 +594,12 @@ class GeneralizedAlphaStepper:
         assembler = Assembler(self.discretization)
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = _redundant_rows(assembler.jacobian)
+        self.redundant_rows = redundant_rows(assembler.jacobian)
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
-            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); their "
-                        "multipliers are zero: the forces of a redundant set are not unique", RedundantConstraintWarning)  # fmt: skip
+            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); the forces "
+                        "of a redundant set are not unique: the minimum-norm ones are given", RedundantConstraintWarning)  # fmt: skip
         return np.setdiff1d(everything, self.redundant_rows)
 
     @property
@@ -639,55 +650,6 @@ def step_velocity_bound(tolerance: float, h: float) -> float:
     """The velocity error a step of `h` s may leave (Newton, projection): ``tolerance · h``,
     so that the errors of one second add up to at most `tolerance` whatever the step."""
     return tolerance * h
-
-
-def _redundant_rows(jacobian) -> np.ndarray:
-    """Equations to leave out so that the others are independent.
-
-    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
-    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
-    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
-    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
-    exactly singular matrix; the dense path keeps small dynamic models, which often have
-    as many equations as coordinates, away from it.)
-    """
-    m, n = jacobian.shape
-    if n > REDUNDANCY_CHECK_COORDINATES:
-        from ..analysis.rank import analyse_jacobian
-
-        return analyse_jacobian(jacobian).redundant_rows
-    from scipy.linalg import qr
-
-    rows = jacobian.toarray()
-    scale = np.abs(rows).max(axis=1)
-    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
-    r, pivots = qr(rows.T, mode="r", pivoting=True)
-    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
-    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
-    rank = int(np.sum(diagonal > tolerance))
-    return np.sort(pivots[rank:]).astype(np.int64)
-
-
-def _initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:
-    """The bodies' `velocity` (copies of repeated units included), zero where not given."""
-    velocities = np.zeros((n // 3, 3))
-    for b, body in enumerate(mechanism.own("bodies")):
-        if body.velocity is not None:
-            velocities[b] = body.velocity
-    for copies in mechanism.copies:
-        for body, (_, starts) in zip(copies.unit.bodies, copies.placed("bodies")):
-            if body.velocity is not None:
-                velocities[copies.first_body + starts] = body.velocity
-    return velocities.ravel()
-
-
-def _undetermined(mechanism: Mechanism, pattern: ConstraintPattern) -> str:
-    """The one-line message of a motion that the masses and constraints leave undetermined."""
-    bodies = mechanism.own("bodies")
-    massless = [body.name for body in bodies if not body.mass and not body.inertia]
-    named = f" (massless bodies: {', '.join(massless[:4])}{', …' if len(massless) > 4 else ''})" if massless else ""
-    return ("the motion is not determined: a moving part has neither mass nor a constraint that fixes it"
-            f"{named}; expected masses (and inertias) on every body that moves freely")
 
 
 # ---------------------------------------------------------------------- the facade
