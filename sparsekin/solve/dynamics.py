@@ -538,7 +538,8 @@ class GeneralizedAlphaStepper:
 
         A the iteration matrix's leading block and Φq at the converged q.  The held
         factorization (of an earlier state) preconditions iterative refinement on the
-        matrix at q, refactored when the refinement stops contracting: a correction along
+        matrix at q, refactored when the refinement stops contracting, or contracts too
+        slowly to reach `bound` in the solves left (`_converges_in_time`): a correction along
         stale normals would turn part of it along the motion, an energy error that adds
         up step after step.  Where Φq has lost rank for an instant the refinement stalls
         even on a fresh factorization (its (2, 2) block −r I makes it a penalty projection
@@ -559,13 +560,14 @@ class GeneralizedAlphaStepper:
         residual = goal.copy()
         last, fresh = math.inf, False
         coordinate_weights = self.pattern.coordinate_weights
-        for _ in range(PROJECTION_ITERATIONS):
+        for iteration in range(PROJECTION_ITERATIONS):
             increment = self.solver.solve(residual)
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
             if size <= bound:
                 return solution
-            if size > REFINEMENT_CONTRACTION * last:
+            if size > REFINEMENT_CONTRACTION * last or not (fresh or _converges_in_time(
+                    size, size / last, bound, PROJECTION_ITERATIONS - iteration - 1)):  # fmt: skip
                 if fresh:
                     break
                 self._factor(q, v, np.zeros(n), lam, coefficients)
