@@ -4,12 +4,14 @@
   the point's path against the Jacobi elliptic solution, the energy error ∝ h² and bounded
   over 10^4 steps without numerical damping, no constraint drift;
 * A02 (N-four-bar): through its singular crossings on the exact one-parameter family (every
-  crank at the angle of the reduced ODE);
+  crank at the angle of the reduced ODE), B0's error falling as h² through them with and
+  without numerical damping;
 * A03 (Andrews' squeezing mechanism): the published angles at t = 0.03 s, second-order
   convergence towards them;
 * the round trip with inverse dynamics: Task 5's driver forces from `solve_kinematics`,
   applied as actuator spline loads with the drivers removed, give the motion back, the error
   falling as h²;
+* a redundant model's multipliers: the minimum-norm ones (the pseudo-inverse's);
 * errors in one line, the command line's energy.csv.
 
 The references (tests/dynamics_reference.py) are closed forms, SciPy integrations of the
