@@ -26,7 +26,7 @@ import numpy as np
 from .linearization import Linearization
 
 __all__ = ["Multipliers", "MAX_MIN_NORM_EQUATIONS", "MIN_NORM_ITERATIONS", "minimum_norm_multipliers",
-           "augmented_minimum_norm"]
+           "augmented_minimum_norm", "redundant_minimum_norm"]
 
 #: The minimum-norm multipliers of a redundant model cost, through the dependencies, one
 #: transposed solve per redundant equation and a dense (n_equations × n_redundant) matrix
@@ -93,9 +93,40 @@ class Multipliers:
         for c, r in enumerate(redundant.tolist()):
             dependencies[kept, c] = -solver.solve(jacobian[[r]].toarray().ravel(), transposed=True)
             dependencies[r, c] = 1.0
-        gram = dependencies.T @ dependencies
-        multipliers -= dependencies @ np.linalg.solve(gram, dependencies.T @ multipliers)
-        return multipliers
+        return _without_dependencies(multipliers, dependencies)
+
+
+def _without_dependencies(multipliers: np.ndarray, dependencies: np.ndarray) -> np.ndarray:
+    """`multipliers` − W (WᵀW)⁻¹ Wᵀ `multipliers` in place (W: the dependencies as columns,
+    a basis of the null space of Φqᵀ): the solution of Φqᵀ λ = Φqᵀ `multipliers` of minimum norm."""
+    gram = dependencies.T @ dependencies
+    multipliers -= dependencies @ np.linalg.solve(gram, dependencies.T @ multipliers)
+    return multipliers
+
+
+def redundant_minimum_norm(jacobian, kept_rows: np.ndarray, redundant_rows: np.ndarray,
+                           multipliers: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The λ of minimum norm with Φqᵀ λ = Φqᵀ `multipliers` (a new array), for a Φq whose
+    `redundant_rows` are combinations of its independent `kept_rows` (`multipliers` is 0 on
+    the redundant rows: the integrator's λ of forward dynamics).
+
+    Unlike `Multipliers.solve`, the kept rows B need not be square (forward dynamics keeps
+    the degrees of freedom): the dependencies, row r = Σ c_k · kept row k, come from the
+    normal equations (B Bᵀ) c = B a_rᵀ (one sparse LU of B Bᵀ per call, one solve and one
+    refinement per redundant row; their condition is B's squared, fine away from a loss of
+    rank), then W's columns are (−c on the kept rows, 1 on row r) as there.
+    """
+    from scipy.sparse.linalg import splu
+
+    kept_block, redundant_block = jacobian[kept_rows], jacobian[redundant_rows]
+    normal = splu((kept_block @ kept_block.T).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    target = (kept_block @ redundant_block.T).toarray()
+    coefficients = normal.solve(target)
+    coefficients += normal.solve(target - (kept_block @ (kept_block.T @ coefficients)))
+    dependencies = np.zeros((multipliers.size, redundant_rows.size))
+    dependencies[kept_rows] = -coefficients
+    dependencies[redundant_rows, np.arange(redundant_rows.size)] = 1.0
+    return _without_dependencies(multipliers.copy(), dependencies)
 
 
 def minimum_norm_multipliers(solver, redundant_jacobian, particular: np.ndarray,

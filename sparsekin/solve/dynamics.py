@@ -18,11 +18,13 @@ grow as h⁻⁴.  The parameters follow from ρ∞, the spectral radius at infin
 is the trapezoidal rule (no numerical damping; energy error bounded, O(h²)); smaller
 ρ∞ damps the highest frequencies.
 
-After each step the velocities are projected on Φq q̇ + Φt = 0 (with the iteration
-matrix's leading block as the metric): the position constraints hold to the Newton
-tolerance by construction, the velocity constraints to the same by the projection, so
-neither drifts.  Newton is modified: the factorization of the last step is reused
-while its corrections contract (`CONTRACTION`), refactored otherwise.  A step whose
+After each step the velocities are projected on Φq q̇ + Φt = 0 and then the
+accelerations on Φq q̈ = γ (with the iteration matrix's leading block as the metric, as
+in ALI3-P): the position constraints hold to the Newton tolerance by construction, the
+velocity constraints to the same by the projection, so neither drifts, and the
+accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1.  Newton is
+modified: the factorization of the last step is reused while its corrections contract
+(`CONTRACTION`) fast enough to converge in the corrections left, refactored otherwise.  A step whose
 Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling
 after `GROWTH_AFTER` good steps, up to `max_step`.
 
@@ -51,6 +53,7 @@ from ..engine import _dynamics_kernels, _kernels
 from ..engine.discretization import Discretization, discretize
 from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.linearization import Linearization
+from ..engine.multipliers import redundant_minimum_norm
 from ..engine.newton import NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
 from ..engine.saddle import DynamicSystem
@@ -59,6 +62,7 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY
+from ._dynamics_start import REDUNDANCY_CHECK_COORDINATES, initial_velocities, redundant_rows, undetermined
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -69,11 +73,13 @@ from .steppers import SampleBlock, SampleSteps, StepperStats
 __all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
            "LINEAR_SOLVERS"]
 
-#: Default Newton tolerance: the velocity error left by Newton's last correction (lengths
-#: relative to the model size per second, rad/s) and the constraint residual (relative
-#: lengths, rad).  Positions are solved to ``tolerance · h / γ′``-ish, far below the
-#: tolerance itself: a Newton error of δq in every step is a systematic velocity error
-#: γ′ δq ≈ 2 δq / h per step, which adds up over a run.
+#: Default Newton and projection tolerance: the velocity error that the steps of one second
+#: of motion may leave in all (lengths relative to the model size per second, rad/s).  A
+#: step of h seconds leaves at most ``tolerance · h`` (`step_velocity_bound`): a Newton
+#: error δq is a velocity error γ′ δq ≈ 2 δq / h, and it has the same sign step after step
+#: (held matrix, smooth predictor error), so per-step errors add up over the ~1/h steps of
+#: a second.  A bound per step that does not shrink with h gives an error that grows as the
+#: step shrinks (the N-four-bar's error stopped falling as h², docs/design-notes.md).
 DEFAULT_TOLERANCE = 1e-10
 #: A correction below this multiple of the rounding of q (relative) cannot be improved.
 ROUNDING = 8.0 * np.finfo(float).eps
@@ -103,9 +109,6 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
-#: Models up to this many coordinates are always searched for redundant equations at the
-#: start (larger ones when they have at least as many equations as coordinates).
-REDUNDANCY_CHECK_COORDINATES = 3000
 
 
 @dataclass(frozen=True)
@@ -145,7 +148,8 @@ class DynamicState(NamedTuple):
     pseudo_accelerations : ndarray, shape (n_coordinates,)
         Generalized-α's ã.
     multipliers : ndarray, shape (n_equations,)
-        λ of every equation (0 on those left out as redundant).
+        λ of every equation as the integrator solves them (0 on those left out as
+        redundant; `linearization` publishes the minimum-norm ones).
     step : float
         The step the next one starts with, s.
     work, dissipated : float
@@ -179,9 +183,9 @@ class GeneralizedAlphaStepper:
     integrator : GeneralizedAlpha
         Default: from ``dynamics.rho_inf``.
     tolerance : float
-        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error a step
-        leaves (lengths relative to the model size per second, rad/s) and the constraint
-        residual (relative lengths, rad).
+        Newton and projection tolerance (`DEFAULT_TOLERANCE`): the velocity error the
+        steps of one second leave in all (lengths relative to the model size per second,
+        rad/s; a step of h seconds leaves ``tolerance · h``).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
         (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
@@ -202,9 +206,10 @@ class GeneralizedAlphaStepper:
         After `start`: the current state, one value (each step makes new arrays: a
         recorder may keep them).
     system : DynamicSystem
-    n_steps, n_subdivisions, n_newton, n_stalls : int
+    n_steps, n_subdivisions, n_newton, n_stalls, n_singular_projections : int
         Steps accepted, step halvings, Newton corrections, Newton iterations accepted at
-        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`).
+        the rounding floor of an ill-conditioned matrix (`STALL`, `NOISE`), projections
+        accepted where Φq had lost rank (`_project`).
     redundant_rows : ndarray of int
         Equations left out as redundant (`redundant_labels` in words).
 
@@ -234,7 +239,7 @@ class GeneralizedAlphaStepper:
         self.solver, self.path = None, "none"
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
-        self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = 0
+        self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored = False
         self._balance0: float | None = None
@@ -284,7 +289,7 @@ class GeneralizedAlphaStepper:
         matrix = system.fill_matrix(q, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 0.0, 0.0)
         try:
             self.solver.factor(matrix)
-            given = _initial_velocities(self.mechanism, n)
+            given = initial_velocities(self.mechanism, n)
             rhs = np.concatenate([matrix[:n, :n] @ given, system.assembler.velocity_rhs[kept]])
             v = self.solver.solve(rhs)[:n].copy()
             system.fill_constraints(q)
@@ -292,7 +297,7 @@ class GeneralizedAlphaStepper:
             system.assembler.fill_acceleration_rhs(q, v)
             solution = self.solver.solve(np.concatenate([applied, system.assembler.acceleration_rhs[kept]]))
         except SingularMatrix:
-            raise ModelError(_undetermined(self.mechanism, pattern)) from None
+            raise ModelError(undetermined(self.mechanism, pattern)) from None
         a = solution[:n].copy()
         lam = np.zeros(m)
         lam[kept] = solution[n:]
@@ -350,8 +355,19 @@ class GeneralizedAlphaStepper:
         return Linearization(
             state.time, q, v, state.accelerations, (q_ground, v_ground, turns), assembler.values,
             assembler.csr_positions, lambda: assembler.jacobian, assembler.velocity_rhs, None,
-            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, state.multipliers,
+            None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, self._multipliers(),
         )  # fmt: skip
+
+    def _multipliers(self) -> np.ndarray:
+        """λ of every equation at the current sample: the integrator's, or for a model with
+        redundant equations (left out, λ = 0 in the integration) the ones of minimum norm
+        with the same constraint forces Φqᵀλ (`redundant_minimum_norm`; Φq is the state's,
+        refilled by `_publish`)."""
+        state = self.state
+        if not self.redundant_rows.size:
+            return state.multipliers
+        return redundant_minimum_norm(self.assembler.jacobian, self.system.kept_rows, self.redundant_rows,
+                                      state.multipliers)  # fmt: skip
 
     def recorded(self) -> dict:
         """The current sample's energy balance and drift, one row each (the schema's
@@ -402,14 +418,15 @@ class GeneralizedAlphaStepper:
         force = np.zeros(n)
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
-        # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
-        bound = tol / gamma_prime
+        # as velocity errors (γ′ δq), within the step's share of the tolerance, or at the
+        # rounding floor of q.
+        bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         for iteration in range(max_iterations + 1):
             phi_norm = system.fill_constraints(q)
             floor = ROUNDING * (1.0 + _dynamics_kernels.weighted_norm(q, weights))
             stall = STALL * math.sqrt(n) * floor
-            if settled and phi_norm <= max(bound, floor, stalled):
+            if settled and self._constraints_met(phi_norm, max(bound, floor, stalled)):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
@@ -449,16 +466,26 @@ class GeneralizedAlphaStepper:
                 else:
                     self._factored = False  # a fresh matrix at the next iterate
             else:
+                if not (settled or fresh) and iteration > 0 and not _converges_in_time(
+                        correction, rate, max(bound, floor), max_iterations - iteration - 1):  # fmt: skip
+                    self._factored = False  # the held matrix contracts, but too slowly for the corrections left
                 fresh = False
             last = correction
         self._project_velocities(q, v, lam, coefficients, h)
         pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
+        self._project_accelerations(q, v, a, pseudo, lam, coefficients)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
         self.n_steps += 1
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
+
+    def _constraints_met(self, residual: float, limit: float) -> bool:
+        """Newton's last test, once its corrections have settled: the constraints' residual
+        (weighted norm) within `limit`.  (A prototype of another method may stop on the
+        corrections alone: benchmarks/compare_ali3p.py.)"""
+        return residual <= limit
 
     def _factor(self, q, v, a, lam, coefficients) -> None:
         self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, self._regularization))
@@ -471,42 +498,80 @@ class GeneralizedAlphaStepper:
         self._factored = True
 
     def _project_velocities(self, q, v, lam, coefficients, h: float) -> None:
-        """The velocities moved onto Φq v + Φt = 0 along Φq's normals: v ← v − Δv with
+        """The velocities moved onto Φq v + Φt = 0 along Φq's normals (`_project`).  The
+        drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
+        velocity kick of about 2 d in the next step."""
+        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
+        bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
+        change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity")
+        if change is not None:
+            v -= change[: v.size]
 
-            [[A, Φqᵀ], [Φq, 0]] [Δv; μ] = [0; Φq v + Φt],
+    def _project_accelerations(self, q, v, a, pseudo, lam, coefficients) -> None:
+        """The accelerations moved onto Φq q̈ = γ at the projected velocities (`_project`),
+        ã by the same change, λ by the projection's multipliers (so that M q̈ + Φqᵀλ keeps
+        its value).  The index-3 accelerations and multipliers carry an oscillation that
+        ρ∞ = 1 does not damp (with ã = q̈, a_{n+1} = 4 (q_{n+1} − q_n − h q̇_n) / h² − a_n:
+        an error in a_n comes back with the sign flipped at every step), which the
+        multipliers amplify by 1/σ where Φq loses rank for an instant (σ its smallest
+        singular value): Newton then failed at the N-four-bar's flat crossings.  ALI3-P
+        projects the accelerations for the same reason.  The drift left is at most
+        ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
+        the next step, tolerance · h per second like the others."""
+        assembler = self.assembler
+        assembler.fill_acceleration_rhs(q, v)
+        scale = max(1.0, _dynamics_kernels.weighted_norm(a, self.pattern.coordinate_weights))
+        bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
+        change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
+                               "acceleration")  # fmt: skip
+        if change is not None:
+            a -= change[: a.size]
+            pseudo -= change[: a.size]
+            lam[self.system.kept_rows] -= change[a.size :]
+
+    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str):
+        """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
+        velocities or accelerations minus their target, every equation) and its
+        multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
+
+            [[A, Φqᵀ], [Φq, 0]] [Δ; μ] = [0; drift],
 
         A the iteration matrix's leading block and Φq at the converged q.  The held
         factorization (of an earlier state) preconditions iterative refinement on the
-        matrix at q, refactored when the refinement stops contracting: a correction along
+        matrix at q, refactored when the refinement stops contracting, or contracts too
+        slowly to reach `bound` in the solves left (`_converges_in_time`): a correction along
         stale normals would turn part of it along the motion, an energy error that adds
-        up step after step.  The drift left is at most ``tolerance · h · max(1, ‖v‖)``:
-        a drift d comes back as a velocity kick of about 2 d in the next step."""
+        up step after step.  Where Φq has lost rank for an instant the refinement stalls
+        even on a fresh factorization (its (2, 2) block −r I makes it a penalty projection
+        there, ALI3-P's): what it removed is kept if it left less drift than there was —
+        the rest lies along Φq's vanishing singular values σ, where the drift is σ times
+        the velocity error and removing it would take a change drift / σ along a direction
+        that the rounding decides."""
         system, n, kept = self.system, self.system.n, self.system.kept_rows
         weights = self.assembler.weights[kept]
-        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
-        bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
-        drift = system.velocity_drift(v)[kept]
-        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
-            return
-        matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+        drift = drift[kept]
+        before = _dynamics_kernels.weighted_norm(drift, weights)
+        if before <= bound:
+            return None
+        matrix = self._projection_matrix(q, v, lam, coefficients)
         goal = np.zeros(system.size)
         goal[n:] = drift
         solution = np.zeros(system.size)
         residual = goal.copy()
         last, fresh = math.inf, False
         coordinate_weights = self.pattern.coordinate_weights
-        for _ in range(PROJECTION_ITERATIONS):
+        for iteration in range(PROJECTION_ITERATIONS):
             increment = self.solver.solve(residual)
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
             if size <= bound:
-                v -= solution[:n]
-                return
-            if size > REFINEMENT_CONTRACTION * last:
+                return solution
+            if size > REFINEMENT_CONTRACTION * last or not (fresh or _converges_in_time(
+                    size, size / last, bound, PROJECTION_ITERATIONS - iteration - 1)):  # fmt: skip
                 if fresh:
                     break
                 self._factor(q, v, np.zeros(n), lam, coefficients)
-                matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
+                matrix = self._projection_matrix(q, v, lam, coefficients)
                 fresh = True
                 solution[:] = 0.0
                 residual[:] = goal
@@ -514,12 +579,15 @@ class GeneralizedAlphaStepper:
                 continue
             last = size
             residual = goal - matrix @ solution
-        # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
-        drift = system.velocity_drift(v - solution[:n])[kept]
-        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
-            v -= solution[:n]
-            return
-        raise _StepFailed(f"the velocity projection does not converge (increment {size:.3g})")
+        left = drift - (self.assembler.jacobian @ solution[:n])[kept]
+        if fresh and _dynamics_kernels.weighted_norm(left, weights) <= before:
+            self.n_singular_projections += 1
+            return solution
+        raise _StepFailed(f"the {what} projection does not converge (increment {size:.3g})")
+
+    def _projection_matrix(self, q, v, lam, coefficients):
+        """The matrix the projections solve with, at the converged state (`_project`)."""
+        return self.system.fill_matrix(q, v, np.zeros(self.system.n), lam, *coefficients)
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
@@ -534,12 +602,12 @@ class GeneralizedAlphaStepper:
         assembler = Assembler(self.discretization)
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = _redundant_rows(assembler.jacobian)
+        self.redundant_rows = redundant_rows(assembler.jacobian)
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
-            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); their "
-                        "multipliers are zero: the forces of a redundant set are not unique", RedundantConstraintWarning)  # fmt: skip
+            warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); the forces "
+                        "of a redundant set are not unique: the minimum-norm ones are given", RedundantConstraintWarning)  # fmt: skip
         return np.setdiff1d(everything, self.redundant_rows)
 
     @property
@@ -579,53 +647,17 @@ class GeneralizedAlphaStepper:
                          f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
 
 
-def _redundant_rows(jacobian) -> np.ndarray:
-    """Equations to leave out so that the others are independent.
-
-    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
-    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
-    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
-    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
-    exactly singular matrix; the dense path keeps small dynamic models, which often have
-    as many equations as coordinates, away from it.)
-    """
-    m, n = jacobian.shape
-    if n > REDUNDANCY_CHECK_COORDINATES:
-        from ..analysis.rank import analyse_jacobian
-
-        return analyse_jacobian(jacobian).redundant_rows
-    from scipy.linalg import qr
-
-    rows = jacobian.toarray()
-    scale = np.abs(rows).max(axis=1)
-    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
-    r, pivots = qr(rows.T, mode="r", pivoting=True)
-    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
-    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
-    rank = int(np.sum(diagonal > tolerance))
-    return np.sort(pivots[rank:]).astype(np.int64)
+def _converges_in_time(correction: float, rate: float, target: float, corrections_left: int) -> bool:
+    """Whether corrections shrinking by `rate` each reach `target` within `corrections_left`
+    more (modified Newton: a held matrix that contracts slowly is refactored before the
+    step runs out of corrections, as in Hairer & Wanner's simplified Newton)."""
+    return correction * rate ** max(corrections_left, 0) <= target
 
 
-def _initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:
-    """The bodies' `velocity` (copies of repeated units included), zero where not given."""
-    velocities = np.zeros((n // 3, 3))
-    for b, body in enumerate(mechanism.own("bodies")):
-        if body.velocity is not None:
-            velocities[b] = body.velocity
-    for copies in mechanism.copies:
-        for body, (_, starts) in zip(copies.unit.bodies, copies.placed("bodies")):
-            if body.velocity is not None:
-                velocities[copies.first_body + starts] = body.velocity
-    return velocities.ravel()
-
-
-def _undetermined(mechanism: Mechanism, pattern: ConstraintPattern) -> str:
-    """The one-line message of a motion that the masses and constraints leave undetermined."""
-    bodies = mechanism.own("bodies")
-    massless = [body.name for body in bodies if not body.mass and not body.inertia]
-    named = f" (massless bodies: {', '.join(massless[:4])}{', …' if len(massless) > 4 else ''})" if massless else ""
-    return ("the motion is not determined: a moving part has neither mass nor a constraint that fixes it"
-            f"{named}; expected masses (and inertias) on every body that moves freely")
+def step_velocity_bound(tolerance: float, h: float) -> float:
+    """The velocity error a step of `h` s may leave (Newton, projection): ``tolerance · h``,
+    so that the errors of one second add up to at most `tolerance` whatever the step."""
+    return tolerance * h
 
 
 # ---------------------------------------------------------------------- the facade

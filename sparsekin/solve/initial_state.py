@@ -21,7 +21,8 @@ import numpy as np
 
 from ..analysis.assemble import point_moves
 from ..model.mechanism import Mechanism
-from .dynamics import GeneralizedAlphaStepper, _initial_velocities
+from ._dynamics_start import initial_velocities
+from .dynamics import GeneralizedAlphaStepper
 
 __all__ = ["InitialStateChange", "initial_state_change", "initial_state_lines", "VELOCITY_NAMES"]
 
@@ -100,7 +101,7 @@ def initial_state_change(mechanism: Mechanism, time: float = 0.0) -> InitialStat
     stepper.start(float(time))
     state, system = stepper.state, stepper.system
     drawn = stepper.pattern.initial_coordinates
-    given = _initial_velocities(mechanism, drawn.size)
+    given = initial_velocities(mechanism, drawn.size)
     kinetic_change = system.energies(state.coordinates, state.velocities - given)[0]
     located = point_moves(mechanism, drawn, state.coordinates)
     moves, n_moved = located if located is not None else (None, -1)
