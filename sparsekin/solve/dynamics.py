@@ -103,6 +103,14 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
+#: On the large path (`RefactorSolver`), a rounding floor measured by a fresh factorization
+#: is trusted for this many steps (`RoundingFloor`), then measured again.
+FLOOR_STEPS = 100
+#: A held matrix's correction within this multiple of the measured floor is noise.
+FLOOR_MARGIN = 4.0
+#: The velocity projection stops refining once its increment is below this fraction of
+#: Newton's velocity noise γ′ · floor (and the drift is at the tolerance).
+PROJECTION_NOISE = 0.1
 #: Models up to this many coordinates are always searched for redundant equations at the
 #: start (larger ones when they have at least as many equations as coordinates).
 REDUNDANCY_CHECK_COORDINATES = 3000
@@ -166,6 +174,49 @@ class DynamicState(NamedTuple):
 
 class _StepFailed(Exception):
     pass
+
+
+class RoundingFloor:
+    """The size of the Newton corrections below which a long model's iterates are rounding
+    noise, as measured on the large path (`RefactorSolver`; 0 = not known): the correction
+    at which Newton last stalled with a fresh matrix (`STALL`), or lower with a held one
+    (`NOISE`), trusted for `FLOOR_STEPS` steps.
+
+    A chain of 10^5 bodies in absolute coordinates carries the rounding of its coordinates
+    (≈ 5·10^4 m × 1e-16) along its length: its Newton corrections stop falling at
+    4e-10–7e-10 at every step, held or fresh matrix alike, above the held matrix's noise
+    allowance ``NOISE √n`` times the rounding of q, so that the held factorization was
+    refactored at every step for nothing.  Once the floor is known, a held matrix's
+    correction within `FLOOR_MARGIN` times it is noise too, and the velocity projection
+    stops refining once its increment is below `PROJECTION_NOISE` times the velocity noise
+    γ′ · floor that Newton leaves anyway and the drift is at the tolerance.  When Newton
+    stops is otherwise unchanged; small models (dense path) never measure a floor.
+    """
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.level = 0.0
+        self._age = 0
+
+    def measured(self, correction: float, fresh: bool) -> None:
+        """Newton stalled at `correction`, with a `fresh` matrix (a measurement of the floor)
+        or a held one (taken as a floor only downwards: it cannot ratchet up)."""
+        if not self.enabled:
+            return
+        if fresh or self.level == 0.0:
+            self.level, self._age = correction, 0
+        else:
+            self.level = min(self.level, correction)
+
+    def step(self) -> None:
+        """One step taken: the floor ages, forgotten after `FLOOR_STEPS`."""
+        self._age += 1
+        if self._age > FLOOR_STEPS:
+            self.level = 0.0
+
+    def noise(self, held_threshold: float) -> float:
+        """The largest correction of a held matrix that is noise."""
+        return max(held_threshold, FLOOR_MARGIN * self.level)
 
 
 class GeneralizedAlphaStepper:
@@ -234,6 +285,7 @@ class GeneralizedAlphaStepper:
         self.solver, self.path = None, "none"
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
+        self._floor = RoundingFloor(False)
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = 0
         self._state: DynamicState | None = None
         self._factored = False
@@ -274,6 +326,7 @@ class GeneralizedAlphaStepper:
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system.size)
+        self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
@@ -438,12 +491,13 @@ class GeneralizedAlphaStepper:
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
-                if correction <= (stall if fresh else NOISE * stall / STALL):
+                if correction <= (stall if fresh else self._floor.noise(NOISE * stall / STALL)):
                     # at the rounding floor of the (ill-conditioned) matrix: the ratio of two
                     # corrections there is noise, not a slow contraction
                     settled = True
                     self.n_stalls += 1
                     stalled = stall
+                    self._floor.measured(correction, fresh)
                 elif fresh:
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
@@ -452,6 +506,7 @@ class GeneralizedAlphaStepper:
                 fresh = False
             last = correction
         self._project_velocities(q, v, lam, coefficients, h)
+        self._floor.step()
         pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
@@ -495,11 +550,13 @@ class GeneralizedAlphaStepper:
         residual = goal.copy()
         last, fresh = math.inf, False
         coordinate_weights = self.pattern.coordinate_weights
+        _, _, gamma, beta = self.integrator.coefficients
+        noise = PROJECTION_NOISE * gamma / (h * beta) * self._floor.level  # Newton's velocity noise, γ′ · floor
         for _ in range(PROJECTION_ITERATIONS):
             increment = self.solver.solve(residual)
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
-            if size <= bound:
+            if size <= bound or (size <= noise and self._drift_left(v, solution) <= bound):
                 v -= solution[:n]
                 return
             if size > REFINEMENT_CONTRACTION * last:
@@ -515,11 +572,17 @@ class GeneralizedAlphaStepper:
             last = size
             residual = goal - matrix @ solution
         # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
-        drift = system.velocity_drift(v - solution[:n])[kept]
-        if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
+        if self._drift_left(v, solution) <= bound:
             v -= solution[:n]
             return
         raise _StepFailed(f"the velocity projection does not converge (increment {size:.3g})")
+
+    def _drift_left(self, v, solution) -> float:
+        """The weighted drift ‖Φq (v − Δv) + Φt‖ of the kept equations after a projection's Δv."""
+        system = self.system
+        kept = system.kept_rows
+        drift = system.velocity_drift(v - solution[: system.n])[kept]
+        return _dynamics_kernels.weighted_norm(drift, self.assembler.weights[kept])
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
