@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .._jit import JIT
@@ -270,6 +271,80 @@ def hessian_entries(primitives):
 
 
 # ---------------------------------------------------------------------- assembly and forces
+#: Rows of the saddle pattern with more entries than this are sorted by `np.argsort`
+#: (a hub's coordinate, coupled to many equations), shorter ones by insertion.
+INSERTION_SORT_MAX = 32
+
+
+@njit(**JIT)
+def _saddle_row(index, n):
+    """Triplet index → row of S: coordinates as they are, the ground's (n .. n + 2) and
+    left-out equations (negative) −1, kept equations shifted by the ground's three."""
+    if index < n:
+        return index
+    if index < n + 3:
+        return -1
+    return index - 3
+
+
+@njit(**JIT)
+def saddle_pattern(rows, cols, n, indptr, slots):
+    """The CSR pattern of the saddle matrix from the triplets' indices, in linear time.
+
+    Triplet e goes to row ``_saddle_row(rows[e])``, column ``_saddle_row(cols[e])``; fills
+    `indptr` (size + 1) and `slots` (each triplet's position in the CSR values; ``nnz``,
+    the discard slot, for the ground's and left-out equations' triplets) and returns the
+    column indices, sorted and unique within rows.  A counting sort by row, each row's
+    entries sorted by column, duplicates merged: a few arrays of the triplets' size
+    (np.unique on 64-bit keys took several times that).
+    """
+    size = indptr.size - 1
+    start = np.zeros(size + 1, dtype=np.int64)
+    for e in range(rows.size):
+        r, c = _saddle_row(rows[e], n), _saddle_row(cols[e], n)
+        if r >= 0 and c >= 0:
+            start[r + 1] += 1
+    for r in range(size):
+        start[r + 1] += start[r]
+    columns = np.empty(start[size], dtype=np.int64)
+    entries = np.empty(start[size], dtype=np.int64)
+    fill = start[:size].copy()
+    for e in range(rows.size):
+        r, c = _saddle_row(rows[e], n), _saddle_row(cols[e], n)
+        if r >= 0 and c >= 0:
+            columns[fill[r]] = c
+            entries[fill[r]] = e
+            fill[r] += 1
+        else:
+            slots[e] = -1
+    nnz = 0
+    for r in range(size):
+        first, end = start[r], start[r + 1]
+        if end - first > INSERTION_SORT_MAX:
+            order = np.argsort(columns[first:end], kind="mergesort")
+            columns[first:end] = columns[first:end][order]
+            entries[first:end] = entries[first:end][order]
+        else:
+            for position in range(first + 1, end):
+                column, moved = columns[position], entries[position]
+                before = position - 1
+                while before >= first and columns[before] > column:
+                    columns[before + 1], entries[before + 1] = columns[before], entries[before]
+                    before -= 1
+                columns[before + 1], entries[before + 1] = column, moved
+        indptr[r] = nnz
+        for position in range(first, end):
+            if position == first or columns[position] != columns[position - 1]:
+                columns[nnz] = columns[position]  # nnz <= position: compaction in place
+                nnz += 1
+            slots[entries[position]] = nnz - 1
+    indptr[size] = nnz
+    for e in range(rows.size):
+        if slots[e] < 0:
+            slots[e] = nnz
+    return columns[:nnz].copy()
+
+
 @njit(**JIT)
 def scatter_add(vals, slots, data):
     """``data[:] = 0``, then ``data[slots[e]] += vals[e]``; the last entry of `data` is the

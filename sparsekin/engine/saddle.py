@@ -68,21 +68,18 @@ class SaddlePattern:
     def from_triplets(cls, rows: np.ndarray, cols: np.ndarray, n: int, size: int) -> SaddlePattern:
         """The pattern of triplets whose indices are coordinates (the ground's three,
         ``n .. n + 2``, discarded) or ``n + 3 + k`` for the k-th kept equation (negative:
-        left out, discarded)."""
-        rows, cols = _saddle_index(rows, n), _saddle_index(cols, n)
-        valid = (rows >= 0) & (cols >= 0)
-        keys = rows[valid] * np.int64(size) + cols[valid]
-        unique, inverse = np.unique(keys, return_inverse=True)
-        slots = np.full(rows.size, unique.size, dtype=np.int64)
-        slots[valid] = inverse
+        left out, discarded); indices and slots 32-bit where they fit."""
+        dtype = _index_dtype(max(size, rows.size))
         indptr = np.zeros(size + 1, dtype=np.int64)
-        np.cumsum(np.bincount(unique // size, minlength=size), out=indptr[1:])
-        return cls(size, indptr, np.ascontiguousarray(unique % size), slots)
+        slots = np.empty(rows.size, dtype=dtype)
+        indices = kernels.saddle_pattern(rows, cols, n, indptr, slots)
+        index = _index_dtype(max(size, indices.size))  # one dtype for both: scipy keeps them as they are
+        return cls(size, indptr.astype(index), indices.astype(index), slots)
 
 
-def _saddle_index(index: np.ndarray, n: int) -> np.ndarray:
-    """Triplet index → row of S: coordinates as they are, the ground's −1, equations shifted."""
-    return np.where(index < n, index, np.where(index < n + 3, -1, index - 3))
+def _index_dtype(largest: int) -> type:
+    """int32 when every index fits (half the memory), int64 otherwise."""
+    return np.int32 if largest < np.iinfo(np.int32).max - 1 else np.int64
 
 
 class DynamicSystem:
@@ -136,8 +133,9 @@ class DynamicSystem:
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
         if self.actuators is not None:
             count += kernels.hessian_entries(self.actuators.equations.primitives)
-        self._rows = np.zeros(count, dtype=np.int64)
-        self._cols = np.zeros(count, dtype=np.int64)
+        index = _index_dtype(n + 3 + m)
+        self._rows = np.zeros(count, dtype=index)
+        self._cols = np.zeros(count, dtype=index)
         self._vals = np.zeros(count)
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
