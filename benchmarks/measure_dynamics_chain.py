@@ -116,17 +116,16 @@ def exudyn_row(bodies: int, steps: int) -> dict:
 
 
 def table(accuracy: bool, sizes=SIZES) -> list[dict]:
-    rows = []
-    for bodies, steps in sizes:
-        for make in (lambda: sparsekin_row("kinematic", bodies, steps), lambda: sparsekin_row("dynamic", bodies, steps),
-                     lambda: exudyn_row(bodies, steps)):  # fmt: skip
-            rows.append(make())
-            print(json.dumps(rows[-1]), flush=True)
+    """Every size, kinematic, dynamic and Exudyn in turn; with `accuracy`, the dynamic run and
+    Exudyn's over `ACCURACY_STEPS` steps at the largest size."""
+    plan = [(analysis, bodies, steps, False) for bodies, steps in sizes for analysis in ("kinematic", "dynamic", "exudyn")]
     if accuracy:
-        bodies = sizes[-1][0]
-        for make in (lambda: sparsekin_row("dynamic", bodies, ACCURACY_STEPS), lambda: exudyn_row(bodies, ACCURACY_STEPS)):
-            rows.append({**make(), "accuracy_run": True})
-            print(json.dumps(rows[-1]), flush=True)
+        plan += [(analysis, sizes[-1][0], ACCURACY_STEPS, True) for analysis in ("dynamic", "exudyn")]
+    rows = []
+    for analysis, bodies, steps, accuracy_run in plan:
+        row = exudyn_row(bodies, steps) if analysis == "exudyn" else sparsekin_row(analysis, bodies, steps)
+        rows.append({**row, "accuracy_run": accuracy_run})
+        print(json.dumps(rows[-1]), flush=True)
     return rows
 
 

@@ -157,7 +157,11 @@ class DynamicSystem:
         """Phi and Phi_q at `coordinates` (`assembler.residual`, `assembler.values`); returns
         the weighted norm of Phi on the kept rows."""
         self.assembler.fill_residual_jacobian(coordinates)
-        return kernels.weighted_norm(self.assembler.residual[self.kept_rows], self.assembler.weights[self.kept_rows])
+        return kernels.weighted_norm(self.kept(self.assembler.residual), self.kept(self.assembler.weights))
+
+    def kept(self, values: np.ndarray) -> np.ndarray:
+        """`values` of every equation on the kept rows only: itself when all are kept (no copy)."""
+        return values if self.kept_rows.size == self.pattern.n_equations else values[self.kept_rows]
 
     def velocity_drift(self, velocities: np.ndarray) -> np.ndarray:
         """Phi_q qd + Phi_t of every equation, at the last `fill_constraints`."""
@@ -190,7 +194,8 @@ class DynamicSystem:
         kernels.add_transposed_product(p.indptr, p.indices, values, multipliers, out)
         return out
 
-    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+    def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
+        """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
         self._load(coordinates, velocities, accelerations)
         arrays, p = self.loads.arrays, self.pattern
         rows, cols, vals = self._rows, self._cols, self._vals
@@ -207,6 +212,11 @@ class DynamicSystem:
             np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
             e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
                                                 self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
+        return e
+
+    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+        rows, cols, vals, p = self._rows, self._cols, self._vals, self.pattern
+        e = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
         e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
                                              rows, cols, vals, e)  # fmt: skip
         kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
@@ -219,6 +229,18 @@ class DynamicSystem:
         self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c, regularization)
         kernels.scatter_add(self._vals, self.saddle.slots, self._data)
         return self.matrix
+
+    def product(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
+                x: np.ndarray, out: np.ndarray) -> np.ndarray:  # fmt: skip
+        """``out = S x`` for S of `fill_matrix` (no regularization) at the state given, without
+        assembling S: the triplets of ``a M + b C_t + c K_t`` times x's coordinates, and Φq of
+        the last `fill_constraints`; returns `out` (shape (size,)).  (The velocity projection's
+        residual: a third of the work of filling S and multiplying.)"""
+        count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        p = self.pattern
+        kernels.saddle_product(self._rows, self._cols, self._vals, count, self.n, p.indptr, p.indices,
+                               self.assembler.values, self.kept_row, x, out)  # fmt: skip
+        return out
 
     # ------------------------------------------------------------------ energy
     def energies(self, coordinates, velocities) -> tuple[float, float, float]:

@@ -326,6 +326,7 @@ class GeneralizedAlphaStepper:
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system.size)
+        self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
         self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
@@ -389,7 +390,7 @@ class GeneralizedAlphaStepper:
             if step < self.max_step and good >= GROWTH_AFTER:
                 step, good = min(2.0 * step, self.max_step), 0
         self._state = self._state._replace(step=step)
-        self._publish()
+        self._publish(self._constraint_norm)
         return self.n_newton - before
 
     def linearization(self) -> Linearization:
@@ -419,12 +420,13 @@ class GeneralizedAlphaStepper:
         return StepperStats(solver.n_factorizations, solver.n_solves, solver.n_refactorizations, self.n_subdivisions,
                             self.path, self.redundant_labels)  # fmt: skip
 
-    def _publish(self) -> None:
-        """Φ and Φq refilled at the state's q (what `linearization` publishes), and the
-        state's energy and drift (`recorded`)."""
+    def _publish(self, phi: float | None = None) -> None:
+        """Φ and Φq at the state's q (what `linearization` publishes; refilled unless `phi`,
+        their norm, says a step left them there), and the state's energy and drift
+        (`recorded`)."""
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
-        phi = system.fill_constraints(q)
+        phi = system.fill_constraints(q) if phi is None else phi
         drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
@@ -443,16 +445,15 @@ class GeneralizedAlphaStepper:
         beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
         gamma_prime = gamma / (h * beta)
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
-        # predictor: the accelerations of the last step
-        a = state.accelerations.copy()
-        pseudo = ((1.0 - alpha_f) * a + alpha_f * state.accelerations - alpha_m * state.pseudo_accelerations) / (1.0 - alpha_m)
-        q = state.coordinates + h * state.velocities + h * h * ((0.5 - beta) * state.pseudo_accelerations + beta * pseudo)
-        v = state.velocities + h * ((1.0 - gamma) * state.pseudo_accelerations + gamma * pseudo)
+        # predictor: the accelerations of the last step (new arrays: the state keeps them)
+        q, v, a = np.empty(n), np.empty(n), np.empty(n)
+        _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
+                                  alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
         weights = self.pattern.coordinate_weights
-        rhs = np.zeros(system.size)
-        force = np.zeros(n)
+        rhs, force, delta = self._work
+        all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
         # as velocity errors (γ′ δq), within the tolerance, or at the rounding floor of q.
@@ -472,20 +473,16 @@ class GeneralizedAlphaStepper:
             if not self._factored:
                 self._factor(q, v, a, lam, coefficients)
                 fresh = True
-            np.multiply(force, -1.0 / beta_prime, out=rhs[:n])
-            np.negative(system.assembler.residual[kept], out=rhs[n:])
+            _dynamics_kernels.newton_rhs(force, -1.0 / beta_prime, system.assembler.residual, kept, all_kept, rhs)
             try:
-                delta = solver.solve(rhs)
+                solver.solve(rhs, out=delta)
             except SingularMatrix as error:
                 raise _StepFailed(str(error)) from None
             self.n_newton += 1
             correction = _dynamics_kernels.weighted_norm(delta[:n], weights)
             if not math.isfinite(correction):
                 raise _StepFailed("non-finite correction")
-            q += delta[:n]
-            v += gamma_prime * delta[:n]
-            a += beta_prime * delta[:n]
-            lam[kept] += beta_prime * delta[n:]
+            _dynamics_kernels.newton_update(delta, gamma_prime, beta_prime, kept, all_kept, q, v, a, lam)
             if iteration > 0:
                 rate = correction / last
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
@@ -507,12 +504,15 @@ class GeneralizedAlphaStepper:
             last = correction
         self._project_velocities(q, v, lam, coefficients, h)
         self._floor.step()
-        pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
+        pseudo = np.empty(n)
+        _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
+                                               beta, pseudo)  # fmt: skip
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
         self.n_steps += 1
+        self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
 
     def _factor(self, q, v, a, lam, coefficients) -> None:
@@ -535,19 +535,20 @@ class GeneralizedAlphaStepper:
         matrix at q, refactored when the refinement stops contracting: a correction along
         stale normals would turn part of it along the motion, an energy error that adds
         up step after step.  The drift left is at most ``tolerance · h · max(1, ‖v‖)``:
-        a drift d comes back as a velocity kick of about 2 d in the next step."""
-        system, n, kept = self.system, self.system.n, self.system.kept_rows
-        weights = self.assembler.weights[kept]
+        a drift d comes back as a velocity kick of about 2 d in the next step.  On the
+        large path the refinement also stops at Newton's velocity noise (`RoundingFloor`),
+        and forms its residual without assembling the matrix (`DynamicSystem.product`)."""
+        system, n = self.system, self.system.n
+        weights = system.kept(self.assembler.weights)
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
         bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
-        drift = system.velocity_drift(v)[kept]
+        drift = system.kept(system.velocity_drift(v))
         if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
             return
-        matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
         goal = np.zeros(system.size)
         goal[n:] = drift
         solution = np.zeros(system.size)
-        residual = goal.copy()
+        residual, product, matrix = goal.copy(), np.empty(system.size), None
         last, fresh = math.inf, False
         coordinate_weights = self.pattern.coordinate_weights
         _, _, gamma, beta = self.integrator.coefficients
@@ -563,13 +564,17 @@ class GeneralizedAlphaStepper:
                 if fresh:
                     break
                 self._factor(q, v, np.zeros(n), lam, coefficients)
-                matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
-                fresh = True
+                matrix, fresh = None, True
                 solution[:] = 0.0
                 residual[:] = goal
                 last = math.inf
                 continue
             last = size
+            if self._floor.enabled:  # the large path: S x without assembling S
+                residual = goal - system.product(q, v, np.zeros(n), lam, *coefficients, solution, product)
+                continue
+            if matrix is None:
+                matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
             residual = goal - matrix @ solution
         # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
         if self._drift_left(v, solution) <= bound:
@@ -580,9 +585,8 @@ class GeneralizedAlphaStepper:
     def _drift_left(self, v, solution) -> float:
         """The weighted drift ‖Φq (v − Δv) + Φt‖ of the kept equations after a projection's Δv."""
         system = self.system
-        kept = system.kept_rows
-        drift = system.velocity_drift(v - solution[: system.n])[kept]
-        return _dynamics_kernels.weighted_norm(drift, self.assembler.weights[kept])
+        drift = system.kept(system.velocity_drift(v - solution[: system.n]))
+        return _dynamics_kernels.weighted_norm(drift, system.kept(self.assembler.weights))
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
