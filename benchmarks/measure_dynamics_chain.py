@@ -108,8 +108,9 @@ def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
 
 
 def exudyn_row(bodies: int, steps: int) -> dict:
+    # steps + 2 steps, as sparsekin's (two before the clock): B0's error over the same horizon
     row = in_subprocess(str(ROOT / "benchmarks" / "peers" / "exudyn_models.py"), "timing", "chain",
-                        "--bodies", str(bodies), "--steps", str(steps + 1), "--repeat", "1")  # fmt: skip
+                        "--bodies", str(bodies), "--steps", str(steps + 2), "--repeat", "1")  # fmt: skip
     return {"analysis": "exudyn", "bodies": bodies, "steps": steps, "seconds_per_step": row["seconds_per_step"],
             "start_seconds": row["start_seconds"], "peak_memory_mb": row["peak_memory_mb"],
             "b0_error_m": row["b0_error_m"], "load_average": row["load_average"]}  # fmt: skip
@@ -130,24 +131,54 @@ def table(accuracy: bool, sizes=SIZES) -> list[dict]:
 
 
 def markdown(rows: list[dict]) -> str:
-    lines = ["| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | peak dynamic | peak Exudyn |",
-             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    """The table of a run, with the ratios of the same run, then the accuracy runs and the load."""
+    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | peak kinematic "
+              "| peak dynamic | peak Exudyn |")  # fmt: skip
+    lines = [header, "|---|---|---|---|---|---|---|---|---|"]
     timed = [row for row in rows if not row.get("accuracy_run")]
     for bodies in sorted({row["bodies"] for row in timed}):
         by = {row["analysis"]: row for row in timed if row["bodies"] == bodies}
         kin, dyn, exu = (by.get(a, {}).get("seconds_per_step") for a in ("kinematic", "dynamic", "exudyn"))
-        cells = [f"{bodies}", *(f"{t * 1e3:.3g} ms" if t else "" for t in (kin, dyn)),
-                 f"{dyn / kin:.2f}×" if kin and dyn else "", f"{exu * 1e3:.4g} ms" if exu else "",
-                 f"{exu / dyn:.1f}×" if exu and dyn else "",
-                 *(f"{by[a]['peak_memory_mb']:.0f} MB" if a in by else "" for a in ("dynamic", "exudyn"))]  # fmt: skip
+        cells = [f"{bodies}", *(_seconds(t) for t in (kin, dyn)), f"{dyn / kin:.2f}×" if kin and dyn else "",
+                 _seconds(exu), f"{exu / dyn:.1f}×" if exu and dyn else "",
+                 *(f"{by[a]['peak_memory_mb']:.0f} MB" if a in by else "" for a in ("kinematic", "dynamic", "exudyn"))]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     for row in rows:
         if row.get("accuracy_run"):
             lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps: B0 error "
-                         f"{row['b0_error_m']:.2e} m, {row['seconds_per_step'] * 1e3:.4g} ms per step")  # fmt: skip
+                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step")  # fmt: skip
     loads = [row["load_average"] for row in rows if "load_average" in row]
-    lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
+    if loads:
+        lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
     return "\n".join(lines)
+
+
+def _seconds(value: float | None) -> str:
+    return "" if value is None else f"{value * 1e3:.3g} ms"
+
+
+def results_section(rows: list[dict]) -> list[str]:
+    """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`."""
+    return [
+        "## Forward dynamics: the N-four-bar chain (issue 25; `measure_dynamics_chain.py`)",
+        "",
+        "Not part of the pytest-benchmark run: `benchmarks/dynamics_chain.jsonl` holds the lines of",
+        "`python3 benchmarks/measure_dynamics_chain.py table --accuracy --out benchmarks/dynamics_chain.jsonl`",
+        "(10^3–10^5 bodies) and of `python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001",
+        "--steps 20` (10^6, alone). One fresh process per measurement, one after the other: sparsekin's",
+        "kinematic step of the twin chain (`four_bar_chain`, one driver), its dynamic step of",
+        "`n_four_bar` under gravity (generalized-α, fixed 1 ms steps, one output sample per step) and",
+        "Exudyn 1.13.6's (generalized-α, modified Newton, its sparse LU; benchmarks/peers/). Time per",
+        "step: the mean over the timed steps after two; peak: the process's resident set (≈ 130 MB of",
+        "it the interpreter with sparsekin and numba, 44 MB with Exudyn). B0 error: against the exact",
+        "answer (every crank moves as one four-bar), largest over the steps taken.",
+        "",
+        *markdown(rows).splitlines(),
+    ]
+
+
+#: The lines `table --out` wrote for RESULTS.md.
+DYNAMICS_CHAIN = Path(__file__).resolve().with_name("dynamics_chain.jsonl")
 
 
 def main(argv=None) -> None:

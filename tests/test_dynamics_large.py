@@ -18,9 +18,10 @@ from dynamics_reference import n_four_bar_b0
 from sparsekin.engine import _dynamics_kernels
 from sparsekin.engine.discretization import discretize
 from sparsekin.engine.saddle import DynamicSystem
-from sparsekin.solve.dynamics import FLOOR_STEPS, RoundingFloor, run_dynamics
+from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
+from sparsekin.solve.rounding_floor import FLOOR_STEPS, RoundingFloor
 from sparsekin.testset import n_four_bar
 
 

@@ -137,6 +137,7 @@ class DynamicSystem:
         self._rows = np.zeros(count, dtype=index)
         self._cols = np.zeros(count, dtype=index)
         self._vals = np.zeros(count)
+        self._block_count = 0  # triplets of the coordinate block at the last `product`
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
         drawn = pattern.initial_coordinates
@@ -231,12 +232,15 @@ class DynamicSystem:
         return self.matrix
 
     def product(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
-                x: np.ndarray, out: np.ndarray) -> np.ndarray:  # fmt: skip
+                x: np.ndarray, out: np.ndarray, *, same_state: bool = False) -> np.ndarray:  # fmt: skip
         """``out = S x`` for S of `fill_matrix` (no regularization) at the state given, without
         assembling S: the triplets of ``a M + b C_t + c K_t`` times x's coordinates, and Φq of
         the last `fill_constraints`; returns `out` (shape (size,)).  (The velocity projection's
-        residual: a third of the work of filling S and multiplying.)"""
-        count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        residual: a third of the work of filling S and multiplying.)  `same_state`: the state
+        and coefficients of the last call, and no fill since: its triplets are reused."""
+        if not same_state:
+            self._block_count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        count = self._block_count
         p = self.pattern
         kernels.saddle_product(self._rows, self._cols, self._vals, count, self.n, p.indptr, p.indices,
                                self.assembler.values, self.kept_row, x, out)  # fmt: skip

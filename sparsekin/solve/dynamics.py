@@ -63,6 +63,7 @@ from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
+from .rounding_floor import RoundingFloor
 from .run import run
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
@@ -103,11 +104,6 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
-#: On the large path (`RefactorSolver`), a rounding floor measured by a fresh factorization
-#: is trusted for this many steps (`RoundingFloor`), then measured again.
-FLOOR_STEPS = 100
-#: A held matrix's correction within this multiple of the measured floor is noise.
-FLOOR_MARGIN = 4.0
 #: The velocity projection stops refining once its increment is below this fraction of
 #: Newton's velocity noise γ′ · floor (and the drift is at the tolerance).
 PROJECTION_NOISE = 0.1
@@ -174,49 +170,6 @@ class DynamicState(NamedTuple):
 
 class _StepFailed(Exception):
     pass
-
-
-class RoundingFloor:
-    """The size of the Newton corrections below which a long model's iterates are rounding
-    noise, as measured on the large path (`RefactorSolver`; 0 = not known): the correction
-    at which Newton last stalled with a fresh matrix (`STALL`), or lower with a held one
-    (`NOISE`), trusted for `FLOOR_STEPS` steps.
-
-    A chain of 10^5 bodies in absolute coordinates carries the rounding of its coordinates
-    (≈ 5·10^4 m × 1e-16) along its length: its Newton corrections stop falling at
-    4e-10–7e-10 at every step, held or fresh matrix alike, above the held matrix's noise
-    allowance ``NOISE √n`` times the rounding of q, so that the held factorization was
-    refactored at every step for nothing.  Once the floor is known, a held matrix's
-    correction within `FLOOR_MARGIN` times it is noise too, and the velocity projection
-    stops refining once its increment is below `PROJECTION_NOISE` times the velocity noise
-    γ′ · floor that Newton leaves anyway and the drift is at the tolerance.  When Newton
-    stops is otherwise unchanged; small models (dense path) never measure a floor.
-    """
-
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
-        self.level = 0.0
-        self._age = 0
-
-    def measured(self, correction: float, fresh: bool) -> None:
-        """Newton stalled at `correction`, with a `fresh` matrix (a measurement of the floor)
-        or a held one (taken as a floor only downwards: it cannot ratchet up)."""
-        if not self.enabled:
-            return
-        if fresh or self.level == 0.0:
-            self.level, self._age = correction, 0
-        else:
-            self.level = min(self.level, correction)
-
-    def step(self) -> None:
-        """One step taken: the floor ages, forgotten after `FLOOR_STEPS`."""
-        self._age += 1
-        if self._age > FLOOR_STEPS:
-            self.level = 0.0
-
-    def noise(self, held_threshold: float) -> float:
-        """The largest correction of a held matrix that is noise."""
-        return max(held_threshold, FLOOR_MARGIN * self.level)
 
 
 class GeneralizedAlphaStepper:
@@ -549,7 +502,7 @@ class GeneralizedAlphaStepper:
         goal[n:] = drift
         solution = np.zeros(system.size)
         residual, product, matrix = goal.copy(), np.empty(system.size), None
-        last, fresh = math.inf, False
+        last, fresh, filled, zeros = math.inf, False, False, np.zeros(n)
         coordinate_weights = self.pattern.coordinate_weights
         _, _, gamma, beta = self.integrator.coefficients
         noise = PROJECTION_NOISE * gamma / (h * beta) * self._floor.level  # Newton's velocity noise, γ′ · floor
@@ -564,14 +517,15 @@ class GeneralizedAlphaStepper:
                 if fresh:
                     break
                 self._factor(q, v, np.zeros(n), lam, coefficients)
-                matrix, fresh = None, True
+                matrix, fresh, filled = None, True, False
                 solution[:] = 0.0
                 residual[:] = goal
                 last = math.inf
                 continue
             last = size
             if self._floor.enabled:  # the large path: S x without assembling S
-                residual = goal - system.product(q, v, np.zeros(n), lam, *coefficients, solution, product)
+                residual = goal - system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled)
+                filled = True
                 continue
             if matrix is None:
                 matrix = system.fill_matrix(q, v, np.zeros(n), lam, *coefficients)
