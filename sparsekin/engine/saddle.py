@@ -171,7 +171,11 @@ class DynamicSystem:
     # ------------------------------------------------------------------ motion
     def _load(self, coordinates, velocities, accelerations) -> None:
         self._q[:-3], self._qd[:-3], self._qdd[:-3] = coordinates, velocities, accelerations
-        _kernels.fill_body_turns(self._q, self._turns)
+        filled, _, turns = self.assembler.filled_motion()
+        if np.array_equal(filled, self._q):  # the constraints' last refill was at these coordinates
+            np.copyto(self._turns, turns)
+        else:
+            _kernels.fill_body_turns(self._q, self._turns)
 
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
