@@ -292,7 +292,8 @@ class GeneralizedAlphaStepper:
         try:
             self.solver.factor(matrix)
             given = _initial_velocities(self.mechanism, n)
-            rhs = np.concatenate([matrix[:n, :n] @ given, system.assembler.velocity_rhs[kept]])
+            momenta = (matrix @ np.concatenate([given, np.zeros(kept.size)]))[:n]  # M given, without a copy of M
+            rhs = np.concatenate([momenta, system.assembler.velocity_rhs[kept]])
             v = self.solver.solve(rhs)[:n].copy()
             system.fill_constraints(q)
             applied = system.applied_forces(q, v, np.zeros(n), np.zeros(n))
@@ -421,7 +422,7 @@ class GeneralizedAlphaStepper:
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
             system.residual(q, v, a, lam, force)
-            if not (math.isfinite(phi_norm) and np.all(np.isfinite(force))):
+            if not (math.isfinite(phi_norm) and math.isfinite(_dynamics_kernels.weighted_norm(force, weights))):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
                 self._factor(q, v, a, lam, coefficients)
