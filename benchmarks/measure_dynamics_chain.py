@@ -100,7 +100,10 @@ def in_subprocess(*arguments: str) -> dict:
     command = [sys.executable, "-W", "ignore", *arguments]
     output = subprocess.run(command, check=True, capture_output=True, text=True, cwd=ROOT,
                             env={**os.environ, "PYTHONPATH": str(ROOT)})  # fmt: skip
-    return {**json.loads(output.stdout.strip().splitlines()[-1]), "load_average": os.getloadavg()[0]}
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
+                            cwd=ROOT).stdout.strip()  # fmt: skip
+    return {**json.loads(output.stdout.strip().splitlines()[-1]), "load_average": os.getloadavg()[0],
+            "utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "commit": commit}  # fmt: skip
 
 
 def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
@@ -113,7 +116,8 @@ def exudyn_row(bodies: int, steps: int) -> dict:
                         "--bodies", str(bodies), "--steps", str(steps + 2), "--repeat", "1")  # fmt: skip
     return {"analysis": "exudyn", "bodies": bodies, "steps": steps, "seconds_per_step": row["seconds_per_step"],
             "start_seconds": row["start_seconds"], "peak_memory_mb": row["peak_memory_mb"],
-            "b0_error_m": row["b0_error_m"], "load_average": row["load_average"]}  # fmt: skip
+            "b0_error_m": row["b0_error_m"], "load_average": row["load_average"], "utc": row["utc"],
+            "commit": row["commit"]}  # fmt: skip
 
 
 def table(accuracy: bool, sizes=SIZES) -> list[dict]:
@@ -150,11 +154,17 @@ def markdown(rows: list[dict]) -> str:
     loads = [row["load_average"] for row in rows if "load_average" in row]
     if loads:
         lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
+    runs = sorted({(row["utc"], row["commit"]) for row in rows if "utc" in row})
+    if runs:
+        commits = ", ".join(sorted({commit for _, commit in runs}))
+        lines.append(f"Taken {runs[0][0]} to {runs[-1][0]} UTC at commit {commits} (2 cores shared by six sessions).")
     return "\n".join(lines)
 
 
 def _seconds(value: float | None) -> str:
-    return "" if value is None else f"{value * 1e3:.3g} ms"
+    if value is None:
+        return ""
+    return f"{value:.3g} s" if value >= 1.0 else f"{value * 1e3:.3g} ms"
 
 
 def results_section(rows: list[dict]) -> list[str]:
