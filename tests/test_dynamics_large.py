@@ -7,13 +7,13 @@ chain cheap, each against an independent computation.
 * `RoundingFloor`'s rules (measured, only downwards from a held matrix, forgotten);
 * the N-four-bar chain on the refactorization path against its exact answer (every crank
   moves as one four-bar: tests/dynamics_reference.py), with the dense path's motion and no
-  drift at any sample.
+  drift at any sample, and through five singular (flat) crossings.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from dynamics_reference import n_four_bar_b0
+from dynamics_reference import n_four_bar_b0, n_four_bar_motion
 
 from sparsekin.engine import _dynamics_kernels
 from sparsekin.engine.discretization import discretize
@@ -82,6 +82,17 @@ def test_rounding_floor_rules():
     assert off.level == 0.0 and off.noise(1e-12) == 1e-12  # the dense path never has one
 
 
+def test_regularization_only_after_a_failed_step_on_the_large_path():
+    large, dense = RoundingFloor(True), RoundingFloor(False)
+    assert large.regularization(1e-10) == 0.0 and dense.regularization(1e-10) == 1e-10
+    large.failed()
+    assert large.regularization(1e-10) == 1e-10
+    large.recovered()
+    assert large.regularization(1e-10) == 0.0
+    dense.recovered()
+    assert dense.regularization(1e-10) == 1e-10
+
+
 def test_chain_on_the_refactor_path_is_exact_and_does_not_drift():
     loops = 60  # 121 bodies
     times = np.linspace(0.0, 0.1, 11)
@@ -97,3 +108,16 @@ def test_chain_on_the_refactor_path_is_exact_and_does_not_drift():
     assert np.abs(sparse.point("B0").position - exact).max() < 1e-6
     np.testing.assert_allclose(sparse.coordinates, dense.coordinates, rtol=0.0, atol=1e-10 * 2 * loops)
     assert sparse.energy.drift_position.max() <= 1e-10 and sparse.energy.drift_velocity.max() <= 1e-10
+
+
+def test_chain_on_the_refactor_path_passes_its_singular_crossings():
+    """N = 4 over 5 s (five flat crossings, where Φq loses rank), as tests/test_dynamics.py
+    checks it on the dense path: every crank on the exact angle within 1e-3 rad."""
+    times = np.linspace(0.0, 5.0, 101)
+    options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+    result = run_dynamics(discretize(n_four_bar(4)), times, options, DynamicsOptions(1e-3), Request(energy=True))
+    assert result.linear_solver == "refactor"
+    cranks = np.concatenate([result.coordinates[:, 2:3], result.coordinates[:, 5::6]], axis=1)
+    assert np.abs(cranks - n_four_bar_motion(times, 4).angle[:, None]).max() < 1e-3
+    assert np.ptp(cranks, axis=1).max() < 1e-9
+    assert result.energy.drift_position.max() <= 1e-10 and result.energy.drift_velocity.max() <= 1e-10

@@ -336,6 +336,7 @@ class GeneralizedAlphaStepper:
                 good = 0
                 self.n_subdivisions += 1
                 self._factored = False
+                self._floor.failed()
                 if step < self.max_step * 0.5**MAX_HALVINGS:
                     raise ConvergenceError(f"the step from t = {now:.9g} s failed after {MAX_HALVINGS} halvings "
                                            f"({failure})", time=now + h, driver_values={}) from None  # fmt: skip
@@ -343,6 +344,8 @@ class GeneralizedAlphaStepper:
             good += 1
             if step < self.max_step and good >= GROWTH_AFTER:
                 step, good = min(2.0 * step, self.max_step), 0
+            if step == self.max_step:
+                self._floor.recovered()
         self._state = self._state._replace(step=step)
         self._publish(self._constraint_norm)
         return self.n_newton - before
@@ -470,7 +473,8 @@ class GeneralizedAlphaStepper:
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
 
     def _factor(self, q, v, a, lam, coefficients) -> None:
-        self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, self._regularization))
+        regularization = self._floor.regularization(self._regularization)
+        self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, regularization))
 
     def _factor_filled(self, matrix) -> None:
         try:

@@ -30,12 +30,34 @@ class RoundingFloor:
     stops refining once its increment is below ``PROJECTION_NOISE`` times the velocity noise
     γ′ · floor that Newton leaves anyway and the drift is at the tolerance.  When Newton
     stops is otherwise unchanged; small models (dense path) never measure a floor.
+
+    The same object says whether the large path's iteration matrix carries the (2, 2)
+    regularization −r I (`regularization`): only from a failed step until the step is back
+    at its largest.  r changes the solution of the saddle system by about
+    r ‖(Φq A⁻¹ Φqᵀ)⁻¹‖, which grows as a chain's length squared: 0.05 at 10^5 bodies (the
+    projection's refinement, whose matrix has no r, contracted 20× slower for it), over 1
+    at 10^6 (the refinement diverged: a 10^6-body chain stopped at t = 10.7 ms).  Where
+    Φq loses rank for an instant, a step fails and the regularization is back.
     """
 
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled
         self.level = 0.0
         self._age = 0
+        self._regularized = not enabled
+
+    def regularization(self, regularization: float) -> float:
+        """The (2, 2) regularization of the iteration matrix now: `regularization`, or 0 on
+        the large path unless a step failed lately."""
+        return regularization if self._regularized else 0.0
+
+    def failed(self) -> None:
+        """A step failed: regularize until `recovered`."""
+        self._regularized = True
+
+    def recovered(self) -> None:
+        """The step is back at its largest."""
+        self._regularized = not self.enabled
 
     def measured(self, correction: float, fresh: bool) -> None:
         """Newton stalled at `correction`, with a `fresh` matrix (a measurement of the floor)
