@@ -280,6 +280,7 @@ class GeneralizedAlphaStepper:
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system.size)
         self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
+        self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
@@ -408,7 +409,7 @@ class GeneralizedAlphaStepper:
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
-        weights = self.pattern.coordinate_weights
+        weights = self._weights
         rhs, force, delta = self._work
         all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
@@ -498,7 +499,7 @@ class GeneralizedAlphaStepper:
         and forms its residual without assembling the matrix (`DynamicSystem.product`)."""
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
-        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
+        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(self.tolerance * h * scale, ROUNDING * NOISE * scale)
         drift = system.kept(system.velocity_drift(v))
         if _dynamics_kernels.weighted_norm(drift, weights) <= bound:
@@ -508,7 +509,7 @@ class GeneralizedAlphaStepper:
         solution = np.zeros(system.size)
         residual, product, matrix = goal.copy(), np.empty(system.size), None
         last, fresh, filled, zeros = math.inf, False, False, np.zeros(n)
-        coordinate_weights = self.pattern.coordinate_weights
+        coordinate_weights = self._weights
         _, _, gamma, beta = self.integrator.coefficients
         noise = PROJECTION_NOISE * gamma / (h * beta) * self._floor.level  # Newton's velocity noise, γ′ · floor
         for _ in range(PROJECTION_ITERATIONS):
@@ -529,7 +530,8 @@ class GeneralizedAlphaStepper:
                 continue
             last = size
             if self._floor.enabled:  # the large path: S x without assembling S
-                residual = goal - system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled)
+                np.subtract(goal, system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled),
+                            out=residual)  # fmt: skip
                 filled = True
                 continue
             if matrix is None:
