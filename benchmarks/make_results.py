@@ -21,6 +21,8 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from measure_dynamics_chain import DYNAMICS_CHAIN
+from measure_dynamics_chain import results_section as dynamics_chain_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -196,6 +198,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
     if document.get("hubs"):
         lines += ["", *_hubs(document["hubs"])]
+    if DYNAMICS_CHAIN.exists():
+        lines += ["", *dynamics_chain_section([json.loads(line) for line in DYNAMICS_CHAIN.read_text().splitlines() if line])]
     if document["others"]:
         lines += [
             "",

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .._jit import JIT
@@ -270,6 +271,80 @@ def hessian_entries(primitives):
 
 
 # ---------------------------------------------------------------------- assembly and forces
+#: Rows of the saddle pattern with more entries than this are sorted by `np.argsort`
+#: (a hub's coordinate, coupled to many equations), shorter ones by insertion.
+INSERTION_SORT_MAX = 32
+
+
+@njit(**JIT)
+def _saddle_row(index, n):
+    """Triplet index → row of S: coordinates as they are, the ground's (n .. n + 2) and
+    left-out equations (negative) −1, kept equations shifted by the ground's three."""
+    if index < n:
+        return index
+    if index < n + 3:
+        return -1
+    return index - 3
+
+
+@njit(**JIT)
+def saddle_pattern(rows, cols, n, indptr, slots):
+    """The CSR pattern of the saddle matrix from the triplets' indices, in linear time.
+
+    Triplet e goes to row ``_saddle_row(rows[e])``, column ``_saddle_row(cols[e])``; fills
+    `indptr` (size + 1) and `slots` (each triplet's position in the CSR values; ``nnz``,
+    the discard slot, for the ground's and left-out equations' triplets) and returns the
+    column indices, sorted and unique within rows.  A counting sort by row, each row's
+    entries sorted by column, duplicates merged: a few arrays of the triplets' size
+    (np.unique on 64-bit keys took several times that).
+    """
+    size = indptr.size - 1
+    start = np.zeros(size + 1, dtype=np.int64)
+    for e in range(rows.size):
+        r, c = _saddle_row(rows[e], n), _saddle_row(cols[e], n)
+        if r >= 0 and c >= 0:
+            start[r + 1] += 1
+    for r in range(size):
+        start[r + 1] += start[r]
+    columns = np.empty(start[size], dtype=np.int64)
+    entries = np.empty(start[size], dtype=np.int64)
+    fill = start[:size].copy()
+    for e in range(rows.size):
+        r, c = _saddle_row(rows[e], n), _saddle_row(cols[e], n)
+        if r >= 0 and c >= 0:
+            columns[fill[r]] = c
+            entries[fill[r]] = e
+            fill[r] += 1
+        else:
+            slots[e] = -1
+    nnz = 0
+    for r in range(size):
+        first, end = start[r], start[r + 1]
+        if end - first > INSERTION_SORT_MAX:
+            order = np.argsort(columns[first:end], kind="mergesort")
+            columns[first:end] = columns[first:end][order]
+            entries[first:end] = entries[first:end][order]
+        else:
+            for position in range(first + 1, end):
+                column, moved = columns[position], entries[position]
+                before = position - 1
+                while before >= first and columns[before] > column:
+                    columns[before + 1], entries[before + 1] = columns[before], entries[before]
+                    before -= 1
+                columns[before + 1], entries[before + 1] = column, moved
+        indptr[r] = nnz
+        for position in range(first, end):
+            if position == first or columns[position] != columns[position - 1]:
+                columns[nnz] = columns[position]  # nnz <= position: compaction in place
+                nnz += 1
+            slots[entries[position]] = nnz - 1
+    indptr[size] = nnz
+    for e in range(rows.size):
+        if slots[e] < 0:
+            slots[e] = nnz
+    return columns[:nnz].copy()
+
+
 @njit(**JIT)
 def scatter_add(vals, slots, data):
     """``data[:] = 0``, then ``data[slots[e]] += vals[e]``; the last entry of `data` is the
@@ -317,11 +392,80 @@ def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, col
 
 
 @njit(**JIT)
+def saddle_product(rows, cols, vals, count, n, indptr, indices, values, kept_row, x, out):
+    """``out = S x`` for the saddle matrix of the first `count` triplets (coordinate block;
+    the ground's entries, from `n` on, left out) and the CSR Jacobian (`indptr`, `indices`,
+    `values`; row r at ``n + kept_row[r]``, left out if −1), without assembling S."""
+    for k in range(out.size):
+        out[k] = 0.0
+    for e in range(count):
+        row, col = rows[e], cols[e]
+        if row < n and col < n:
+            out[row] += vals[e] * x[col]
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        weight, total = x[n + kept], 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            out[indices[s]] += values[s] * weight
+            total += values[s] * x[indices[s]]
+        out[n + kept] = total
+
+
+@njit(**JIT)
 def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
     """``value`` on the diagonal of rows ``first .. first + count − 1``."""
     for k in range(count):
         _put(rows, cols, vals, start + k, first + k, first + k, value)
     return start + count
+
+
+# ---------------------------------------------------------------------- generalized-α's vector updates
+# (sparsekin.solve.dynamics: the same expressions, in the same order, as NumPy's, fused)
+@njit(**JIT)
+def predict(coordinates, velocities, accelerations, pseudo, alpha_m, alpha_f, gamma, beta, h, q, v, a):
+    """The predictor of a step of size h: ``a`` = the last accelerations, ã from them, and
+    q, v by the generalized-α formulas."""
+    hh = h * h
+    for k in range(q.size):
+        a[k] = accelerations[k]
+        predicted = ((1.0 - alpha_f) * a[k] + alpha_f * accelerations[k] - alpha_m * pseudo[k]) / (1.0 - alpha_m)
+        q[k] = coordinates[k] + h * velocities[k] + hh * ((0.5 - beta) * pseudo[k] + beta * predicted)
+        v[k] = velocities[k] + h * ((1.0 - gamma) * pseudo[k] + gamma * predicted)
+
+
+@njit(**JIT)
+def newton_rhs(force, scale, residual, kept_rows, all_kept, rhs):
+    """``rhs = [scale · force; −Φ of the kept rows]``."""
+    n = force.size
+    for k in range(n):
+        rhs[k] = force[k] * scale
+    for k in range(rhs.size - n):
+        rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
+
+
+@njit(**JIT)
+def newton_update(delta, gamma_prime, beta_prime, kept_rows, all_kept, q, v, a, multipliers):
+    """``q += δq``, ``v += γ′ δq``, ``a += β′ δq``, ``λ_kept += β′ δλ``."""
+    n = q.size
+    for k in range(n):
+        q[k] += delta[k]
+        v[k] += gamma_prime * delta[k]
+        a[k] += beta_prime * delta[k]
+    for k in range(delta.size - n):
+        row = k if all_kept else kept_rows[k]
+        multipliers[row] += beta_prime * delta[n + k]
+
+
+@njit(**JIT)
+def pseudo_accelerations(q, coordinates, velocities, pseudo, h, beta, out):
+    """ã of the step that ends at q: ``(q − q_n − h v_n − h² (½ − β) ã_n) / (h² β)``."""
+    hh = h * h
+    lead = hh * (0.5 - beta)
+    scale = hh * beta
+    for k in range(q.size):
+        out[k] = (q[k] - coordinates[k] - h * velocities[k] - lead * pseudo[k]) / scale
 
 
 @njit(**JIT)

@@ -68,21 +68,18 @@ class SaddlePattern:
     def from_triplets(cls, rows: np.ndarray, cols: np.ndarray, n: int, size: int) -> SaddlePattern:
         """The pattern of triplets whose indices are coordinates (the ground's three,
         ``n .. n + 2``, discarded) or ``n + 3 + k`` for the k-th kept equation (negative:
-        left out, discarded)."""
-        rows, cols = _saddle_index(rows, n), _saddle_index(cols, n)
-        valid = (rows >= 0) & (cols >= 0)
-        keys = rows[valid] * np.int64(size) + cols[valid]
-        unique, inverse = np.unique(keys, return_inverse=True)
-        slots = np.full(rows.size, unique.size, dtype=np.int64)
-        slots[valid] = inverse
+        left out, discarded); indices and slots 32-bit where they fit."""
+        dtype = _index_dtype(max(size, rows.size))
         indptr = np.zeros(size + 1, dtype=np.int64)
-        np.cumsum(np.bincount(unique // size, minlength=size), out=indptr[1:])
-        return cls(size, indptr, np.ascontiguousarray(unique % size), slots)
+        slots = np.empty(rows.size, dtype=dtype)
+        indices = kernels.saddle_pattern(rows, cols, n, indptr, slots)
+        index = _index_dtype(max(size, indices.size))  # one dtype for both: scipy keeps them as they are
+        return cls(size, indptr.astype(index), indices.astype(index), slots)
 
 
-def _saddle_index(index: np.ndarray, n: int) -> np.ndarray:
-    """Triplet index → row of S: coordinates as they are, the ground's −1, equations shifted."""
-    return np.where(index < n, index, np.where(index < n + 3, -1, index - 3))
+def _index_dtype(largest: int) -> type:
+    """int32 when every index fits (half the memory), int64 otherwise."""
+    return np.int32 if largest < np.iinfo(np.int32).max - 1 else np.int64
 
 
 class DynamicSystem:
@@ -136,9 +133,11 @@ class DynamicSystem:
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
         if self.actuators is not None:
             count += kernels.hessian_entries(self.actuators.equations.primitives)
-        self._rows = np.zeros(count, dtype=np.int64)
-        self._cols = np.zeros(count, dtype=np.int64)
+        index = _index_dtype(n + 3 + m)
+        self._rows = np.zeros(count, dtype=index)
+        self._cols = np.zeros(count, dtype=index)
         self._vals = np.zeros(count)
+        self._block_count = 0  # triplets of the coordinate block at the last `product`
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
         drawn = pattern.initial_coordinates
@@ -159,7 +158,11 @@ class DynamicSystem:
         """Phi and Phi_q at `coordinates` (`assembler.residual`, `assembler.values`); returns
         the weighted norm of Phi on the kept rows."""
         self.assembler.fill_residual_jacobian(coordinates)
-        return kernels.weighted_norm(self.assembler.residual[self.kept_rows], self.assembler.weights[self.kept_rows])
+        return kernels.weighted_norm(self.kept(self.assembler.residual), self.kept(self.assembler.weights))
+
+    def kept(self, values: np.ndarray) -> np.ndarray:
+        """`values` of every equation on the kept rows only: itself when all are kept (no copy)."""
+        return values if self.kept_rows.size == self.pattern.n_equations else values[self.kept_rows]
 
     def velocity_drift(self, velocities: np.ndarray) -> np.ndarray:
         """Phi_q qd + Phi_t of every equation, at the last `fill_constraints`."""
@@ -168,7 +171,11 @@ class DynamicSystem:
     # ------------------------------------------------------------------ motion
     def _load(self, coordinates, velocities, accelerations) -> None:
         self._q[:-3], self._qd[:-3], self._qdd[:-3] = coordinates, velocities, accelerations
-        _kernels.fill_body_turns(self._q, self._turns)
+        filled, _, turns = self.assembler.filled_motion()
+        if np.array_equal(filled, self._q):  # the constraints' last refill was at these coordinates
+            np.copyto(self._turns, turns)
+        else:
+            _kernels.fill_body_turns(self._q, self._turns)
 
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
@@ -192,7 +199,8 @@ class DynamicSystem:
         kernels.add_transposed_product(p.indptr, p.indices, values, multipliers, out)
         return out
 
-    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+    def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
+        """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
         self._load(coordinates, velocities, accelerations)
         arrays, p = self.loads.arrays, self.pattern
         rows, cols, vals = self._rows, self._cols, self._vals
@@ -209,6 +217,11 @@ class DynamicSystem:
             np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
             e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
                                                 self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
+        return e
+
+    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+        rows, cols, vals, p = self._rows, self._cols, self._vals, self.pattern
+        e = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
         e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
                                              rows, cols, vals, e)  # fmt: skip
         kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
@@ -221,6 +234,21 @@ class DynamicSystem:
         self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c, regularization)
         kernels.scatter_add(self._vals, self.saddle.slots, self._data)
         return self.matrix
+
+    def product(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
+                x: np.ndarray, out: np.ndarray, *, same_state: bool = False) -> np.ndarray:  # fmt: skip
+        """``out = S x`` for S of `fill_matrix` (no regularization) at the state given, without
+        assembling S: the triplets of ``a M + b C_t + c K_t`` times x's coordinates, and Φq of
+        the last `fill_constraints`; returns `out` (shape (size,)).  (The velocity projection's
+        residual: a third of the work of filling S and multiplying.)  `same_state`: the state
+        and coefficients of the last call, and no fill since: its triplets are reused."""
+        if not same_state:
+            self._block_count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        count = self._block_count
+        p = self.pattern
+        kernels.saddle_product(self._rows, self._cols, self._vals, count, self.n, p.indptr, p.indices,
+                               self.assembler.values, self.kept_row, x, out)  # fmt: skip
+        return out
 
     # ------------------------------------------------------------------ energy
     def energies(self, coordinates, velocities) -> tuple[float, float, float]:

@@ -67,6 +67,7 @@ from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
+from .rounding_floor import RoundingFloor
 from .run import run
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
@@ -109,6 +110,9 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
+#: The velocity projection stops refining once its increment is below this fraction of
+#: Newton's velocity noise γ′ · floor (and the drift is at the tolerance).
+PROJECTION_NOISE = 0.1
 
 
 @dataclass(frozen=True)
@@ -239,6 +243,7 @@ class GeneralizedAlphaStepper:
         self.solver, self.path = None, "none"
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
+        self._floor = RoundingFloor(False)
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored = False
@@ -279,6 +284,9 @@ class GeneralizedAlphaStepper:
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system.size)
+        self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
+        self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
+        self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
@@ -290,7 +298,8 @@ class GeneralizedAlphaStepper:
         try:
             self.solver.factor(matrix)
             given = initial_velocities(self.mechanism, n)
-            rhs = np.concatenate([matrix[:n, :n] @ given, system.assembler.velocity_rhs[kept]])
+            momenta = (matrix @ np.concatenate([given, np.zeros(kept.size)]))[:n]  # M given, without a copy of M
+            rhs = np.concatenate([momenta, system.assembler.velocity_rhs[kept]])
             v = self.solver.solve(rhs)[:n].copy()
             system.fill_constraints(q)
             applied = system.applied_forces(q, v, np.zeros(n), np.zeros(n))
@@ -333,6 +342,7 @@ class GeneralizedAlphaStepper:
                 good = 0
                 self.n_subdivisions += 1
                 self._factored = False
+                self._floor.failed()
                 if step < self.max_step * 0.5**MAX_HALVINGS:
                     raise ConvergenceError(f"the step from t = {now:.9g} s failed after {MAX_HALVINGS} halvings "
                                            f"({failure})", time=now + h, driver_values={}) from None  # fmt: skip
@@ -340,8 +350,10 @@ class GeneralizedAlphaStepper:
             good += 1
             if step < self.max_step and good >= GROWTH_AFTER:
                 step, good = min(2.0 * step, self.max_step), 0
+            if step == self.max_step:
+                self._floor.recovered()
         self._state = self._state._replace(step=step)
-        self._publish()
+        self._publish(self._constraint_norm)
         return self.n_newton - before
 
     def linearization(self) -> Linearization:
@@ -382,12 +394,13 @@ class GeneralizedAlphaStepper:
         return StepperStats(solver.n_factorizations, solver.n_solves, solver.n_refactorizations, self.n_subdivisions,
                             self.path, self.redundant_labels)  # fmt: skip
 
-    def _publish(self) -> None:
-        """Φ and Φq refilled at the state's q (what `linearization` publishes), and the
-        state's energy and drift (`recorded`)."""
+    def _publish(self, phi: float | None = None) -> None:
+        """Φ and Φq at the state's q (what `linearization` publishes; refilled unless `phi`,
+        their norm, says a step left them there), and the state's energy and drift
+        (`recorded`)."""
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
-        phi = system.fill_constraints(q)
+        phi = system.fill_constraints(q) if phi is None else phi
         drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
@@ -406,16 +419,15 @@ class GeneralizedAlphaStepper:
         beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
         gamma_prime = gamma / (h * beta)
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
-        # predictor: the accelerations of the last step
-        a = state.accelerations.copy()
-        pseudo = ((1.0 - alpha_f) * a + alpha_f * state.accelerations - alpha_m * state.pseudo_accelerations) / (1.0 - alpha_m)
-        q = state.coordinates + h * state.velocities + h * h * ((0.5 - beta) * state.pseudo_accelerations + beta * pseudo)
-        v = state.velocities + h * ((1.0 - gamma) * state.pseudo_accelerations + gamma * pseudo)
+        # predictor: the accelerations of the last step (new arrays: the state keeps them)
+        q, v, a = np.empty(n), np.empty(n), np.empty(n)
+        _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
+                                  alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
-        weights = self.pattern.coordinate_weights
-        rhs = np.zeros(system.size)
-        force = np.zeros(n)
+        weights = self._weights
+        rhs, force, delta = self._work
+        all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
         # as velocity errors (γ′ δq), within the step's share of the tolerance, or at the
@@ -431,36 +443,33 @@ class GeneralizedAlphaStepper:
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
             system.residual(q, v, a, lam, force)
-            if not (math.isfinite(phi_norm) and np.all(np.isfinite(force))):
+            if not (math.isfinite(phi_norm) and math.isfinite(_dynamics_kernels.weighted_norm(force, weights))):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
                 self._factor(q, v, a, lam, coefficients)
                 fresh = True
-            np.multiply(force, -1.0 / beta_prime, out=rhs[:n])
-            np.negative(system.assembler.residual[kept], out=rhs[n:])
+            _dynamics_kernels.newton_rhs(force, -1.0 / beta_prime, system.assembler.residual, kept, all_kept, rhs)
             try:
-                delta = solver.solve(rhs)
+                solver.solve(rhs, out=delta)
             except SingularMatrix as error:
                 raise _StepFailed(str(error)) from None
             self.n_newton += 1
             correction = _dynamics_kernels.weighted_norm(delta[:n], weights)
             if not math.isfinite(correction):
                 raise _StepFailed("non-finite correction")
-            q += delta[:n]
-            v += gamma_prime * delta[:n]
-            a += beta_prime * delta[:n]
-            lam[kept] += beta_prime * delta[n:]
+            _dynamics_kernels.newton_update(delta, gamma_prime, beta_prime, kept, all_kept, q, v, a, lam)
             if iteration > 0:
                 rate = correction / last
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
-                if correction <= (stall if fresh else NOISE * stall / STALL):
+                if correction <= (stall if fresh else self._floor.noise(NOISE * stall / STALL)):
                     # at the rounding floor of the (ill-conditioned) matrix: the ratio of two
                     # corrections there is noise, not a slow contraction
                     settled = True
                     self.n_stalls += 1
                     stalled = stall
+                    self._floor.measured(correction, fresh)
                 elif fresh:
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
@@ -472,13 +481,17 @@ class GeneralizedAlphaStepper:
                 fresh = False
             last = correction
         self._project_velocities(q, v, lam, coefficients, h)
-        pseudo = (q - state.coordinates - h * state.velocities - h * h * (0.5 - beta) * state.pseudo_accelerations) / (h * h * beta)
+        self._floor.step()
+        pseudo = np.empty(n)
+        _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
+                                               beta, pseudo)  # fmt: skip
         self._project_accelerations(q, v, a, pseudo, lam, coefficients)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
         self.n_steps += 1
+        self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
@@ -488,7 +501,8 @@ class GeneralizedAlphaStepper:
         return residual <= limit
 
     def _factor(self, q, v, a, lam, coefficients) -> None:
-        self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, self._regularization))
+        regularization = self._floor.regularization(self._regularization)
+        self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, regularization))
 
     def _factor_filled(self, matrix) -> None:
         try:
@@ -500,10 +514,14 @@ class GeneralizedAlphaStepper:
     def _project_velocities(self, q, v, lam, coefficients, h: float) -> None:
         """The velocities moved onto Φq v + Φt = 0 along Φq's normals (`_project`).  The
         drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
-        velocity kick of about 2 d in the next step."""
-        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self.pattern.coordinate_weights))
+        velocity kick of about 2 d in the next step.  On the large path the refinement also
+        stops at a tenth of Newton's velocity noise γ′ · floor (`RoundingFloor`) once the
+        drift is within the bound."""
+        scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
-        change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity")
+        _, _, gamma, beta = self.integrator.coefficients
+        noise = PROJECTION_NOISE * gamma / (h * beta) * self._floor.level if self._floor.enabled else 0.0
+        change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity", noise)
         if change is not None:
             v -= change[: v.size]
 
@@ -520,7 +538,7 @@ class GeneralizedAlphaStepper:
         the next step, tolerance · h per second like the others."""
         assembler = self.assembler
         assembler.fill_acceleration_rhs(q, v)
-        scale = max(1.0, _dynamics_kernels.weighted_norm(a, self.pattern.coordinate_weights))
+        scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
                                "acceleration")  # fmt: skip
@@ -529,7 +547,7 @@ class GeneralizedAlphaStepper:
             pseudo -= change[: a.size]
             lam[self.system.kept_rows] -= change[a.size :]
 
-    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str):
+    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0):
         """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
         velocities or accelerations minus their target, every equation) and its
         multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
@@ -546,41 +564,49 @@ class GeneralizedAlphaStepper:
         there, ALI3-P's): what it removed is kept if it left less drift than there was —
         the rest lies along Φq's vanishing singular values σ, where the drift is σ times
         the velocity error and removing it would take a change drift / σ along a direction
-        that the rounding decides."""
+        that the rounding decides.  An increment below `noise` ends the refinement once the
+        drift left is within `bound`.  On the large path the refinement's residual is formed
+        without assembling the matrix (`DynamicSystem.product`)."""
         system, n, kept = self.system, self.system.n, self.system.kept_rows
         weights = self.assembler.weights[kept]
         drift = drift[kept]
         before = _dynamics_kernels.weighted_norm(drift, weights)
         if before <= bound:
             return None
-        matrix = self._projection_matrix(q, v, lam, coefficients)
         goal = np.zeros(system.size)
         goal[n:] = drift
         solution = np.zeros(system.size)
-        residual = goal.copy()
-        last, fresh = math.inf, False
-        coordinate_weights = self.pattern.coordinate_weights
+        residual, product, matrix = goal.copy(), np.empty(system.size), None
+        last, fresh, filled, zeros = math.inf, False, False, np.zeros(n)
         for iteration in range(PROJECTION_ITERATIONS):
             increment = self.solver.solve(residual)
             solution += increment
-            size = _dynamics_kernels.weighted_norm(increment[:n], coordinate_weights)
-            if size <= bound:
+            size = _dynamics_kernels.weighted_norm(increment[:n], self._weights)
+            if size <= bound or (size <= noise and self._drift_left(drift, solution, weights) <= bound):
                 return solution
             if size > REFINEMENT_CONTRACTION * last or not (fresh or _converges_in_time(
                     size, size / last, bound, PROJECTION_ITERATIONS - iteration - 1)):  # fmt: skip
                 if fresh:
                     break
-                self._factor(q, v, np.zeros(n), lam, coefficients)
-                matrix = self._projection_matrix(q, v, lam, coefficients)
-                fresh = True
+                self._factor(q, v, zeros, lam, coefficients)
+                matrix, fresh, filled = None, True, False
                 solution[:] = 0.0
                 residual[:] = goal
                 last = math.inf
                 continue
             last = size
+            if self._floor.enabled:  # the large path: S x without assembling S
+                np.subtract(goal, system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled),
+                            out=residual)  # fmt: skip
+                filled = True
+                continue
+            if matrix is None:
+                matrix = self._projection_matrix(q, v, lam, coefficients)
             residual = goal - matrix @ solution
-        left = drift - (self.assembler.jacobian @ solution[:n])[kept]
-        if fresh and _dynamics_kernels.weighted_norm(left, weights) <= before:
+        left = self._drift_left(drift, solution, weights)
+        if left <= bound:  # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
+            return solution
+        if fresh and left <= before:
             self.n_singular_projections += 1
             return solution
         raise _StepFailed(f"the {what} projection does not converge (increment {size:.3g})")
@@ -588,6 +614,13 @@ class GeneralizedAlphaStepper:
     def _projection_matrix(self, q, v, lam, coefficients):
         """The matrix the projections solve with, at the converged state (`_project`)."""
         return self.system.fill_matrix(q, v, np.zeros(self.system.n), lam, *coefficients)
+
+    def _drift_left(self, drift, solution, weights) -> float:
+        """The weighted drift of the kept equations, `drift` (theirs), after a projection's
+        change ``solution[:n]`` (Φq at the converged q)."""
+        system = self.system
+        left = drift - system.kept(self.assembler.jacobian @ solution[: system.n])
+        return _dynamics_kernels.weighted_norm(left, weights)
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:

@@ -1,0 +1,215 @@
+"""The N-four-bar chain per step: sparsekin kinematic, sparsekin dynamic and Exudyn, same run.
+
+Issue 25's large-chain must-shows.  For each size (2N + 1 bodies), one fresh process per
+measurement, one after the other (their peak memory is their own):
+
+* ``kinematic`` — `KinematicStepper` on the kinematic twin (`four_bar_chain(N, 1.5)`, one
+  driver), one output sample per 1 ms step;
+* ``dynamic`` — `GeneralizedAlphaStepper` on `n_four_bar(N)` (gravity, released with B0 at
+  1 m/s), fixed step 1 ms, one output sample per step; B0's largest position error against
+  the exact answer (every crank moves as one four-bar: tests/dynamics_reference.py) over the
+  steps taken;
+* ``exudyn`` — Exudyn 1.13.6 on the same chain (benchmarks/peers/exudyn_models.py
+  ``timing chain``: generalized-α, modified Newton, its sparse LU, fixed 1 ms steps), the
+  largest B0 error over its steps.
+
+Time per step: the mean over the timed steps after two warm-up steps (modified Newton
+refactors on some steps only: a mean, not a median); peak memory: the process's
+``ru_maxrss`` (build, start and steps; the interpreter with sparsekin and numba imported
+holds ~130 MB of it).  Commands::
+
+    python3 benchmarks/measure_dynamics_chain.py table            # 10^3, 10^4, 10^5 bodies
+    python3 benchmarks/measure_dynamics_chain.py table --accuracy  # + 100 steps at 10^5, both
+    python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001 --steps 20
+
+(the last: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
+on the shared machine first).  Each measurement prints one JSON line; ``table`` prints
+them and a Markdown table with the ratios of the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STEP = 1e-3
+#: (bodies, timed steps) of the table.
+SIZES = ((1001, 50), (10001, 20), (100001, 10))
+ACCURACY_STEPS = 100
+
+
+def peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
+    """Time per step of `analysis` ("kinematic" or "dynamic") on the chain of `bodies`."""
+    import numpy as np
+
+    from sparsekin.testset import four_bar_chain, n_four_bar
+
+    loops = (bodies - 1) // 2
+    start = time.perf_counter()
+    if analysis == "kinematic":
+        from sparsekin.solve.stepper import KinematicStepper
+
+        stepper = KinematicStepper(four_bar_chain(loops, 1.5))
+    else:
+        from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+        stepper = GeneralizedAlphaStepper(n_four_bar(loops), STEP)
+    stepper.start(0.0)
+    start_seconds = time.perf_counter() - start
+    tips = []
+
+    def advance(k: int) -> None:
+        stepper.advance(k * STEP)
+        if analysis == "dynamic":  # B0, the tip of crank0 (origin at its pivot, 1 m long)
+            q = stepper.state.coordinates
+            tips.append((k * STEP, q[0] + np.cos(q[2]), q[1] + np.sin(q[2])))
+
+    for k in (1, 2):
+        advance(k)
+    clock = time.perf_counter()
+    for k in range(3, steps + 3):
+        advance(k)
+    per_step = (time.perf_counter() - clock) / steps
+    result = {"analysis": analysis, "bodies": bodies, "steps": steps, "seconds_per_step": per_step,
+              "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
+    if analysis == "dynamic":
+        sys.path.insert(0, str(ROOT / "tests"))
+        from dynamics_reference import n_four_bar_b0
+
+        tips = np.array(tips)
+        exact, _ = n_four_bar_b0(tips[:, 0], n_loops=loops)
+        result["b0_error_m"] = float(np.abs(tips[:, 1:] - exact).max())
+        result |= {"newton_per_step": stepper.n_newton / stepper.n_steps, "path": stepper.path,
+                   "factorizations": stepper.n_factorizations, "stalls": stepper.n_stalls}  # fmt: skip
+    return result
+
+
+def in_subprocess(*arguments: str) -> dict:
+    """One measurement in a fresh interpreter, parsed from its last output line."""
+    command = [sys.executable, "-W", "ignore", *arguments]
+    output = subprocess.run(command, check=True, capture_output=True, text=True, cwd=ROOT,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})  # fmt: skip
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
+                            cwd=ROOT).stdout.strip()  # fmt: skip
+    return {**json.loads(output.stdout.strip().splitlines()[-1]), "load_average": os.getloadavg()[0],
+            "utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "commit": commit}  # fmt: skip
+
+
+def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
+    return in_subprocess(__file__, "one", analysis, "--bodies", str(bodies), "--steps", str(steps))
+
+
+def exudyn_row(bodies: int, steps: int) -> dict:
+    # steps + 2 steps, as sparsekin's (two before the clock): B0's error over the same horizon
+    row = in_subprocess(str(ROOT / "benchmarks" / "peers" / "exudyn_models.py"), "timing", "chain",
+                        "--bodies", str(bodies), "--steps", str(steps + 2), "--repeat", "1")  # fmt: skip
+    return {"analysis": "exudyn", "bodies": bodies, "steps": steps, "seconds_per_step": row["seconds_per_step"],
+            "start_seconds": row["start_seconds"], "peak_memory_mb": row["peak_memory_mb"],
+            "b0_error_m": row["b0_error_m"], "load_average": row["load_average"], "utc": row["utc"],
+            "commit": row["commit"]}  # fmt: skip
+
+
+def table(accuracy: bool, sizes=SIZES) -> list[dict]:
+    """Every size, kinematic, dynamic and Exudyn in turn; with `accuracy`, the dynamic run and
+    Exudyn's over `ACCURACY_STEPS` steps at the largest size."""
+    plan = [(analysis, bodies, steps, False) for bodies, steps in sizes for analysis in ("kinematic", "dynamic", "exudyn")]
+    if accuracy:
+        plan += [(analysis, sizes[-1][0], ACCURACY_STEPS, True) for analysis in ("dynamic", "exudyn")]
+    rows = []
+    for analysis, bodies, steps, accuracy_run in plan:
+        row = exudyn_row(bodies, steps) if analysis == "exudyn" else sparsekin_row(analysis, bodies, steps)
+        rows.append({**row, "accuracy_run": accuracy_run})
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    """The table of a run, with the ratios of the same run, then the accuracy runs and the load."""
+    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | peak kinematic "
+              "| peak dynamic | peak Exudyn |")  # fmt: skip
+    lines = [header, "|---|---|---|---|---|---|---|---|---|"]
+    timed = [row for row in rows if not row.get("accuracy_run")]
+    for bodies in sorted({row["bodies"] for row in timed}):
+        by = {row["analysis"]: row for row in timed if row["bodies"] == bodies}
+        kin, dyn, exu = (by.get(a, {}).get("seconds_per_step") for a in ("kinematic", "dynamic", "exudyn"))
+        cells = [f"{bodies}", *(_seconds(t) for t in (kin, dyn)), f"{dyn / kin:.2f}×" if kin and dyn else "",
+                 _seconds(exu), f"{exu / dyn:.1f}×" if exu and dyn else "",
+                 *(f"{by[a]['peak_memory_mb']:.0f} MB" if a in by else "" for a in ("kinematic", "dynamic", "exudyn"))]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    for row in rows:
+        if row.get("accuracy_run"):
+            lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps: B0 error "
+                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step")  # fmt: skip
+    loads = [row["load_average"] for row in rows if "load_average" in row]
+    if loads:
+        lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
+    runs = sorted({(row["utc"], row["commit"]) for row in rows if "utc" in row})
+    if runs:
+        commits = ", ".join(sorted({commit for _, commit in runs}))
+        lines.append(f"Taken {runs[0][0]} to {runs[-1][0]} UTC at commit {commits} (2 cores shared by six sessions).")
+    return "\n".join(lines)
+
+
+def _seconds(value: float | None) -> str:
+    if value is None:
+        return ""
+    return f"{value:.3g} s" if value >= 1.0 else f"{value * 1e3:.3g} ms"
+
+
+def results_section(rows: list[dict]) -> list[str]:
+    """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`."""
+    return [
+        "## Forward dynamics: the N-four-bar chain (issue 25; `measure_dynamics_chain.py`)",
+        "",
+        "Not part of the pytest-benchmark run: `benchmarks/dynamics_chain.jsonl` holds the lines of",
+        "`python3 benchmarks/measure_dynamics_chain.py table --accuracy --out benchmarks/dynamics_chain.jsonl`",
+        "(10^3–10^5 bodies) and of `python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001",
+        "--steps 20` (10^6, alone). One fresh process per measurement, one after the other: sparsekin's",
+        "kinematic step of the twin chain (`four_bar_chain`, one driver), its dynamic step of",
+        "`n_four_bar` under gravity (generalized-α, fixed 1 ms steps, one output sample per step) and",
+        "Exudyn 1.13.6's (generalized-α, modified Newton, its sparse LU; benchmarks/peers/). Time per",
+        "step: the mean over the timed steps after two; peak: the process's resident set (≈ 130 MB of",
+        "it the interpreter with sparsekin and numba, 44 MB with Exudyn). B0 error: against the exact",
+        "answer (every crank moves as one four-bar), largest over the steps taken.",
+        "",
+        *markdown(rows).splitlines(),
+    ]
+
+
+#: The lines `table --out` wrote for RESULTS.md.
+DYNAMICS_CHAIN = Path(__file__).resolve().with_name("dynamics_chain.jsonl")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+    one = commands.add_parser("one", help="one sparsekin measurement in this process")
+    one.add_argument("analysis", choices=("kinematic", "dynamic"))
+    one.add_argument("--bodies", type=int, default=1001, help="2N + 1")
+    one.add_argument("--steps", type=int, default=20)
+    run_table = commands.add_parser("table", help="every size, each measurement in a fresh process")
+    run_table.add_argument("--accuracy", action="store_true", help=f"and {ACCURACY_STEPS} steps at the largest size")
+    run_table.add_argument("--out", type=Path, help="also write the JSON lines here")
+    arguments = parser.parse_args(argv)
+    if arguments.command == "one":
+        print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps)))
+        return
+    rows = table(arguments.accuracy)
+    if arguments.out:
+        arguments.out.write_text("".join(json.dumps(row) + "\n" for row in rows))
+    print(markdown(rows))
+
+
+if __name__ == "__main__":
+    main()
