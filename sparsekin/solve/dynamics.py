@@ -540,8 +540,10 @@ class GeneralizedAlphaStepper:
         assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
+        # Newton's acceleration noise β′ · floor (β′ = 1 / coefficients[2]), as for the velocities
+        noise = PROJECTION_NOISE * self._floor.level / coefficients[2] if self._floor.enabled else 0.0
         change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
-                               "acceleration")  # fmt: skip
+                               "acceleration", noise)  # fmt: skip
         if change is not None:
             a -= change[: a.size]
             pseudo -= change[: a.size]
