@@ -95,7 +95,10 @@ class OutputFolder:
         try:
             self._check_names()
             _remove_stale_staging(self.directory)
-            self.staging.mkdir()  # also the check that the folder can be written
+            try:
+                self.staging.mkdir()  # also the check that the folder can be written
+            except PermissionError as error:  # name the folder given, not the staging folder in it
+                raise CommandError(f"--out {self.directory}: {error.strerror}: the run cannot write there") from None
         except BaseException:
             self._unlock()
             raise

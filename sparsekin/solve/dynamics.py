@@ -529,12 +529,13 @@ class GeneralizedAlphaStepper:
         everything = np.arange(m, dtype=np.int64)
         if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
             return everything
+        from ..analysis.describe import row_preference
         from ..engine.assembly import Assembler
 
         assembler = Assembler(self.discretization)
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = _redundant_rows(assembler.jacobian)
+        self.redundant_rows = _redundant_rows(assembler.jacobian, row_preference(self.mechanism, self.pattern))
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
@@ -579,31 +580,13 @@ class GeneralizedAlphaStepper:
                          f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
 
 
-def _redundant_rows(jacobian) -> np.ndarray:
-    """Equations to leave out so that the others are independent.
+def _redundant_rows(jacobian, preference: np.ndarray) -> np.ndarray:
+    """Equations to leave out so that the others are independent: those
+    `sparsekin.analysis.rank.analyse_jacobian` names (later joints first, drivers last, as
+    the kinematics names them)."""
+    from ..analysis.rank import analyse_jacobian
 
-    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
-    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
-    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
-    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
-    exactly singular matrix; the dense path keeps small dynamic models, which often have
-    as many equations as coordinates, away from it.)
-    """
-    m, n = jacobian.shape
-    if n > REDUNDANCY_CHECK_COORDINATES:
-        from ..analysis.rank import analyse_jacobian
-
-        return analyse_jacobian(jacobian).redundant_rows
-    from scipy.linalg import qr
-
-    rows = jacobian.toarray()
-    scale = np.abs(rows).max(axis=1)
-    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
-    r, pivots = qr(rows.T, mode="r", pivoting=True)
-    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
-    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
-    rank = int(np.sum(diagonal > tolerance))
-    return np.sort(pivots[rank:]).astype(np.int64)
+    return analyse_jacobian(jacobian, row_preference=preference).redundant_rows
 
 
 def _initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:
