@@ -171,3 +171,26 @@ def test_a_read_only_out_is_refused_before_solving(case, tmp_path):
     expected = f"sparsekin: error: {named}: Permission denied"
     assert lines[0].startswith(expected), lines
     assert list(parent.iterdir()) == []  # nothing written, no staging folder left
+
+
+def test_a_clip_is_put_in_place_whole_or_not_at_all(tmp_path, capsys, monkeypatch):
+    """``animate`` writes its clip at a temporary name beside the target and renames it once
+    whole: a clip that fails half-way (a full disk here) leaves the previous clip as it was
+    and no partial file; a partial file a killed run left is removed by the next run."""
+    pytest.importorskip("matplotlib", reason='the animation needs "sparsekin[plot]"')
+    import sparsekin.plots
+
+    out = tmp_path / "clip.gif"
+    out.write_bytes(b"the previous clip")
+    (tmp_path / ".clip.99999999.partial.gif").write_bytes(b"left by a killed run")
+
+    def half_a_clip(result, path, **options):
+        Path(path).write_bytes(b"half a clip")
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(sparsekin.plots, "animate", half_a_clip)
+    status = main(["animate", str(TASK5), "--t-end", "0.2", "--steps", "3", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert status in (2, 3) and "Traceback" not in err and "No space left on device" in err, (status, err)
+    assert out.read_bytes() == b"the previous clip"
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["clip.gif"]

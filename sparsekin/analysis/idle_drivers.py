@@ -8,10 +8,10 @@ thetadot)``.  A driver none of whose equations moves a named point by more than
 `IDLE_SPEED` times the model's size (per unit rate) drives nothing: a crank whose points
 all sit at its pivot turns, and the mechanism stands still.
 
-Checked when the model has no free motion (the velocities are then unique) and at most
-`MOST_CHECKED_ROWS` driven equations and
-`sparsekin.analysis.assemble.MOST_LOCATED_POINTS` named points (one solve per driven
-equation).
+Checked when the model has no free motion (the velocities are then unique), at most
+`MOST_CHECKED_COORDINATES` coordinates (its own sparse LU of the Jacobian: a fraction of a
+second there, where the rank analysis of a large model takes seconds) and at most
+`MOST_CHECKED_ROWS` driven equations (a solve for each).
 """
 
 from __future__ import annotations
@@ -22,14 +22,14 @@ from scipy.sparse.linalg import splu
 
 from ..engine.pattern import build_point_map
 from ..model.geometry import to_global
-from .assemble import MOST_LOCATED_POINTS
 
-__all__ = ["IDLE_SPEED", "MOST_CHECKED_ROWS", "idle_drivers"]
+__all__ = ["IDLE_SPEED", "MOST_CHECKED_COORDINATES", "MOST_CHECKED_ROWS", "idle_drivers"]
 
 #: A point moving less than this many model sizes per unit rate of a driver stands still.
 IDLE_SPEED = 1e-9
-#: Models with more driven equations than this are not checked (a solve for each).
+#: Models with more driven equations, or more coordinates, than these are not checked.
 MOST_CHECKED_ROWS = 256
+MOST_CHECKED_COORDINATES = 30_000
 
 
 def idle_drivers(mechanism, pattern, jacobian, redundant_rows: np.ndarray, coordinates: np.ndarray) -> tuple[str, ...]:
@@ -38,10 +38,10 @@ def idle_drivers(mechanism, pattern, jacobian, redundant_rows: np.ndarray, coord
     does not apply (see the module)."""
     driven = np.setdiff1d(pattern.driven_row, redundant_rows)
     kept = np.setdiff1d(np.arange(pattern.n_equations), redundant_rows)
-    names = build_point_map(mechanism)
     if (not driven.size or driven.size > MOST_CHECKED_ROWS or kept.size != pattern.n_coordinates
-            or len(names.names) > MOST_LOCATED_POINTS):  # fmt: skip
+            or pattern.n_coordinates > MOST_CHECKED_COORDINATES):  # fmt: skip
         return ()
+    names = build_point_map(mechanism)
     square = sparse.csc_array(sparse.csr_array(jacobian)[kept])
     try:
         lu = splu(square, permc_spec="COLAMD")  # of full rank: the caller found no free motion
