@@ -42,10 +42,10 @@ COMPILE_BYTES = 80 * 2**20
 #: (``benchmarks/memory_estimates.py``, 10^4 to 10^6 bodies, benchmarks/RESULTS.md): a chain
 #: takes about 510 per coordinate, a lattice 1290 (its factors fill in more), and one
 #: constant between them keeps both within a factor 2 (estimate / peak 1.20–1.73 and
-#: 0.74–1.02); an overconstrained grid of rotating squares about 1600 per coordinate with
-#: 1 excess equation every 3 coordinates (0.97–1.12 up to 2.5·10^5 bodies; larger grids
-#: are refused by the rank analysis, `sparsekin.analysis.rank.RankUndetermined`, well
-#: within the estimate).
+#: 0.75–1.09); an overconstrained grid of rotating squares about 1600 per coordinate with
+#: 1 excess equation every 3 coordinates (1.09–1.11 up to 2.5·10^5 bodies; larger grids
+#: are refused by the rank analysis, `sparsekin.analysis.rank.RankUndetermined`, at
+#: 1.32–1.40 of their peak up to 10^6 bodies).
 BYTES_PER_COORDINATE = 900
 BYTES_PER_EXCESS_EQUATION = 2500
 #: Memory of a model being built from its file, per element (body, joint, driver, load), bytes.
