@@ -32,6 +32,8 @@ COMMAND = (
 _HERE = Path(__file__).resolve().parent
 #: Lines printed by `measure_mesh_lu.py` and `measure_mesh_steps.py` (issue 29), kept by hand.
 MESH_LU = _HERE / "mesh_lu.jsonl"
+#: The table printed by `memory_estimates.py` (issue 28) with its command and load, kept by hand.
+MEMORY_ESTIMATES = _HERE / "memory_estimates.md"
 #: Sizes over which the scaling exponents are fitted, bodies.
 FIT_RANGE = (1_000, 1_000_000)
 #: The solver whose time the ratios divide, and the baselines, in column order.
@@ -196,6 +198,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_overconstrained(document["overconstrained"])]
     if MESH_LU.exists():
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
+    if MEMORY_ESTIMATES.exists():
+        lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
     if document.get("hubs"):
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():

@@ -3,8 +3,9 @@
 For a chain (the four-bar chain), a lattice (the parallelogram lattice, a grid repeat) and
 an overconstrained grid (rotating squares: (n - 2)² redundant hinges) of about 10^4, 10^5
 and 10^6 bodies, runs ``sparsekin run MODEL --steps 3`` (default outputs) in a new process
-and compares the estimate it records in ``run.json`` (``memory_estimate_bytes``: what the
-command checked against the memory available before solving) with the peak resident
+and compares the estimate it checks against the memory available before solving (the
+parts it adds up, also recorded in ``run.json``; said on stderr by a wrapper, so that a
+run stopped later, e.g. by the rank analysis, is measured too) with the peak resident
 memory of the process (``ru_maxrss`` from ``wait4``).  A watchdog kills a run above
 `CAP_BYTES` (the run is then reported as not measured).
 
@@ -49,6 +50,23 @@ def overconstrained(bodies: int) -> tuple[str, str, str]:
     return "rotating_squares.toml", "count = [4, 4]", f"count = [{n}, {n}]"
 
 
+#: ``sparsekin run`` as its command runs it, saying on stderr the parts of the estimate it
+#: checks (so that a run the rank analysis refuses later is measured too).
+ESTIMATE_MARK = "ESTIMATE"
+RUN_SAYING_ESTIMATE = f"""
+import json, sys
+from sparsekin.cli import main, run
+
+checked = run.check_memory
+
+def saying(parts, *rest):
+    print("{ESTIMATE_MARK}", json.dumps(parts), file=sys.stderr, flush=True)
+    return checked(parts, *rest)
+
+run.check_memory = saying
+sys.exit(main(sys.argv[1:]))
+"""
+
 FAMILIES = {"chain": chain, "lattice": lattice, "overconstrained": overconstrained}
 if os.environ.get("FAMILIES"):  # e.g. FAMILIES=overconstrained
     FAMILIES = {name: FAMILIES[name] for name in os.environ["FAMILIES"].split(",")}
@@ -57,7 +75,7 @@ if os.environ.get("FAMILIES"):  # e.g. FAMILIES=overconstrained
 def measure(model: Path, out: Path) -> tuple[int | None, int | None, int | None, int, float, str]:
     """Run the model; (estimate, its part for the process as it was, peak, exit status,
     seconds, bodies) — peak None if killed."""
-    command = [sys.executable, "-m", "sparsekin", "run", str(model), "--steps", "3", "--t-end", "0.01", "--out",
+    command = [sys.executable, "-c", RUN_SAYING_ESTIMATE, "run", str(model), "--steps", "3", "--t-end", "0.01", "--out",
                str(out), "--quiet"]  # fmt: skip
     start = time.monotonic()
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -87,11 +105,14 @@ def measure(model: Path, out: Path) -> tuple[int | None, int | None, int | None,
     seconds = time.monotonic() - start
     bodies = output.split(":", 1)[1].split(" bodies")[0].strip() if " bodies" in output else "?"
     estimate = process_part = None
-    if (out / "run.json").exists():
-        record = json.loads((out / "run.json").read_text())
-        estimate, process_part = record.get("memory_estimate_bytes"), record["memory_estimate_parts"]["the process"]
+    errors = process.stderr.read().decode()
+    said = [line.split(" ", 1)[1] for line in errors.splitlines() if line.startswith(ESTIMATE_MARK)]
+    if said:  # what the run checked, also when it stops later (no run.json then)
+        parts = json.loads(said[-1])
+        estimate, process_part = sum(parts.values()), parts["the process"]
+        bodies = next((what.split()[3] for what in parts if what.startswith("a model of ")), bodies)
     if process.returncode != 0:
-        sys.stderr.write(process.stderr.read().decode()[-2000:])
+        sys.stderr.write("\n".join(line for line in errors.splitlines() if not line.startswith(ESTIMATE_MARK))[-2000:] + "\n")
     return estimate, process_part, (None if killed else usage.ru_maxrss * 1024), process.returncode, seconds, bodies
 
 
@@ -112,7 +133,8 @@ def main(sizes: list[int]) -> None:
                     print(f"| {family} | {bodies} | {(estimate or 0) / 2**20:.0f} MB | not measured ({why}) | | "
                           f"{seconds:.1f} |", flush=True)  # fmt: skip
                     continue
-                print(f"| {family} | {bodies} | {estimate / 2**20:.0f} MB ({process / 2**20:.0f} MB) | {peak / 2**20:.0f} MB | "
+                refused = "" if status == 0 else f" (exit {status})"
+                print(f"| {family} | {bodies} | {estimate / 2**20:.0f} MB ({process / 2**20:.0f} MB) | {peak / 2**20:.0f} MB{refused} | "
                       f"{estimate / peak:.2f} | {seconds:.1f} |", flush=True)  # fmt: skip
 
 

@@ -57,3 +57,66 @@ def test_a_body_that_a_repeat_leaves_out_is_named_as_such(tmp_path):
     (tmp_path / "unknown.toml").write_text(text + driver.format("zz"))
     with pytest.raises(ModelError, match=r'unknown body "zz" \(known: ground, c0_0\.V …, c0_0\.H …\)$'):
         load_model(tmp_path / "unknown.toml")
+
+
+def test_a_built_mechanism_cannot_be_changed():
+    """`mechanism.points[...] = ...` changed the points without their checks (a point of a
+    body moved without its joints knowing); now every table of a built mechanism refuses,
+    and the mechanism still pickles (to Dask workers) and is rebuilt by `replace`."""
+    import dataclasses
+    import pickle
+
+    mechanism = task5()
+    with pytest.raises(TypeError, match=r"^a built mechanism cannot be changed: build a new one"):
+        mechanism.points["A"] = (1e9, 0.0)
+    for change in (lambda points: points.update(A=(0.0, 0.0)), lambda points: points.pop("A"),
+                   lambda points: points.clear(), lambda points: points.setdefault("Z", (0.0, 0.0)),
+                   lambda points: points.__ior__({"Z": (0.0, 0.0)}), lambda points: points.__delitem__("A")):  # fmt: skip
+        with pytest.raises(TypeError):
+            change(mechanism.points)
+    assert mechanism.points["A"] == (-1.0, 0.2) and "Z" not in mechanism.points
+    grid = load_model(EXAMPLES / "lattice.toml")
+    repeat = grid.repeats[0]
+    for table in (grid.points.own, repeat.unit.points, repeat.unit.only, repeat.boundary, repeat.vary):
+        with pytest.raises(TypeError):
+            table["Z"] = (0.0, 0.0)
+    assert pickle.loads(pickle.dumps(mechanism)) == mechanism and pickle.loads(pickle.dumps(grid)) == grid
+    moved = dataclasses.replace(mechanism, points={**mechanism.points, "A": (-1.0, 0.25)})
+    assert moved.points["A"] == (-1.0, 0.25) and mechanism.points["A"] == (-1.0, 0.2)
+
+
+def _four_bar(crank_tip):
+    """A four-bar whose crank turns about O and ends at `crank_tip`."""
+    from sparsekin import Body, Linear, Mechanism, Revolute, RotationalDriver
+
+    return Mechanism(
+        points={"O": (0.0, 0.0), "A": crank_tip, "B": (0.3, 0.3), "Q": (0.4, 0.0)},
+        bodies=[Body("crank", origin="O", points=("O", "A")), Body("coupler", origin="A", points=("A", "B")),
+                Body("rocker", origin="Q", points=("Q", "B"))],
+        joints=[Revolute(("crank", "ground"), at="O"), Revolute(("crank", "coupler"), at="A"),
+                Revolute(("coupler", "rocker"), at="B"), Revolute(("rocker", "ground"), at="Q")],
+        drivers=[RotationalDriver(("crank", "ground"), law=Linear(rate=1.0))],
+    )  # fmt: skip
+
+
+def test_a_driven_crank_of_zero_length_is_not_sound(tmp_path, capsys):
+    """A crank whose tip is drawn at its pivot: rank full, zero degrees of freedom, and it
+    ran motionless (only its own angle turns); `check` now names the driver."""
+    from sparsekin import check_model
+    from sparsekin.cli import main
+
+    zero = _four_bar((0.0, 0.0))
+    motion = solve_kinematics(zero, np.linspace(0.0, 1.0, 5)).coordinates
+    assert np.ptp(motion, axis=0).tolist() == [0.0, 0.0, 1.0] + [0.0] * 6  # the reproduction: nothing but the crank turns
+    report = check_model(zero)
+    assert report.rank == 9 and not report.free_motions and not report.redundant
+    assert report.problems == ("1 driver moving no point (drivers[0] (angle crank − ground))",)
+    assert check_model(_four_bar((0.1, 0.0))).sound  # a crank of 0.1 m: sound, as before
+    text = (EXAMPLES / "four_bar.toml").read_text()
+    model = tmp_path / "zero_crank.toml"
+    model.write_text(text.replace("A = [0.1, 0.0]", "A = [0.0, 0.0]"))  # the crank pin drawn on its pivot
+    assert "A = [0.1, 0.0]" in text
+    assert main(["check", str(model)]) == 1  # a problem (0: sound)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1].startswith("verdict: 1 driver moving no point (drivers[0] ("), lines[-1]
+    assert sum(line.startswith("drivers moving no point (1): drivers[0] (") for line in lines) == 1

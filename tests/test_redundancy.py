@@ -186,6 +186,37 @@ def test_an_inconsistent_redundant_set_is_named_as_such(path):
         solve(bar_of_wrong_length(n, cell), np.linspace(0.0, 1.0, 3), path)
 
 
+def test_a_tall_lu_whose_kept_rows_overflow_is_not_certified(monkeypatch):
+    """Rotating squares of 10^6 bodies in their own order keep a block B singular to working
+    precision: its inverse iteration overflowed and the certificate's SVD raised ("SVD did
+    not converge", the run's one line).  Now an overflow fails the certificate, and the
+    next order (or the dense analysis) decides: here the same answer as the dense one."""
+    from sparsekin.analysis.tall_lu import TallLU
+
+    jacobian, preference, _ = jacobian_at_drawing(testset.rotating_squares(9))
+    dense = analyse_jacobian(jacobian, row_preference=preference)
+    monkeypatch.setattr(TallLU, "solve", lambda self, rhs: np.full(self.shape[1], np.inf))
+    fallen_back = analyse_jacobian(jacobian, row_preference=preference, tall_lu_from=1)
+    assert type(fallen_back.dependency_source).__name__ != "TallLU"
+    assert (fallen_back.rank, fallen_back.redundant_rows.tolist()) == (dense.rank, dense.redundant_rows.tolist())
+
+
+def test_more_null_vectors_than_the_dense_analysis_finds_is_one_error(monkeypatch):
+    """A tall Jacobian the sparse LU cannot certify, with more redundant equations than the
+    dense analysis draws (`MAX_NULLITY`): its blocks of (m + n) × MAX_NULLITY numbers took
+    more than 7.5 GB at 5·10^5 squares and could not have named them all; now one
+    `ModelError` before they are allocated."""
+    from sparsekin.analysis import rank
+
+    jacobian, preference, _ = jacobian_at_drawing(testset.rotating_squares(9))
+    m, n = jacobian.shape
+    monkeypatch.setattr(rank, "MAX_NULLITY", m - n - 1)
+    with pytest.raises(rank.RankUndetermined, match=rf"^the rank of the {m} × {n} constraint Jacobian cannot be told: "
+                       rf"at least {m - n} redundant equations, more than the dense analysis finds \({m - n - 1};"):  # fmt: skip
+        analyse_jacobian(jacobian, row_preference=preference, tall_lu_from=10**9)
+    assert issubclass(rank.RankUndetermined, sk.ModelError)  # one line on the command line, exit 2
+
+
 @pytest.mark.parametrize("builder", [lambda: testset.rotating_squares(9), lambda: testset.parallel_bar_chain(40)])
 def test_tall_lu_agrees_with_the_dense_analysis(builder):
     jacobian, preference, pattern = jacobian_at_drawing(builder())

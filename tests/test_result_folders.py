@@ -118,3 +118,79 @@ def test_a_second_live_run_is_refused_and_a_killed_run_leaves_no_stale_lock(tmp_
     assert main(["run", str(TASK5), "--t-end", "1", "--steps", "3", "--out", str(out)]) == 0
     assert not any(out.glob(f"{STAGING_PREFIX}*"))  # the killed run's staging folder is cleaned
     assert manifest(out)["samples_solved"] == 3
+
+
+#: Runs ``sparsekin run`` with the solve replaced by a failure: a refusal must come first.
+_RUN_WITHOUT_SOLVING = """
+import sys
+from sparsekin.cli import main, run
+
+def never(*args, **kwargs):
+    raise AssertionError("solved before the outputs were checked")
+
+run.solve_for_command = never
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _without_permission_override():
+    """In the child before it runs: as root, drop the capabilities that let root ignore
+    permission bits (CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH) from the bounding set, so the
+    program it runs is held to a folder's permissions as any other user is (root's own
+    folders stay readable: they are root's)."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    for capability in (1, 2):  # CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH
+        if libc.prctl(24, capability, 0, 0, 0) != 0:  # PR_CAPBSET_DROP
+            raise OSError(ctypes.get_errno(), "prctl(PR_CAPBSET_DROP)")
+
+
+@pytest.mark.parametrize("case", ["--out is read-only", "--out is in a read-only folder"])
+def test_a_read_only_out_is_refused_before_solving(case, tmp_path):
+    """Root ignores permission bits: run as root, the command runs without the capabilities
+    that do so (a non-root user runs it as it is)."""
+    parent = tmp_path / "read-only"
+    parent.mkdir()
+    out = parent if case == "--out is read-only" else parent / "out"
+    parent.chmod(0o555)
+    script = tmp_path / "run.py"
+    script.write_text(_RUN_WITHOUT_SOLVING)
+    options = {"preexec_fn": _without_permission_override} if os.geteuid() == 0 else {}
+    try:
+        done = subprocess.run([sys.executable, str(script), "run", str(TASK5), "--out", str(out)], capture_output=True,
+                              text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=300, check=False,
+                              **options)  # fmt: skip
+    except (OSError, subprocess.SubprocessError) as error:
+        pytest.skip(f"cannot run without root's permission override here: {error}")
+    finally:
+        parent.chmod(0o755)
+    lines = done.stderr.splitlines()
+    assert done.returncode == 2 and len(lines) == 1, (done.returncode, done.stderr[-2000:])
+    named = f"--out {out}" if out == parent else f"{out}"  # the folder given, or the one that cannot be made
+    expected = f"sparsekin: error: {named}: Permission denied"
+    assert lines[0].startswith(expected), lines
+    assert list(parent.iterdir()) == []  # nothing written, no staging folder left
+
+
+def test_a_clip_is_put_in_place_whole_or_not_at_all(tmp_path, capsys, monkeypatch):
+    """``animate`` writes its clip at a temporary name beside the target and renames it once
+    whole: a clip that fails half-way (a full disk here) leaves the previous clip as it was
+    and no partial file; a partial file a killed run left is removed by the next run."""
+    pytest.importorskip("matplotlib", reason='the animation needs "sparsekin[plot]"')
+    import sparsekin.plots
+
+    out = tmp_path / "clip.gif"
+    out.write_bytes(b"the previous clip")
+    (tmp_path / ".clip.99999999.partial.gif").write_bytes(b"left by a killed run")
+
+    def half_a_clip(result, path, **options):
+        Path(path).write_bytes(b"half a clip")
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(sparsekin.plots, "animate", half_a_clip)
+    status = main(["animate", str(TASK5), "--t-end", "0.2", "--steps", "3", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert status in (2, 3) and "Traceback" not in err and "No space left on device" in err, (status, err)
+    assert out.read_bytes() == b"the previous clip"
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["clip.gif"]

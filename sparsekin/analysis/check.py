@@ -28,6 +28,7 @@ from .describe import (
     motion_summary,
     row_preference,
 )
+from .idle_drivers import idle_drivers
 from .notices import actuator_directions, hub_lines, law_offsets, notice_lines, unjoined_point_lines
 from .rank import SMALLEST_TALL_LU, JacobianAnalysis, analyse_jacobian
 from .rigidity import counts_line, describe_redundant, listed_redundant
@@ -151,6 +152,9 @@ class ModelReport:
         freedom its masses and loads move, not a problem.
     cannot_start : str
         Why a forward-dynamics run cannot start (a problem), or empty.
+    idle_drivers : tuple of str
+        The drivers whose unit rate moves no named point at the assembled configuration
+        (a crank of zero length: `sparsekin.analysis.idle_drivers`), by label.
     """
 
     name: str
@@ -185,6 +189,7 @@ class ModelReport:
     initial_state: tuple[str, ...] = ()
     under_forces: bool = False
     cannot_start: str = ""
+    idle_drivers: tuple[str, ...] = ()
 
     @property
     def dof_by_count(self) -> tuple[int, int]:
@@ -222,6 +227,9 @@ class ModelReport:
             problems.append(f"{len(self.free_motions)} free motion{'s' * (len(self.free_motions) != 1)}")
         if self.cannot_start:
             problems.append(self.cannot_start)
+        if self.idle_drivers:
+            problems.append(f"{len(self.idle_drivers)} driver{'s' * (len(self.idle_drivers) != 1)} moving no point "
+                            f"({', '.join(self.idle_drivers)})")
         outside = sum(not state.within for state in self.limits)
         if outside:
             problems.append(f"{outside} element{'s' * (outside != 1)} outside {'their' if outside != 1 else 'its'} limits")
@@ -229,8 +237,8 @@ class ModelReport:
 
     @property
     def sound(self) -> bool:
-        """No problem: assembled, no redundant equation, no free motion, no element outside
-        its limits (`problems` is empty)."""
+        """No problem: assembled, no redundant equation, no free motion, no driver moving
+        no point, no element outside its limits (`problems` is empty)."""
         return not self.problems
 
     def __str__(self) -> str:
@@ -348,7 +356,11 @@ def check_model(mechanism: Mechanism, time: float = 0.0, *, tall_lu_from: int = 
         values = own_coordinates(outputs, coordinates[None], rest, rest)[0]
         limits = tuple(limit_states(mechanism, outputs, values, [float(time)]))
     massless, n_massless = _massless_bodies(mechanism)
+    idle = ()
+    if assembled and pattern.n_equations and not analysis.n_free:
+        idle = idle_drivers(mechanism, pattern, assembler.jacobian, analysis.redundant_rows, coordinates)
     return ModelReport(
+        idle_drivers=idle,
         law_offsets=law_offsets(mechanism, pattern),
         actuator_directions=actuator_directions(mechanism),
         unjoined_points=unjoined_point_lines(mechanism),
@@ -476,6 +488,9 @@ def format_report(report: ModelReport) -> str:
     if report.limits:
         lines.append(f"limits: {len(report.limits)} element{'s' * (len(report.limits) != 1)}")
         lines += [f"  {state}" for state in report.limits]
+    if report.idle_drivers:
+        lines.append(f"drivers moving no point ({len(report.idle_drivers)}): {', '.join(report.idle_drivers)}: at a unit "
+                     "rate every named point stands still (a crank of zero length, its points at its pivot?)")  # fmt: skip
     lines.append(_masses_line(report))
     lines += notice_lines(report)
     lines += report.initial_state

@@ -57,11 +57,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 from scipy import sparse
+from scipy.sparse.csgraph import structural_rank
 from scipy.sparse.linalg import splu
 
+from ..errors import ModelError
 from .tall_lu import CERTIFICATE_MARGIN, INVOLVEMENT, TallLU
 
-__all__ = ["JacobianAnalysis", "analyse_jacobian", "SMALLEST_TALL_LU"]
+__all__ = ["JacobianAnalysis", "RankUndetermined", "analyse_jacobian", "SMALLEST_TALL_LU"]
 
 #: Tall Jacobians with at least this many coordinates are analysed by `TallLU` first (its
 #: answer certified, the dense analysis otherwise); smaller ones by the dense analysis,
@@ -84,6 +86,13 @@ NULL_SWEEPS = 2
 MAX_NULLITY = 4096
 
 _EPS = np.finfo(float).eps
+
+
+class RankUndetermined(ModelError):
+    """The rank of a Jacobian cannot be told: more null vectors on one side than the dense
+    analysis finds (`MAX_NULLITY`), where the sparse LU could not decide.  Raised before
+    the dense analysis allocates its blocks ((m + n) × `MAX_NULLITY` numbers), whose result
+    would be incomplete."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -290,10 +299,7 @@ def analyse_jacobian(
         row_preference = 1.0 + np.arange(m) / m
 
     if m == n:  # the common case: square, and usually of full rank
-        try:
-            lu = splu(sparse.csc_array(scaled), permc_spec="COLAMD")
-        except RuntimeError:  # an exactly zero pivot: rank deficient
-            lu = None
+        lu = _square_lu(scaled)
         if lu is not None:
             values, right = _smallest_singular_triplets(lu, scaled, rng)
             if values[0] > absolute_tolerance:
@@ -318,6 +324,8 @@ def analyse_jacobian(
         if found is not None:
             return found
 
+    if abs(m - n) > MAX_NULLITY:  # at least that many null vectors: more than the dense analysis draws, in
+        raise RankUndetermined(_too_many_null_vectors(m, n, tall_lu_from))  # blocks of (m + n) × MAX_NULLITY
     augmented = _AugmentedFactor(scaled, max(0.1 * tolerance, SMALLEST_REGULARIZATION) * sigma_max)
     spaces = augmented.near_null(scaled, absolute_tolerance, rng)
     null_right, null_left = spaces.right, spaces.left
@@ -349,6 +357,18 @@ def analyse_jacobian(
         smallest_motion=smallest_motion,
         smallest_equations=smallest_equations,
     )
+
+
+def _too_many_null_vectors(m: int, n: int, tall_lu_from: int) -> str:
+    """Why a Jacobian with more than `MAX_NULLITY` null vectors on one side is not analysed."""
+    if m > n:
+        why = ("its sparse LU could not certify the rank (the kept equations are too close to dependent)"
+               if n >= tall_lu_from else f"it has fewer than {tall_lu_from} coordinates (the sparse LU's threshold)")  # fmt: skip
+        found = f"at least {m - n} redundant equations"
+    else:
+        why, found = "only the dense analysis finds free motions", f"at least {n - m} free motions"
+    return (f"the rank of the {m} × {n} constraint Jacobian cannot be told: {found}, more than the dense analysis "
+            f"finds ({MAX_NULLITY}; its memory grows as equations × them), and {why}")  # fmt: skip
 
 
 def _analysis_by_tall_lu(scaled, preference, absolute_tolerance, sigma_max, rng, common):
@@ -449,6 +469,22 @@ def _largest_singular_value(matrix, rng, sweeps: int = 10, block: int = 4) -> fl
     for _ in range(sweeps):
         basis = _orthonormal(matrix.T @ (matrix @ basis), keep_width=True, rng=rng)
     return float(_rayleigh_ritz(matrix, basis)[0][-1])
+
+
+def _square_lu(scaled: sparse.csr_array):
+    """SuperLU of a square A, or None if A is singular to SuperLU: structurally (fewer than n
+    entries can be matched one per row and column — then never handed to SuperLU, which
+    reads past the end of a column left without a candidate pivot row and crashes the
+    process now and then: 10 of 10 processes factoring a 36×36 parallelogram tower's
+    Jacobian 300 times) or by an exactly zero pivot."""
+    square = sparse.csc_array(scaled)
+    square.eliminate_zeros()  # the structure SuperLU sees is that of the entries stored
+    if structural_rank(sparse.csr_matrix(square)) < square.shape[1]:
+        return None
+    try:
+        return splu(square, permc_spec="COLAMD")
+    except RuntimeError:  # an exactly zero pivot (among candidate rows): rank deficient
+        return None
 
 
 def _smallest_singular_triplets(lu, scaled, rng, block: int = OVERSAMPLING):

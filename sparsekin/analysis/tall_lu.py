@@ -197,6 +197,8 @@ class TallLU:
         block = np.linalg.qr(rng.standard_normal((n, min(CERTIFICATE_BLOCK, n))))[0]
         for _ in range(CERTIFICATE_SWEEPS):
             block = np.column_stack([self.solve(self.solve_transposed(column)) for column in block.T])
+            if not np.all(np.isfinite(block)):  # B^-1 overflowed: B is singular to working precision
+                return np.zeros(1), np.zeros((n, 1))  # (rotating squares of 10^6 bodies in their own order)
             block = np.linalg.qr(block)[0]
         image = np.linalg.qr(np.asarray(self.scaled[self.kept_rows] @ block), mode="r")
         _, values, right = np.linalg.svd(image)

@@ -28,6 +28,7 @@ import contextlib
 import datetime
 import errno
 import fnmatch
+import glob
 import hashlib
 import json
 import os
@@ -95,7 +96,10 @@ class OutputFolder:
         try:
             self._check_names()
             _remove_stale_staging(self.directory)
-            self.staging.mkdir()  # also the check that the folder can be written
+            try:
+                self.staging.mkdir()  # also the check that the folder can be written
+            except PermissionError as error:  # name the folder given, not the staging folder in it
+                raise CommandError(f"--out {self.directory}: {error.strerror}: the run cannot write there") from None
         except BaseException:
             self._unlock()
             raise
@@ -211,6 +215,7 @@ def written_whole(path: Path) -> Iterator[Path]:
     synced to the disk: a power cut may lose what the kernel held.)"""
     path = Path(path)
     temporary = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    _remove_stale_partials(path)
     try:
         yield temporary
         os.replace(temporary, path)
@@ -218,6 +223,25 @@ def written_whole(path: Path) -> Iterator[Path]:
         with contextlib.suppress(OSError):
             os.remove(temporary)
         raise
+
+
+def _remove_stale_partials(path: Path) -> None:
+    """Remove the temporary files of `path` that processes no longer running left (an
+    ``animate`` killed while it wrote its clip, outside any locked folder)."""
+    for partial in path.parent.glob(f".{glob.escape(path.stem)}.*.partial{glob.escape(path.suffix)}"):
+        pid = partial.name[len(path.stem) + 2 : -len(f".partial{path.suffix}")]
+        if pid.isdigit() and not _running(int(pid)):
+            _remove(partial)
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: running
+        return True
+    return True
 
 
 def write_atomically(path: Path, write) -> Path:

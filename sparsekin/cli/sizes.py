@@ -38,14 +38,16 @@ MEMORY_VARIABLE = "SPARSEKIN_MAX_MEMORY"
 COMPILE_BYTES = 80 * 2**20
 #: Memory of the model while it is solved, per coordinate, and per equation beyond the
 #: coordinates (an overconstrained model's, whose redundant equations are found by a
-#: factorization that offers the equations one by one), bytes.  Fitted to the peaks of
-#: 10^4 and 10^5 bodies (``benchmarks/memory_estimates.py``): a chain takes 610 per
-#: coordinate, a lattice 1390 (its factors fill in more), an overconstrained grid of
-#: rotating squares 3860 (1 excess equation every 3 coordinates).  Within a factor 2 up
-#: to 10^6 bodies for chains and lattices, 2·10^5 for the squares: a grid of 2.5·10^5
-#: squares took more than 7.5 GB (issue 28's note), which this does not foresee.
-BYTES_PER_COORDINATE = 1000
-BYTES_PER_EXCESS_EQUATION = 8600
+#: factorization that offers the equations one by one), bytes.  Measured peaks
+#: (``benchmarks/memory_estimates.py``, 10^4 to 10^6 bodies, benchmarks/RESULTS.md): a chain
+#: takes about 510 per coordinate, a lattice 1290 (its factors fill in more), and one
+#: constant between them keeps both within a factor 2 (estimate / peak 1.20–1.73 and
+#: 0.75–1.09); an overconstrained grid of rotating squares about 1600 per coordinate with
+#: 1 excess equation every 3 coordinates (1.09–1.11 up to 2.5·10^5 bodies; larger grids
+#: are refused by the rank analysis, `sparsekin.analysis.rank.RankUndetermined`, at
+#: 1.32–1.40 of their peak up to 10^6 bodies).
+BYTES_PER_COORDINATE = 900
+BYTES_PER_EXCESS_EQUATION = 2500
 #: Memory of a model being built from its file, per element (body, joint, driver, load), bytes.
 BYTES_PER_ELEMENT_BUILT = 500
 #: A number of a CSV file as it is written: a Python float and its place in a list, bytes.

@@ -164,3 +164,28 @@ def limits(value: object, element: str) -> tuple[float, float]:
     if not low < high:
         raise ModelError(f"expected [min, max] with min < max, got [{low!r}, {high!r}]", element=element)
     return low, high
+
+
+class ReadOnlyDict(dict):
+    """A dict that cannot be changed: the tables of a built mechanism (its points, a unit's
+    points, a repeat's attachments), which were checked when it was built.  Still a dict
+    (``json.dumps``, ``dict(...)``, ``|`` giving a new dict) and picklable; to change one,
+    build a new mechanism (``dataclasses.replace(mechanism, points={...})``).
+
+    >>> points = ReadOnlyDict({"O": (0.0, 0.0)})
+    >>> points["A"] = (1.0, 0.0)
+    Traceback (most recent call last):
+    ...
+    TypeError: a built mechanism cannot be changed: build a new one, e.g. dataclasses.replace(mechanism, points={...})
+    """
+
+    __slots__ = ()
+
+    def _refuse(self, *_, **__):
+        raise TypeError("a built mechanism cannot be changed: build a new one, e.g. "
+                        "dataclasses.replace(mechanism, points={...})")  # fmt: skip
+
+    __setitem__ = __delitem__ = __ior__ = clear = pop = popitem = setdefault = update = _refuse
+
+    def __reduce__(self):
+        return (type(self), (dict(self),))

@@ -131,7 +131,8 @@ class Mechanism:
         points = self.points.own if isinstance(self.points, PointTable) else self.points
         if not isinstance(points, Mapping):
             raise ModelError(f"expected a mapping of name to [x, y], got {type(points).__name__}", element="points")
-        _set(self, "points", {_validate.name(key, "points"): _point_pair(key, value) for key, value in points.items()})
+        _set(self, "points", _validate.ReadOnlyDict({_validate.name(key, "points"): _point_pair(key, value)
+                                                     for key, value in points.items()}))  # fmt: skip
         for kind, kinds in (("bodies", (Body,)), ("joints", tuple(JOINT_KINDS.values())),
                             ("drivers", tuple(DRIVER_KINDS.values())), ("loads", tuple(LOAD_KINDS.values()))):  # fmt: skip
             given = getattr(self, kind)

@@ -95,7 +95,8 @@ class Unit:
         _validate.name(self.name, "name")
         if not isinstance(self.points, Mapping):
             raise ModelError(f"expected a mapping of name to [x, y], got {type(self.points).__name__}", element="points")
-        object.__setattr__(self, "points", {_validate.name(k, "points"): _point_pair(k, v) for k, v in self.points.items()})
+        object.__setattr__(self, "points", _validate.ReadOnlyDict({_validate.name(k, "points"): _point_pair(k, v)
+                                                                   for k, v in self.points.items()}))  # fmt: skip
         only = dict(self.only)
         for kind, kinds in (("bodies", (Body,)), ("joints", tuple(JOINT_KINDS.values())),
                             ("drivers", tuple(DRIVER_KINDS.values())), ("loads", tuple(LOAD_KINDS.values()))):  # fmt: skip
@@ -107,7 +108,7 @@ class Unit:
                         only[(kind, index)] = (part.i, part.j)
                         parts[index] = part.element
             object.__setattr__(self, kind, _tuple_of(parts, kinds, kind))
-        object.__setattr__(self, "only", only)
+        object.__setattr__(self, "only", _validate.ReadOnlyDict(only))
         bodies: dict[str, int] = {}
         for index, body in enumerate(self.bodies):
             if body.name == GROUND or neighbour_prefix(body.name):
@@ -235,7 +236,7 @@ class Repeat:
                     raise ModelError(f'expected keys {spelled} with NAME a body of unit "{self.unit.name}", got {key!r}',
                                      element=attachment)  # fmt: skip
                 _validate.name(target, f'{attachment}."{key}"')
-            object.__setattr__(self, attachment, dict(table))
+            object.__setattr__(self, attachment, _validate.ReadOnlyDict(table))
         for kind, index, where, name, prefix_ in self.unit.neighbour_references():
             if grid and prefix_ == PREV:
                 raise ModelError(f'"{name}": a grid has no copy before; use "left.NAME" (copy (i−1, j)) or '
@@ -257,7 +258,7 @@ class Repeat:
                 vary[path] = checked_variation(self.unit, target, variation, tiling)
             except ModelError as error:
                 raise error.within(f'vary."{path}"') from None
-        object.__setattr__(self, "vary", vary)
+        object.__setattr__(self, "vary", _validate.ReadOnlyDict(vary))
 
     @property
     def shape(self) -> tuple[int, ...]:

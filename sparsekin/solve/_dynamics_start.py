@@ -1,46 +1,56 @@
 """The start of a forward-dynamics run (`sparsekin.solve.dynamics`): which equations to
-leave out as redundant, the bodies' initial velocities, and the message of a motion that
-the masses leave undetermined."""
+leave out as redundant, the drawing assembled, the bodies' initial velocities, and the
+message of a motion that the masses leave undetermined."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.pattern import ConstraintPattern
+from ..errors import ModelError
 from ..model.mechanism import Mechanism
 
-__all__ = ["REDUNDANCY_CHECK_COORDINATES", "redundant_rows", "initial_velocities", "undetermined"]
+__all__ = ["REDUNDANCY_CHECK_COORDINATES", "redundant_rows", "assembled", "initial_velocities", "undetermined"]
 
 #: Models up to this many coordinates are always searched for redundant equations at the
 #: start (larger ones when they have at least as many equations as coordinates).
 REDUNDANCY_CHECK_COORDINATES = 3000
 
 
-def redundant_rows(jacobian) -> np.ndarray:
-    """Equations to leave out so that the others are independent.
+def redundant_rows(jacobian, preference: np.ndarray) -> np.ndarray:
+    """Equations to leave out so that the others are independent: those
+    `sparsekin.analysis.rank.analyse_jacobian` names (later joints first, drivers last, as
+    the kinematics names them; `preference` from `sparsekin.analysis.describe.row_preference`).
+    Its square branch never hands an exactly singular matrix to SuperLU (which crashed on one)."""
+    from ..analysis.rank import analyse_jacobian
 
-    Small models: a QR factorization with column pivoting of the row-equilibrated Φqᵀ
-    (dense; the equations it does not pick are redundant, rank tolerance as NumPy's).
-    Larger ones: `sparsekin.analysis.rank.analyse_jacobian`.  (Its square branch factors a
-    rank-deficient square Jacobian with SuperLU, which crashes now and then in scipy on an
-    exactly singular matrix; the dense path keeps small dynamic models, which often have
-    as many equations as coordinates, away from it.)
-    """
-    m, n = jacobian.shape
-    if n > REDUNDANCY_CHECK_COORDINATES:
-        from ..analysis.rank import analyse_jacobian
+    return analyse_jacobian(jacobian, row_preference=preference).redundant_rows
 
-        return analyse_jacobian(jacobian).redundant_rows
-    from scipy.linalg import qr
 
-    rows = jacobian.toarray()
-    scale = np.abs(rows).max(axis=1)
-    rows /= np.where(scale > 0.0, scale, 1.0)[:, None]
-    r, pivots = qr(rows.T, mode="r", pivoting=True)
-    diagonal = np.abs(np.diag(r)) if r.size else np.zeros(0)
-    tolerance = max(m, n) * np.finfo(float).eps * (diagonal[0] if diagonal.size else 0.0)
-    rank = int(np.sum(diagonal > tolerance))
-    return np.sort(pivots[rank:]).astype(np.int64)
+def assembled(system, pattern: ConstraintPattern, t: float, tolerance: float, max_corrections: int) -> np.ndarray:
+    """The drawing moved onto Φ(q, t) = 0 by the smallest weighted change (Gauss–Newton on
+    [[W, Φqᵀ], [Φq, 0]], W = diag(coordinate weights²)), Φ the kept equations of `system`
+    (a `sparsekin.engine.saddle.DynamicSystem`)."""
+    from scipy.sparse import bmat, diags
+
+    kept = system.kept_rows
+    q = pattern.initial_coordinates.copy()
+    system.set_time(t)
+    metric = diags(pattern.coordinate_weights**2)
+    for _ in range(max_corrections):
+        if system.fill_constraints(q) <= tolerance:
+            return q
+        jacobian = system.assembler.jacobian[kept]
+        matrix = bmat([[metric, jacobian.T], [jacobian, None]], format="csr")
+        solver = SuperLUSolver()
+        try:
+            solver.factor(matrix)
+        except SingularMatrix:
+            break
+        q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
+    raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
+                     f"{system.fill_constraints(q):.3g} (relative) after {max_corrections} corrections")  # fmt: skip
 
 
 def initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:

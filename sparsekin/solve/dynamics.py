@@ -51,7 +51,7 @@ import numpy as np
 
 from ..engine import _dynamics_kernels, _kernels
 from ..engine.discretization import Discretization, discretize
-from ..engine.linalg import SingularMatrix, SuperLUSolver
+from ..engine.linalg import SingularMatrix
 from ..engine.linearization import Linearization
 from ..engine.multipliers import redundant_minimum_norm
 from ..engine.newton import NEWTON_MAXITER
@@ -62,7 +62,13 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY
-from ._dynamics_start import REDUNDANCY_CHECK_COORDINATES, initial_velocities, redundant_rows, undetermined
+from ._dynamics_start import (
+    REDUNDANCY_CHECK_COORDINATES,
+    assembled,
+    initial_velocities,
+    redundant_rows,
+    undetermined,
+)
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -290,7 +296,7 @@ class GeneralizedAlphaStepper:
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
-        q = self._assembled(t)
+        q = assembled(self.system, self.pattern, t, self.tolerance, 2 * self.options.max_iterations)
         system.set_time(t)
         system.fill_constraints(q)
         # velocities: smallest mass-weighted change of the given ones; then accelerations, λ
@@ -632,12 +638,13 @@ class GeneralizedAlphaStepper:
         everything = np.arange(m, dtype=np.int64)
         if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
             return everything
+        from ..analysis.describe import row_preference
         from ..engine.assembly import Assembler
 
         assembler = Assembler(self.discretization)
         assembler.set_time(t)
         assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = redundant_rows(assembler.jacobian)
+        self.redundant_rows = redundant_rows(assembler.jacobian, row_preference(self.mechanism, self.pattern))
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
@@ -657,29 +664,6 @@ class GeneralizedAlphaStepper:
         self.path = plan.solver
         return plan.make_solver()
 
-    def _assembled(self, t: float) -> np.ndarray:
-        """The drawing moved onto Φ(q, t) = 0 by the smallest weighted change (Gauss–Newton
-        on [[W, Φqᵀ], [Φq, 0]], W = diag(coordinate weights²))."""
-        from scipy.sparse import bmat, diags
-
-        system, kept = self.system, self.system.kept_rows
-        q = self.pattern.initial_coordinates.copy()
-        system.set_time(t)
-        metric = diags(self.pattern.coordinate_weights**2)
-        for _ in range(2 * self.options.max_iterations):
-            norm = system.fill_constraints(q)
-            if norm <= self.tolerance:
-                return q
-            jacobian = system.assembler.jacobian[kept]
-            matrix = bmat([[metric, jacobian.T], [jacobian, None]], format="csr")
-            solver = SuperLUSolver()
-            try:
-                solver.factor(matrix)
-            except SingularMatrix:
-                break
-            q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
-        raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
-                         f"{system.fill_constraints(q):.3g} (relative) after {2 * self.options.max_iterations} corrections")  # fmt: skip
 
 
 def _converges_in_time(correction: float, rate: float, target: float, corrections_left: int) -> bool:
