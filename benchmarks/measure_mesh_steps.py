@@ -2,9 +2,10 @@
 factorization of its Jacobian, in one fresh process.
 
 Usage: ``python3 benchmarks/measure_mesh_steps.py FAMILY BODIES [PATH ...]`` with paths of
-`harness.LINEAR_SOLVERS` or of `FIRST_SAMPLES` (default: all four).  ``auto`` and
-``superlu-metis-start``: the first sample as `solve_kinematics` makes it (pattern, stepper,
-`start` at t = 0) with ``"auto"``'s solver or with SuperLU in METIS's order.  Every other path: the harness's first sample
+`harness.LINEAR_SOLVERS` or of `FIRST_SAMPLES` (default: ``auto``, ``refactor-start``,
+``sparsekin``, ``sparsekin-refactor``).  `FIRST_SAMPLES`: the first sample as
+`solve_kinematics` makes it (pattern, stepper, `start` at t = 0) with ``"auto"``'s solver,
+``"auto"``'s before issue 29, ``"superlu"``, or SuperLU in METIS's order.  Every other path: the harness's first sample
 (`harness.Stepper`, which solves it twice on the reuse path: once more after the switch)
 and the median over three rounds of four steps of `families.STEP`, with the split of the
 last round.  Then the reference of issue 29: one SuperLU factorization (COLAMD, what
@@ -25,24 +26,33 @@ _HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(_HERE), str(_HERE.parent)]  # the harness, and sparsekin when not installed
 
 from families import STEP, build  # noqa: E402
-from harness import Stepper  # noqa: E402
+from harness import BEFORE_DISSECTION, Stepper  # noqa: E402
 from measure_mesh_lu import _peak_rss_bytes, jacobian_at_drawing  # noqa: E402
 
 from sparsekin.engine.linalg import SuperLUSolver  # noqa: E402
+from sparsekin.solve.options import SolveOptions  # noqa: E402
 from sparsekin.solve.stepper import KinematicStepper  # noqa: E402
 
 ROUNDS, STEPS_PER_ROUND = 3, 4
 
 
 #: First samples as `solve_kinematics` makes them (pattern, stepper, `start` at t = 0): with
-#: ``"auto"``, and with the linear solver ``superlu-metis`` holds (one factorization; the
-#: switch to `ReusingSolver` after it costs nothing).
-FIRST_SAMPLES = {"auto": lambda: "auto", "superlu-metis-start": lambda: SuperLUSolver(ordering="metis")}
+#: ``"auto"``; with ``"auto"`` as it was before `DissectionSolver` (``refactor-start``: the
+#: METIS-ordered refactorization); with ``linear_solver="superlu"`` (``superlu-start``); and
+#: with the linear solver ``superlu-metis`` holds (one factorization; the switch to
+#: `ReusingSolver` after it costs nothing).
+FIRST_SAMPLES = {
+    "auto": lambda: ("auto", None),
+    "refactor-start": lambda: ("auto", SolveOptions(thresholds=BEFORE_DISSECTION)),
+    "superlu-start": lambda: ("superlu", None),
+    "superlu-metis-start": lambda: (SuperLUSolver(ordering="metis"), None),
+}
 
 
 def first_sample(mechanism, name: str) -> dict:
     start = time.perf_counter()
-    stepper = KinematicStepper(mechanism, linear_solver=FIRST_SAMPLES[name]())
+    linear_solver, options = FIRST_SAMPLES[name]()
+    stepper = KinematicStepper(mechanism, linear_solver=linear_solver, options=options)
     stepper.start(0.0)
     seconds = time.perf_counter() - start
     return {"path": f"{name}, first sample", "taken": stepper.path, "first_sample_s": seconds,
@@ -71,7 +81,7 @@ def main(family: str, bodies: int, paths: list[str]) -> None:
                           "first_sample_s": first, "per_step_s": float(np.median(rounds)), "split_s": split,
                           "peak_rss_bytes": _peak_rss_bytes()}), flush=True)  # fmt: skip
         del stepper
-    jacobian, _ = jacobian_at_drawing(family, bodies)
+    jacobian, _, _ = jacobian_at_drawing(family, bodies)
     start = time.perf_counter()
     SuperLUSolver().factor(jacobian)
     print(json.dumps({"family": family, "bodies": mechanism.n_bodies, "path": "one SuperLU factorization",
@@ -79,4 +89,4 @@ def main(family: str, bodies: int, paths: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]), sys.argv[3:] or ["auto", "superlu-metis-start", "sparsekin", "superlu-metis"])
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3:] or ["auto", "refactor-start", "sparsekin", "sparsekin-refactor"])

@@ -368,3 +368,29 @@ def dense_lu_solve_transposed(a, pivots, b):
         swap = pivots[k]
         if swap != k:
             b[k], b[swap] = b[swap], b[k]
+
+
+@njit(**_JIT)
+def split_off_diagonal(indptr, indices, values, diagonal):
+    """Take the diagonal out of a square CSC triangular factor, in place.
+
+    Moves each column's off-diagonal entries to the front of the arrays, in order, writes
+    the diagonal entry of column j to ``diagonal[j]`` (0 where there is none) and returns
+    the new `indptr`: the factor without its diagonal is ``indices[:indptr[-1]]`` and
+    ``values[:indptr[-1]]``.
+    """
+    n = indptr.size - 1
+    kept = np.empty(n + 1, dtype=np.int64)
+    kept[0] = 0
+    k = 0
+    for j in range(n):
+        diagonal[j] = 0.0
+        for p in range(indptr[j], indptr[j + 1]):
+            if indices[p] == j:
+                diagonal[j] = values[p]
+            else:
+                indices[k] = indices[p]
+                values[k] = values[p]
+                k += 1
+        kept[j + 1] = k
+    return kept
