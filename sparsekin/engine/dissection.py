@@ -9,7 +9,8 @@ both costs down to SuperLU's own:
   computed once per pattern in O(n log n), where METIS's order cost as much as a
   factorization at 10^6 bodies;
 * SuperLU factors the Jacobian's columns in that order (``permc_spec="NATURAL"``: its own
-  partial pivoting and supernodes), about half of COLAMD's fill;
+  partial pivoting and supernodes, in panels of `PANEL_SIZE` columns with relaxed
+  supernodes of `RELAXED_SUPERNODE` columns), with about two thirds of COLAMD's fill;
 * the factors are taken out of SuperLU once, its supernodal storage dropped, and the
   solves run on them as compressed columns with the kernels of `RefactorSolver`
   (`sparsekin.engine._lu_kernels.solve_lu`), faster than SuperLU's own solves with the
@@ -28,12 +29,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import _lu_kernels
-from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square, _splu
+from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
 
-__all__ = ["DissectionSolver"]
+__all__ = ["DissectionSolver", "PANEL_SIZE", "RELAXED_SUPERNODE"]
+
+#: SuperLU's panel size and relaxed-supernode size in the dissection's order.  Its defaults
+#: were 1.3–1.5 times slower than these on the lattice at 3·10^5 bodies (three interleaved
+#: rounds, one process: 7.3–8.5 s against 5.4–5.6 s; COLAMD 5.6–6.3 s) and 1.2 times at
+#: 10^5; other pairs tried (relax 1, 2, 8; panel 2, 8) were not faster.
+PANEL_SIZE = 4
+RELAXED_SUPERNODE = 4
 
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
@@ -72,6 +80,7 @@ class DissectionSolver:
             raise ValueError(f"`points` must have shape (n_bodies, 2), got {points.shape}.")
         self.points = points
         self._order = None  # the column order of the pattern `_pattern`, once computed
+        self._ordered = None  # (indptr, indices, gather): J[:, order] in CSC is (J.data[gather], indices, indptr)
         self._pattern = None
         self._factors = None
         self._n = 0
@@ -96,8 +105,13 @@ class DissectionSolver:
         order = self._column_order(jacobian)
         if not np.all(np.isfinite(jacobian.data)):
             raise SingularMatrix("the Jacobian has entries that are not finite")
+        from scipy.sparse import csc_array
+        from scipy.sparse.linalg import splu
+
+        indptr, indices, gather = self._ordered
+        ordered = csc_array((jacobian.data[gather].astype(float), indices, indptr), shape=jacobian.shape)
         try:
-            lu = _splu(jacobian.tocsc()[:, order], "NATURAL")
+            lu = splu(ordered, permc_spec="NATURAL", relax=RELAXED_SUPERNODE, panel_size=PANEL_SIZE)
         except RuntimeError as error:  # "Factor is exactly singular"
             raise SingularMatrix(str(error)) from error
         # SuperLU: Pr (J Q) Pc = L U with Q = the order; as one column permutation of J,
@@ -180,6 +194,12 @@ class DissectionSolver:
                     f"`jacobian` has {n} columns, expected {COORDINATES_PER_BODY} for each of the "
                     f"{self.points.shape[0]} bodies."
                 )
+            from scipy.sparse import csr_array
+
             self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            positions = csr_array((np.arange(1, jacobian.nnz + 1, dtype=float), jacobian.indices, jacobian.indptr),
+                                  shape=jacobian.shape).tocsc()[:, self._order]  # fmt: skip
+            positions.sort_indices()
+            self._ordered = (positions.indptr, positions.indices, positions.data.astype(np.int64) - 1)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order

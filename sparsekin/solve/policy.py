@@ -201,7 +201,7 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
         and supports_compiled(discretization.mechanism)
     )
     metis = auto and n >= thresholds.min_metis_coordinates and metis_installed()
-    if auto and n >= thresholds.min_dissection_coordinates and _is_mesh(discretization):
+    if auto and solver == "refactor" and n >= thresholds.min_dissection_coordinates and _is_mesh(discretization):
         points = pattern.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
         return SolverPlan(loop="python", solver="dissection", reuse_fill=thresholds.max_refactor_fill,
                           thresholds=thresholds, points=points)  # fmt: skip
