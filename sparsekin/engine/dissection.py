@@ -13,7 +13,7 @@ both costs down to SuperLU's own:
   supernodes of `RELAXED_SUPERNODE` columns), with about two thirds of COLAMD's fill;
 * the factors are taken out of SuperLU once, its supernodal storage dropped, and the
   solves run on them as compressed columns with the kernels of `RefactorSolver`
-  (`sparsekin.engine._lu_kernels.solve_lu`), faster than SuperLU's own solves with the
+  (`sparsekin.engine.linalg.solve_factored`), faster than SuperLU's own solves with the
   permutations of its Python wrapper.
 
 Every `factor` is a fresh factorization (its pivoting its own); there is no
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import _lu_kernels
-from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square
+from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square, has_pattern, solve_factored
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -138,40 +138,14 @@ class DissectionSolver:
     def solve(
         self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
     ) -> np.ndarray:
-        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`.
-
-        Parameters
-        ----------
-        rhs : ndarray, shape (n,) or (n, n_rhs)
-            One right-hand side, or one per column (solved column by column).
-        out : ndarray, optional
-            C-contiguous float64 array of the shape of `rhs` to receive the solution; may
-            be `rhs` itself.
-
-        Returns
-        -------
-        ndarray
-            The solution, `out` if given.
-
-        Raises
-        ------
-        SingularMatrix
-            If the solution is not finite.
-        """
+        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`: one
+        right-hand side, or one per column of a 2-D `rhs`, optionally into `out` (which may
+        be `rhs`); parameters, returns and errors as `RefactorSolver.solve`'s."""
         if self._factors is None:
             raise RuntimeError(_NOT_FACTORED)
         rhs, out = _checked_rhs(rhs, self._n, out)
         kernel = _lu_kernels.solve_lu_transposed if transposed else _lu_kernels.solve_lu
-        if rhs.ndim == 1:
-            kernel(self._factors, rhs, self._work, out, self._probe)
-            finite = self._probe[0] == 0.0
-        else:
-            column = np.empty(self._n)
-            finite = True
-            for c in range(rhs.shape[1]):
-                kernel(self._factors, np.ascontiguousarray(rhs[:, c]), self._work, column, self._probe)
-                out[:, c] = column
-                finite &= self._probe[0] == 0.0
+        finite = solve_factored(kernel, self._factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if not finite:
             raise SingularMatrix("the solution is not finite")
@@ -179,12 +153,7 @@ class DissectionSolver:
 
     def _column_order(self, jacobian: csr_array) -> np.ndarray:
         """The nested-dissection order of the coordinates; computed again only for a new pattern."""
-        pattern = self._pattern
-        same = pattern is not None and (
-            (jacobian.indptr is pattern[0] and jacobian.indices is pattern[1])
-            or (np.array_equal(jacobian.indptr, pattern[0]) and np.array_equal(jacobian.indices, pattern[1]))
-        )
-        if not same:
+        if not has_pattern(jacobian, self._pattern):
             from .ordering import geometric_column_order
 
             self._order = self._pattern = None  # until the new order is there

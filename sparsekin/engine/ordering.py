@@ -292,13 +292,7 @@ def fill_reducing_column_order(matrix, *, method: str = "auto", block: int = 1) 
     """
     if method not in ("auto", "metis", "level-sets"):
         raise ValueError(f"`method` must be 'auto', 'metis' or 'level-sets', got {method!r}.")
-    if not hasattr(matrix, "tocsr") or len(matrix.shape) != 2:
-        raise ValueError(f"`matrix` must be a 2-D scipy.sparse array, got {type(matrix).__name__}.")
-    m, n = matrix.shape
-    if m < n:
-        raise ValueError(f"`matrix` must have at least as many rows as columns, got shape {matrix.shape}.")
-    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1 or n % block:
-        raise ValueError(f"`block` must be a whole number >= 1 dividing the {n} columns, got {block!r}.")
+    _check_matrix_and_block(matrix, block)
     order = _dissection(*_column_graph(matrix, int(block)), method)
     if block == 1:
         return order
@@ -338,13 +332,7 @@ def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
     >>> geometric_column_order(chain, [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], block=2).size
     6
     """
-    if not hasattr(matrix, "tocsr") or len(matrix.shape) != 2:
-        raise ValueError(f"`matrix` must be a 2-D scipy.sparse array, got {type(matrix).__name__}.")
-    m, n = matrix.shape
-    if m < n:
-        raise ValueError(f"`matrix` must have at least as many rows as columns, got shape {matrix.shape}.")
-    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1 or n % block:
-        raise ValueError(f"`block` must be a whole number >= 1 dividing the {n} columns, got {block!r}.")
+    n = _check_matrix_and_block(matrix, block)
     points = np.ascontiguousarray(points, dtype=float)
     if points.shape != (n // block, 2) or not np.all(np.isfinite(points)):
         raise ValueError(f"`points` must be {n // block} finite places (x, y), one a body, got shape {points.shape}.")
@@ -352,6 +340,18 @@ def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
 
     order = geometric_dissection(*_column_graph(matrix, int(block)), points, DISSECTION_LEAF_SIZE)
     return (block * order[:, None] + np.arange(block)).ravel()
+
+
+def _check_matrix_and_block(matrix, block) -> int:
+    """Refuse what a column order cannot take; the number of columns."""
+    if not hasattr(matrix, "tocsr") or len(matrix.shape) != 2:
+        raise ValueError(f"`matrix` must be a 2-D scipy.sparse array, got {type(matrix).__name__}.")
+    m, n = matrix.shape
+    if m < n:
+        raise ValueError(f"`matrix` must have at least as many rows as columns, got shape {matrix.shape}.")
+    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1 or n % block:
+        raise ValueError(f"`block` must be a whole number >= 1 dividing the {n} columns, got {block!r}.")
+    return n
 
 
 def fill_reducing_row_order(matrix, *, method: str = "auto") -> np.ndarray:
