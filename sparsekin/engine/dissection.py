@@ -109,7 +109,8 @@ class DissectionSolver:
         from scipy.sparse.linalg import splu
 
         indptr, indices, gather = self._ordered
-        ordered = csc_array((jacobian.data[gather].astype(float), indices, indptr), shape=jacobian.shape)
+        values = np.take(jacobian.data, gather).astype(float, copy=False)
+        ordered = csc_array((values, indices, indptr), shape=jacobian.shape)
         try:
             lu = splu(ordered, permc_spec="NATURAL", relax=RELAXED_SUPERNODE, panel_size=PANEL_SIZE)
         except RuntimeError as error:  # "Factor is exactly singular"
