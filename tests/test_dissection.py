@@ -169,3 +169,19 @@ def test_a_mesh_runs_as_superlu_does():
     assert len(result.force_labels) > 100 and np.abs(reference.force_tracks).max() > 1.0
     scale = np.abs(reference.force_tracks).max()
     np.testing.assert_allclose(result.force_tracks, reference.force_tracks, rtol=0, atol=1e-9 * scale)
+
+
+def test_the_ordered_columns_are_scipys(rng):
+    """`_lu_kernels.ordered_columns` (the gather the solver refills through) against
+    scipy's ``matrix.tocsc()[:, order]``, rows sorted."""
+    from scipy.sparse import random_array
+
+    from sparsekin.engine import _lu_kernels
+
+    matrix = csr_array(random_array((30, 24), density=0.15, rng=rng, format="csr"))
+    order = rng.permutation(24)
+    indptr, indices, gather = _lu_kernels.ordered_columns(matrix.indptr, matrix.indices, order)
+    expected = matrix.tocsc()[:, order]
+    expected.sort_indices()
+    assert np.array_equal(indptr, expected.indptr) and np.array_equal(indices, expected.indices)
+    np.testing.assert_array_equal(matrix.data[gather], expected.data)

@@ -164,12 +164,7 @@ class DissectionSolver:
                     f"`jacobian` has {n} columns, expected {COORDINATES_PER_BODY} for each of the "
                     f"{self.points.shape[0]} bodies."
                 )
-            from scipy.sparse import csr_array
-
             self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
-            positions = csr_array((np.arange(1, jacobian.nnz + 1, dtype=float), jacobian.indices, jacobian.indptr),
-                                  shape=jacobian.shape).tocsc()[:, self._order]  # fmt: skip
-            positions.sort_indices()
-            self._ordered = (positions.indptr, positions.indices, positions.data.astype(np.int64) - 1)
+            self._ordered = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, self._order)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order
