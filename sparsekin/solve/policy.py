@@ -80,7 +80,7 @@ MIN_METIS_COORDINATES = 30_000
 #: ``linear_solver="auto"`` factors a mesh (grid repeats, as many equations as coordinates)
 #: with `DissectionSolver` from this many coordinates on (the lattice at 10^4 bodies): its
 #: first sample took about half of one SuperLU factorization from 10^4 to 10^6 bodies, the
-#: METIS-ordered refactorization's 4–8 times (docs/design-notes.md, "Sparse LU on meshes").
+#: METIS-ordered refactorization's 4.5–6 times (docs/design-notes.md, "Sparse LU on meshes").
 MIN_DISSECTION_COORDINATES = 30_000
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
 #: kept equations) densely up to this size, with `RefactorSolver` above.
