@@ -17,6 +17,9 @@ The paths compared, measured in the same run:
   refactorization's fill-in is heavy (`MAX_REFACTOR_FILL`, meshes), the refactorization
   (METIS-ordered when pymetis is installed and the model large) reused across samples by
   `ReusingSolver` (GMRES preconditioned by the held factorization): path ``"reuse"``.
+  On a large mesh (issue 29), `DissectionSolver` instead, always reused across samples.
+* ``sparsekin-refactor`` — ``"auto"`` without `DissectionSolver`: what meshes ran before
+  issue 29 (the METIS-ordered refactorization, reused), the baseline of the mesh runs.
 * ``superlu`` — the same with a fresh SuperLU factorization (COLAMD, through the CSC
   view) at every Newton iteration, plain Newton: ``linear_solver="superlu"``.
 * ``superlu-metis`` — on meshes (issue 29): SuperLU in METIS's order
@@ -113,14 +116,21 @@ class RebuildBaseline:
 ABOVE_COMPILED = Thresholds(compiled_max_coordinates=0)
 
 
-def sparsekin_plan(model):
-    """What ``"auto"`` plans for `model` above the compiled size (`plan_linear_solver`)."""
-    return plan_linear_solver(model, "auto", ABOVE_COMPILED)
+#: ``"auto"``'s thresholds above the compiled size without `DissectionSolver`.
+BEFORE_DISSECTION = Thresholds(compiled_max_coordinates=0, min_dissection_coordinates=2**62)
+#: The paths that follow ``"auto"``'s plan, with their thresholds.
+PLANNED = {"sparsekin": ABOVE_COMPILED, "sparsekin-refactor": BEFORE_DISSECTION}
+
+
+def sparsekin_plan(model, path: str = "sparsekin"):
+    """What ``"auto"`` plans for `model` on `path` (a key of `PLANNED`, `plan_linear_solver`)."""
+    return plan_linear_solver(model, "auto", PLANNED[path])
 
 
 #: Linear solvers by path name: each is built from the mechanism's arrays (`discretize`).
 LINEAR_SOLVERS = {
     "sparsekin": lambda model: sparsekin_plan(model).make_solver(),
+    "sparsekin-refactor": lambda model: sparsekin_plan(model, "sparsekin-refactor").make_solver(),
     # meshes (issue 29): SuperLU in METIS's order, reused across samples like "sparsekin"'s
     "superlu-metis": lambda model: SuperLUSolver(ordering="metis"),
     "superlu": lambda model: SuperLUSolver(),
@@ -128,7 +138,7 @@ LINEAR_SOLVERS = {
     "coo_spsolve": lambda model: RebuildBaseline(model.constraints),
 }
 #: The paths whose Newton iteration is chord Newton (the others run plain Newton).
-CHORD = frozenset({"sparsekin", "superlu-metis"})
+CHORD = frozenset({"sparsekin", "sparsekin-refactor", "superlu-metis"})
 #: The paths that always reuse their factorization across samples (`ReusingSolver`).
 REUSED = frozenset({"superlu-metis"})
 
@@ -204,7 +214,7 @@ class Stepper:
         self.stepper.start(0.0)
         self.path = linear_solver
         if linear_solver in REUSED or (
-            linear_solver == "sparsekin" and sparsekin_plan(model).reuses(solver, pattern.nnz)
+            linear_solver in PLANNED and sparsekin_plan(model, linear_solver).reuses(solver, pattern.nnz)
         ):
             # as `start` does under "auto"; a refactorization GMRES finds necessary inside
             # a solve is timed with the solves

@@ -350,45 +350,54 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
         "## Sparse LU on the lattice (issue 29; `measure_mesh_lu.py`, `measure_mesh_steps.py`)",
         "",
         "Not part of the pytest-benchmark run: `benchmarks/mesh_lu.jsonl` holds the lines printed by",
-        "`python3 benchmarks/measure_mesh_lu.py lattice BODIES` (one fresh process per size; pypardiso from",
-        "a separate install, single thread) and `python3 benchmarks/measure_mesh_steps.py lattice BODIES`.",
-        "One Jacobian J at t = 0, J x = b solved (A = Jᵀ factored; `superlu-metis` factors J, its",
-        "coordinates in METIS's order of the bodies). First: everything a first `factor` does (ordering,",
-        "analysis, numbers; in brackets the order alone, timed apart); again: a second `factor` with the",
-        "same values (`superlu-metis`: a fresh SuperLU in the held order; `refactor-metis`: the numeric",
-        "refactorization); solve: median of three; backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞);",
-        "L + U: entries held (SuperLU's nonzeros; the refactorization's structural pattern).",
-        "Each size's options ran in one process, one after the other; compare within a size, not with",
-        "the tables above (issue 29's runs were made at load average 10–15 on the 2 cores).",
+        "`python3 benchmarks/measure_mesh_lu.py lattice BODIES` (one fresh process per size) and",
+        "`python3 benchmarks/measure_mesh_steps.py lattice BODIES ...`; the column \"run\" says which session",
+        "made the line and the load average then (2 cores shared by six engineers: absolute times move",
+        "2× from one minute to the next; compare within one run and size only).",
+        "One Jacobian J at t = 0 (the drawing), J x = b solved. `superlu`: SuperLU with COLAMD on A = Jᵀ,",
+        "what `linear_solver=\"superlu\"` does; `dissection`: `DissectionSolver` (what `auto` takes on",
+        "meshes), SuperLU on J in a geometric nested dissection of the bodies, numba solves on its",
+        "factors; `superlu-metis`: SuperLU on J in METIS's order of the bodies; `refactor-metis`:",
+        "`RefactorSolver(ordering=\"metis\")`, what `auto` took on meshes before; `pardiso`: MKL Pardiso",
+        "(pypardiso, one thread, a separate install). First: everything a first `factor` does (in",
+        "brackets the order alone, timed apart); again: a second `factor` with the same values (a fresh",
+        "SuperLU in the held order; `refactor-metis`: the numeric refactorization on its fixed pattern);",
+        "solve: median of three; backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞); L + U: entries held",
+        "(SuperLU's count, its supernodes' zeros included; `dissection`: the nonzeros it keeps; the",
+        "refactorization's structural pattern).",
         "",
-        "| bodies | option | first | again | solve | backward error | L + U |",
-        "|---|---|---|---|---|---|---|",
+        "| run | bodies | option | first | again | solve | backward error | L + U |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in options:
         again = _seconds(r["refactorization_s"]) if "refactorization_s" in r else "—"
-        entries = f"{r['nnz_factors'] / 1e6:.1f} M" if "nnz_factors" in r else "—"
-        ordering = f" (METIS {_seconds(r['ordering_s'])})" if "ordering_s" in r else ""
-        cells = [f"{r['bodies']:,}", f"`{r['option']}`", _seconds(r["first_factorization_s"]) + ordering, again,
-                 _seconds(r["solve_s"]), f"{r['backward_error']:.1e}", entries]  # fmt: skip
+        entries = f"{r['nnz_factors'] / 1e6:.2f} M" if "nnz_factors" in r else "—"
+        ordering = f" (order {_seconds(r['ordering_s'])})" if "ordering_s" in r else ""
+        cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", f"`{r['option']}`",
+                 _seconds(r["first_factorization_s"]) + ordering, again, _seconds(r["solve_s"]),
+                 f"{r['backward_error']:.1e}", entries]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     steps = [r for r in records if "path" in r]
     if steps:
         lines += [
             "",
-            "First sample and time per step, one process per line group ending in its reference, one SuperLU",
-            "(COLAMD) factorization of the Jacobian at t = 0 (`measure_mesh_steps.py`): \"first sample\" lines",
-            "as `solve_kinematics` makes it with `auto`'s solver or with SuperLU in METIS's order; path lines",
-            "the harness's stepper (its first sample solves twice on the reuse path) and the median of three",
-            "rounds of four steps.",
+            "First sample and time per step (`measure_mesh_steps.py`), one process per size: \"first sample\"",
+            "lines as `solve_kinematics` makes it (pattern, stepper, `start` at t = 0) with `auto` (now",
+            "`DissectionSolver` on meshes), with `auto` before it (`refactor-start`), with",
+            "`linear_solver=\"superlu\"` (`superlu-start`); each round ends with issue 29's reference, one",
+            "SuperLU (COLAMD) factorization of the Jacobian at t = 0. Path lines: the harness's stepper",
+            "(`sparsekin`: `auto` now; `sparsekin-refactor`: `auto` before; its first sample solves twice",
+            "on the reuse path) and the median of three rounds of four steps.",
             "",
-            "| bodies | what | path taken | first sample | per step | solves per step, last round | peak memory |",
-            "|---|---|---|---|---|---|---|",
+            "| run | bodies | what | round | path taken | first sample | per step | solves per step | peak memory |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in steps:
             first = r.get("first_sample_s", r.get("factorization_s"))
             step = _seconds(r["per_step_s"]) if "per_step_s" in r else "—"
             solves = _seconds(r["split_s"]["solves"]) if "split_s" in r else "—"
-            cells = [f"{r['bodies']:,}", r["path"], r.get("taken", "—"), _seconds(first), step, solves,
+            cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", r["path"], str(r.get("round", "—")),
+                     r.get("taken", "—"), _seconds(first), step, solves,
                      f"{r['peak_rss_bytes'] / 2**30:.2f} GB"]  # fmt: skip
             lines.append("| " + " | ".join(cells) + " |")
     return lines

@@ -12,6 +12,10 @@ option on its own line.  Options (default: all that are installed):
 * ``superlu-metis`` — `SuperLUSolver(ordering="metis")`: SuperLU on J's columns in METIS's
   order of the bodies (``permc_spec="NATURAL"``); its "refactorization" is a fresh SuperLU
   factorization in the order it holds, and ``ordering_s`` times that order alone;
+* ``dissection`` — `DissectionSolver`: SuperLU on J's columns in a geometric nested
+  dissection of the bodies, solves by numba kernels on its factors; its
+  "refactorization" is a fresh SuperLU factorization in the order it holds, and
+  ``ordering_s`` times that order alone;
 * ``refactor-metis`` — `RefactorSolver(ordering="metis")`;
 * ``pardiso`` — MKL Pardiso through `pypardiso` (not a dependency; skipped when missing).
 
@@ -35,9 +39,10 @@ sys.path[:0] = [str(_HERE), str(_HERE.parent)]  # the families, and sparsekin wh
 from families import build  # noqa: E402
 
 from sparsekin.engine.assembly import Assembler  # noqa: E402
+from sparsekin.engine.discretization import Discretization  # noqa: E402
 from sparsekin.engine.pattern import build_pattern  # noqa: E402
 
-OPTIONS = ("superlu", "superlu-metis", "refactor-metis", "pardiso")
+OPTIONS = ("superlu", "dissection", "superlu-metis", "refactor-metis", "pardiso")
 
 
 def _peak_rss_bytes() -> int:
@@ -49,13 +54,14 @@ def _peak_rss_bytes() -> int:
 
 
 def jacobian_at_drawing(family: str, bodies: int):
-    """The CSR Jacobian of the model at t = 0 at its drawing, and the model's size."""
+    """The CSR Jacobian of the model at t = 0 at its drawing, the model's size, and where its
+    bodies are drawn (their origins, shape (bodies, 2))."""
     mechanism = build(family, bodies)
     pattern = build_pattern(mechanism)
-    assembler = Assembler(mechanism, pattern)
+    assembler = Assembler(Discretization(mechanism, pattern))
     assembler.set_time(0.0)
     assembler.fill_residual_jacobian(pattern.initial_coordinates)
-    return assembler.jacobian, mechanism.n_bodies
+    return assembler.jacobian, mechanism.n_bodies, pattern.initial_coordinates.reshape(-1, 3)[:, :2].copy()
 
 
 def backward_error(jacobian, x: np.ndarray, b: np.ndarray) -> float:
@@ -93,11 +99,17 @@ def _solver_option(solver, jacobian, b, refactor: bool = True) -> dict:
     return row
 
 
-def measure(option: str, jacobian, b: np.ndarray) -> dict | None:
+def measure(option: str, jacobian, b: np.ndarray, points: np.ndarray) -> dict | None:
     from sparsekin.engine import linalg
 
     if option == "superlu":
         return _solver_option(linalg.SuperLUSolver(), jacobian, b, refactor=False)
+    if option == "dissection":
+        from sparsekin.engine.dissection import DissectionSolver
+        from sparsekin.engine.ordering import geometric_column_order
+
+        ordering_s, _ = _timed(lambda: geometric_column_order(jacobian, points, block=linalg.COORDINATES_PER_BODY))
+        return dict(_solver_option(DissectionSolver(points), jacobian, b), ordering_s=ordering_s)
     if option == "refactor-metis":
         return _solver_option(linalg.RefactorSolver(ordering="metis"), jacobian, b)
     if option == "superlu-metis":
@@ -125,13 +137,13 @@ def measure(option: str, jacobian, b: np.ndarray) -> dict | None:
 def main(argv: list[str]) -> None:
     family, bodies = argv[0], int(argv[1])
     options = argv[2:] or OPTIONS
-    small, _ = jacobian_at_drawing(family, 100)  # compile the kernels outside the timings
+    small, _, small_points = jacobian_at_drawing(family, 100)  # compile the kernels outside the timings
     for option in options:
-        measure(option, small, np.ones(small.shape[0]))
-    jacobian, n_bodies = jacobian_at_drawing(family, bodies)
+        measure(option, small, np.ones(small.shape[0]), small_points)
+    jacobian, n_bodies, points = jacobian_at_drawing(family, bodies)
     b = np.random.default_rng(0).standard_normal(jacobian.shape[0])
     for option in options:
-        row = measure(option, jacobian, b)
+        row = measure(option, jacobian, b, points)
         if row is None:
             continue
         row.update(family=family, bodies=n_bodies, unknowns=jacobian.shape[0], nnz=int(jacobian.nnz), option=option,

@@ -34,8 +34,8 @@ from families import (
 )
 from harness import LINEAR_SOLVERS, PHASES, Stepper
 
-#: SuperLU in METIS's order (issue 29) runs on meshes from here, where "sparsekin" is
-#: METIS-ordered too (`MIN_METIS_COORDINATES`).
+#: SuperLU in METIS's order and "auto" before `DissectionSolver` (issue 29) run on meshes
+#: from here, where "sparsekin" takes `DissectionSolver` (`MIN_DISSECTION_COORDINATES`).
 MIN_MESH_COMPARISON_BODIES = 10_000
 #: Timed rounds per benchmark, fewer for the slow ones.
 ROUNDS_BELOW_1E5, ROUNDS_FROM_1E5 = 5, 3
@@ -52,8 +52,10 @@ def _cases(config, solver_names):
                     continue
                 if solver != "sparsekin" and family in MESHES and bodies > MESH_BASELINE_MAX_BODIES:
                     continue
-                if solver == "superlu-metis" and (family not in MESHES or bodies < MIN_MESH_COMPARISON_BODIES):
-                    continue  # meshes only, where "sparsekin" is METIS-ordered too
+                if solver in ("superlu-metis", "sparsekin-refactor") and (
+                    family not in MESHES or bodies < MIN_MESH_COMPARISON_BODIES
+                ):
+                    continue  # meshes only, where "sparsekin" takes the mesh solver
                 yield pytest.param(family, bodies, solver, id=f"{family}-{bodies}-{solver}")
 
 

@@ -198,3 +198,19 @@ def test_superlu_in_metis_order_reused_along_a_motion(build):
         coordinates.append(stepper.coordinates.copy())
     np.testing.assert_allclose(np.array(coordinates), reference.coordinates, rtol=0, atol=1e-10)
     assert solver.n_factorizations < len(times) // 2  # held across samples
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (7, 7), (40, 25)])
+def test_the_norm_that_scales_the_tolerance(shape, rng):
+    """`ReusingSolver`'s scale is max(||J||_1, ||J||_inf), here in one pass (the kernel)
+    against numpy's dense column and row sums."""
+    from sparsekin.engine import _krylov_kernels
+
+    matrix = random_array(shape, density=0.3, rng=rng, format="csr") - random_array(shape, density=0.3, rng=rng,
+                                                                                       format="csr")  # fmt: skip
+    matrix = csr_array(matrix)
+    dense = np.abs(matrix.toarray())
+    expected = max(dense.sum(axis=0).max(), dense.sum(axis=1).max())
+    work = np.full(shape[1], 7.0)  # not zero: the kernel clears it
+    found = _krylov_kernels.largest_line_sum(matrix.indptr, matrix.indices, matrix.data, work)
+    assert found == pytest.approx(expected, rel=1e-15, abs=0.0)

@@ -27,6 +27,7 @@ from sparsekin.engine.linalg import (
     SingularMatrix,
     SuperLUSolver,
 )
+from sparsekin.engine.dissection import DissectionSolver
 from sparsekin.engine.pattern import build_pattern
 
 #: Largest accepted normwise backward error of a solve.
@@ -48,12 +49,20 @@ def _superlu_in_metis_order() -> SuperLUSolver:
     return SuperLUSolver(ordering="metis")
 
 
+#: Each solver made from where the bodies of the Jacobian's model are drawn (only
+#: `DissectionSolver` reads it).
 SOLVERS = {
-    "superlu": SuperLUSolver,
-    "superlu-metis": _superlu_in_metis_order,
-    "refactor": RefactorSolver,
-    "dense": DenseSolver,
+    "superlu": lambda points: SuperLUSolver(),
+    "superlu-metis": lambda points: _superlu_in_metis_order(),
+    "refactor": lambda points: RefactorSolver(),
+    "dense": lambda points: DenseSolver(),
+    "dissection": DissectionSolver,
 }
+
+
+def points_in_a_row(n_coordinates: int) -> np.ndarray:
+    """Places of the bodies of a matrix that comes from no model: in a row."""
+    return np.column_stack([np.arange(n_coordinates // 3, dtype=float), np.zeros(n_coordinates // 3)])
 N_CONFIGURATIONS = 4
 
 
@@ -66,6 +75,7 @@ class Family:
         self.pattern = build_pattern(self.mechanism)
         self.assembler = Assembler(Discretization(self.mechanism, self.pattern))
         self.times = np.linspace(0.0, t_end, N_CONFIGURATIONS)
+        self.points = self.pattern.initial_coordinates.reshape(-1, 3)[:, :2]
         self.coordinates = solve_kinematics(self.mechanism, self.times).coordinates
 
     def jacobian_at(self, k: int) -> csr_array:
@@ -103,7 +113,7 @@ def check_solves(solver, jacobian, rng) -> None:
 # ---------------------------------------------------------------------- all solvers
 @pytest.mark.parametrize("solver_name", list(SOLVERS))
 def test_solves_along_the_motion(family, solver_name, rng):
-    solver = SOLVERS[solver_name]()
+    solver = SOLVERS[solver_name](family.points)
     for k in range(N_CONFIGURATIONS):
         jacobian = family.jacobian_at(k)
         solver.factor(jacobian)
@@ -120,7 +130,7 @@ def test_solves_along_the_motion(family, solver_name, rng):
 @pytest.mark.parametrize("solver_name", list(SOLVERS))
 def test_solve_into_out(solver_name, rng):
     matrix = csr_array(rng.standard_normal((6, 6)) + 6.0 * np.eye(6))
-    solver = SOLVERS[solver_name]()
+    solver = SOLVERS[solver_name](points_in_a_row(6))
     solver.factor(matrix)
     b = rng.standard_normal(6)
     out = np.empty(6)
@@ -144,7 +154,7 @@ def test_singular_jacobian_raises(family, solver_name):
     """A body whose coordinate appears in no equation: a zero column, pattern unchanged."""
     jacobian = family.jacobian_at(0).copy()
     jacobian.data[jacobian.indices == 2] = 0.0  # the angle of body 0
-    solver = SOLVERS[solver_name]()
+    solver = SOLVERS[solver_name](family.points)
     with pytest.raises(SingularMatrix):
         solver.factor(jacobian)
     with pytest.raises(RuntimeError, match="no factorization: call `factor` first"):
@@ -153,16 +163,16 @@ def test_singular_jacobian_raises(family, solver_name):
 
 @pytest.mark.parametrize("solver_name", list(SOLVERS))
 def test_non_finite_jacobian_raises(solver_name):
-    matrix = csr_array(np.array([[2.0, 1.0], [np.nan, 3.0]]))
-    solver = SOLVERS[solver_name]()
+    matrix = csr_array(np.array([[2.0, 1.0, 0.0], [np.nan, 3.0, 0.0], [0.0, 0.0, 1.0]]))
+    solver = SOLVERS[solver_name](points_in_a_row(3))
     with pytest.raises(SingularMatrix):  # at the factorization, or at the latest at the solve
         solver.factor(matrix)
-        solver.solve(np.ones(2))
+        solver.solve(np.ones(3))
 
 
-@pytest.mark.parametrize("solver_name", ["refactor", "dense"])
+@pytest.mark.parametrize("solver_name", ["refactor", "dense", "dissection"])
 def test_input_is_validated(solver_name):
-    solver = SOLVERS[solver_name]()
+    solver = SOLVERS[solver_name](points_in_a_row(3))
     with pytest.raises(ValueError, match="`jacobian` must be a scipy.sparse CSR array, got ndarray"):
         solver.factor(np.eye(3))
     with pytest.raises(ValueError, match=r"`jacobian` must be square, got shape \(2, 3\)"):

@@ -63,3 +63,21 @@ def combine(start, directions, y, out):
         for i in range(y.size):
             total += y[i] * directions[i, k]
         out[k] = total
+
+
+@njit(**_JIT)
+def largest_line_sum(indptr, indices, data, column_sums):
+    """``max(||A||_1, ||A||_inf)`` of the CSR matrix ``(data, indices, indptr)``: its
+    largest absolute column or row sum, in one pass (`column_sums` is work, shape (n_cols,))."""
+    column_sums[:] = 0.0
+    largest = 0.0
+    for i in range(indptr.size - 1):
+        row = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            magnitude = abs(data[p])
+            row += magnitude
+            column_sums[indices[p]] += magnitude
+        largest = max(largest, row)
+    for j in range(column_sums.size):
+        largest = max(largest, column_sums[j])
+    return largest

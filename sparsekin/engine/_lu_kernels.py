@@ -368,3 +368,57 @@ def dense_lu_solve_transposed(a, pivots, b):
         swap = pivots[k]
         if swap != k:
             b[k], b[swap] = b[swap], b[k]
+
+
+@njit(**_JIT)
+def split_off_diagonal(indptr, indices, values, diagonal):
+    """Take the diagonal out of a square CSC triangular factor, in place.
+
+    Moves each column's off-diagonal entries to the front of the arrays, in order, writes
+    the diagonal entry of column j to ``diagonal[j]`` (0 where there is none) and returns
+    the new `indptr`: the factor without its diagonal is ``indices[:indptr[-1]]`` and
+    ``values[:indptr[-1]]``.
+    """
+    n = indptr.size - 1
+    kept = np.empty(n + 1, dtype=np.int64)
+    kept[0] = 0
+    k = 0
+    for j in range(n):
+        diagonal[j] = 0.0
+        for p in range(indptr[j], indptr[j + 1]):
+            if indices[p] == j:
+                diagonal[j] = values[p]
+            else:
+                indices[k] = indices[p]
+                values[k] = values[p]
+                k += 1
+        kept[j + 1] = k
+    return kept
+
+
+@njit(**_JIT)
+def ordered_columns(indptr, indices, order):
+    """The pattern of ``matrix[:, order]`` in CSC for a CSR matrix ``(indptr, indices)`` with
+    ``order.size`` columns, and where its values come from.
+
+    Returns ``(c_indptr, c_indices, gather)``: column k of the result is column ``order[k]``
+    of the matrix, its row indices sorted, its values ``data[gather[c_indptr[k]:c_indptr[k + 1]]]``.
+    """
+    n_rows, n_cols = indptr.size - 1, order.size
+    counts = np.zeros(n_cols, dtype=np.int64)
+    for p in range(indptr[n_rows]):
+        counts[indices[p]] += 1
+    c_indptr = np.zeros(n_cols + 1, dtype=np.int64)
+    start = np.empty(n_cols, dtype=np.int64)
+    for k in range(n_cols):
+        start[order[k]] = c_indptr[k]
+        c_indptr[k + 1] = c_indptr[k] + counts[order[k]]
+    c_indices = np.empty(indptr[n_rows], dtype=indices.dtype)
+    gather = np.empty(indptr[n_rows], dtype=np.int64)
+    for i in range(n_rows):
+        for p in range(indptr[i], indptr[i + 1]):
+            q = start[indices[p]]
+            c_indices[q] = i
+            gather[q] = p
+            start[indices[p]] = q + 1
+    return c_indptr, c_indices, gather

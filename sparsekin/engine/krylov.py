@@ -205,7 +205,7 @@ class ReusingSolver:
             or not (matrix.indices is jacobian.indices or np.array_equal(matrix.indices, jacobian.indices))
         ):
             self._matrix = csr_array((jacobian.data.astype(float), jacobian.indices, jacobian.indptr), shape=jacobian.shape)
-            self._row_of = np.repeat(np.arange(jacobian.shape[0]), np.diff(jacobian.indptr))
+            self._column_sums = np.empty(jacobian.shape[1])
             self._transposed = None
             self._held = self._exact = self._factored
         else:
@@ -214,11 +214,8 @@ class ReusingSolver:
         self._factored = False
         self._transposed_fresh = False  # the transposed operator's values are the last factor's
         matrix = self._matrix
-        magnitudes = np.abs(matrix.data)
-        columns = np.bincount(matrix.indices, weights=magnitudes, minlength=matrix.shape[1])
-        rows = np.bincount(self._row_of, weights=magnitudes, minlength=matrix.shape[0])
         # max(||J||_1, ||J||_inf): a norm of J and of its transpose, for both kinds of solve
-        self._scale = max(float(columns.max(initial=0.0)), float(rows.max(initial=0.0))) or 1.0
+        self._scale = _kernels.largest_line_sum(matrix.indptr, matrix.indices, matrix.data, self._column_sums) or 1.0
         if not self._held or self._stale:
             self._refactor()
 

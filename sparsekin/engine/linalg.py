@@ -117,6 +117,30 @@ def _checked_rhs(rhs, n: int, out) -> tuple[np.ndarray, np.ndarray]:
     return rhs, out
 
 
+def solve_factored(kernel, factors, rhs: np.ndarray, out: np.ndarray, work: np.ndarray, probe: np.ndarray) -> bool:
+    """Solve with the compressed-column factors `factors` by `kernel` (`_lu_kernels.solve_lu`
+    or `solve_lu_transposed`) into `out`, a 2-D `rhs` column by column; whether every entry
+    of the solution is finite."""
+    if rhs.ndim == 1:
+        kernel(factors, rhs, work, out, probe)
+        return bool(probe[0] == 0.0)
+    column = np.empty(rhs.shape[0])
+    finite = True
+    for c in range(rhs.shape[1]):
+        kernel(factors, np.ascontiguousarray(rhs[:, c]), work, column, probe)
+        out[:, c] = column
+        finite &= bool(probe[0] == 0.0)
+    return finite
+
+
+def has_pattern(matrix, pattern) -> bool:
+    """Whether the CSR `matrix` has the pattern ``(indptr, indices)`` (None: no pattern yet)."""
+    return pattern is not None and (
+        (matrix.indptr is pattern[0] and matrix.indices is pattern[1])
+        or (np.array_equal(matrix.indptr, pattern[0]) and np.array_equal(matrix.indices, pattern[1]))
+    )
+
+
 def _index_dtype(largest: int) -> type:
     """int32 when every index value fits (half the memory traffic), int64 otherwise."""
     return np.int32 if largest < np.iinfo(np.int32).max else np.int64
@@ -233,12 +257,7 @@ class SuperLUSolver:
     def _column_order(self, jacobian: csr_array) -> np.ndarray:
         """METIS's order of the coordinates (the columns of `jacobian`), by bodies when
         they come three by three; computed again only for a new pattern."""
-        pattern = self._pattern
-        same = pattern is not None and (
-            (jacobian.indptr is pattern[0] and jacobian.indices is pattern[1])
-            or (np.array_equal(jacobian.indptr, pattern[0]) and np.array_equal(jacobian.indices, pattern[1]))
-        )
-        if not same:
+        if not has_pattern(jacobian, self._pattern):
             from .ordering import fill_reducing_column_order
 
             self._order = self._pattern = None  # until the new order is there
@@ -457,16 +476,7 @@ class RefactorSolver:
         kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
         factors = (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
                    (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
-        if rhs.ndim == 1:
-            kernel(factors, rhs, self._solve_work, out, self._probe)
-            finite = self._probe[0] == 0.0
-        else:  # column by column
-            column = np.empty(self._n)
-            finite = True
-            for c in range(rhs.shape[1]):
-                kernel(factors, np.ascontiguousarray(rhs[:, c]), self._solve_work, column, self._probe)
-                out[:, c] = column
-                finite &= self._probe[0] == 0.0
+        finite = solve_factored(kernel, factors, rhs, out, self._solve_work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if not finite:
             raise SingularMatrix("the solution is not finite")

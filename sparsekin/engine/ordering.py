@@ -39,6 +39,7 @@ __all__ = [
     "HUB_DEGREE",
     "fill_reducing_column_order",
     "fill_reducing_row_order",
+    "geometric_column_order",
     "metis_installed",
     "MIN_TILED_COORDINATES",
     "DISSECTION_LEAF_SIZE",
@@ -291,6 +292,58 @@ def fill_reducing_column_order(matrix, *, method: str = "auto", block: int = 1) 
     """
     if method not in ("auto", "metis", "level-sets"):
         raise ValueError(f"`method` must be 'auto', 'metis' or 'level-sets', got {method!r}.")
+    _check_matrix_and_block(matrix, block)
+    order = _dissection(*_column_graph(matrix, int(block)), method)
+    if block == 1:
+        return order
+    return (block * order[:, None] + np.arange(block)).ravel()
+
+
+def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
+    """A fill-reducing column order for the LU of a mesh's Jacobian from where its bodies are drawn.
+
+    Nested dissection of the bodies' graph (bodies adjacent when an equation holds both;
+    a body's `block` coordinates, consecutive columns, kept together) with geometric
+    cuts: each part is cut at the median of its bodies' places along its longer side, the
+    bodies beside the cut on one side are the separator, ordered after both sides
+    (`sparsekin.engine._ordering_kernels.geometric_dissection`).  On a planar mesh that is
+    METIS's fill for a small share of its time, without the ``meshes`` extra
+    (docs/design-notes.md, "Sparse LU on meshes").
+
+    Parameters
+    ----------
+    matrix : sparse array, shape (m, n), m >= n
+        The Jacobian: rows are equations, columns coordinates; only the pattern is read.
+    points : array_like, shape (n // block, 2)
+        Each body's place in the plane (its origin at the drawing, say).
+    block : int
+        Coordinates per body.
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+        ``order[k]`` is the column eliminated k-th: factor ``matrix[:, order]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> chain = csr_array(np.eye(6) + np.eye(6, k=2))  # three bodies of two coordinates
+    >>> geometric_column_order(chain, [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], block=2).size
+    6
+    """
+    n = _check_matrix_and_block(matrix, block)
+    points = np.ascontiguousarray(points, dtype=float)
+    if points.shape != (n // block, 2) or not np.all(np.isfinite(points)):
+        raise ValueError(f"`points` must be {n // block} finite places (x, y), one a body, got shape {points.shape}.")
+    from ._ordering_kernels import geometric_dissection
+
+    order = geometric_dissection(*_column_graph(matrix, int(block)), points, DISSECTION_LEAF_SIZE)
+    return (block * order[:, None] + np.arange(block)).ravel()
+
+
+def _check_matrix_and_block(matrix, block) -> int:
+    """Refuse what a column order cannot take; the number of columns."""
     if not hasattr(matrix, "tocsr") or len(matrix.shape) != 2:
         raise ValueError(f"`matrix` must be a 2-D scipy.sparse array, got {type(matrix).__name__}.")
     m, n = matrix.shape
@@ -298,10 +351,7 @@ def fill_reducing_column_order(matrix, *, method: str = "auto", block: int = 1) 
         raise ValueError(f"`matrix` must have at least as many rows as columns, got shape {matrix.shape}.")
     if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1 or n % block:
         raise ValueError(f"`block` must be a whole number >= 1 dividing the {n} columns, got {block!r}.")
-    order = _dissection(*_column_graph(matrix, int(block)), method)
-    if block == 1:
-        return order
-    return (block * order[:, None] + np.arange(block)).ravel()
+    return n
 
 
 def fill_reducing_row_order(matrix, *, method: str = "auto") -> np.ndarray:

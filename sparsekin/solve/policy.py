@@ -10,7 +10,11 @@ factorization, the fastest path measured (benchmarks/RESULTS.md, docs/design-not
   `MIN_METIS_COORDINATES` coordinates on when `pymetis` is installed, its first order tiled
   from a short chain for a long repeated chain (`MIN_TILED_COORDINATES`);
 * and when that refactorization's L and U hold more than `MAX_REFACTOR_FILL` entries per
-  Jacobian entry, its factorization reused across samples (`ReusingSolver`, path ``"reuse"``).
+  Jacobian entry, its factorization reused across samples (`ReusingSolver`, path ``"reuse"``);
+* for a mesh — a model of grid repeats with as many equations as coordinates — from
+  `MIN_DISSECTION_COORDINATES` coordinates on, SuperLU in a nested dissection of the bodies
+  cut where they are drawn (`DissectionSolver`, no extra needed), its factorization always
+  reused across samples.
 
 The plan is a value (`SolverPlan`): the facade, the stepper and the benchmark harness all
 ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).  Forward
@@ -31,10 +35,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..analysis.rank import SMALLEST_TALL_LU
 from ..engine.discretization import Discretization
+from ..engine.dissection import DissectionSolver
 from ..engine.krylov import ReusingSolver
-from ..engine.linalg import DenseSolver, RefactorSolver, SuperLUSolver
+from ..engine.linalg import COORDINATES_PER_BODY, DenseSolver, RefactorSolver, SuperLUSolver
 from ..engine.multipliers import MIN_NORM_ITERATIONS
 from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed
 from ._compiled import supports_compiled
@@ -44,6 +51,7 @@ __all__ = [
     "LINEAR_SOLVERS",
     "MAX_REFACTOR_FILL",
     "MIN_METIS_COORDINATES",
+    "MIN_DISSECTION_COORDINATES",
     "SolverPlan",
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
@@ -69,6 +77,11 @@ MAX_REFACTOR_FILL = 8.0
 #: give the same fill, at 10^5 METIS's refactorization is twice as fast
 #: (docs/design-notes.md, "Fill-reducing column order").
 MIN_METIS_COORDINATES = 30_000
+#: ``linear_solver="auto"`` factors a mesh (grid repeats, as many equations as coordinates)
+#: with `DissectionSolver` from this many coordinates on (the lattice at 10^4 bodies): its
+#: first sample took about half of one SuperLU factorization from 10^4 to 10^6 bodies, the
+#: METIS-ordered refactorization's 4.5–6 times (docs/design-notes.md, "Sparse LU on meshes").
+MIN_DISSECTION_COORDINATES = 30_000
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
 #: kept equations) densely up to this size, with `RefactorSolver` above.
 SADDLE_DENSE_MAX_SIZE = 400
@@ -90,6 +103,8 @@ class Thresholds:
         `MAX_REFACTOR_FILL`.
     min_metis_coordinates : int
         `MIN_METIS_COORDINATES`.
+    min_dissection_coordinates : int
+        `MIN_DISSECTION_COORDINATES`.
     min_tiled_coordinates : int
         `sparsekin.engine.ordering.MIN_TILED_COORDINATES`: a long repeated chain's first
         pivot order tiled from a short chain from this many coordinates on.
@@ -107,6 +122,7 @@ class Thresholds:
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
     max_refactor_fill: float = MAX_REFACTOR_FILL
     min_metis_coordinates: int = MIN_METIS_COORDINATES
+    min_dissection_coordinates: int = MIN_DISSECTION_COORDINATES
     min_tiled_coordinates: int = MIN_TILED_COORDINATES
     smallest_tall_lu: int = SMALLEST_TALL_LU
     min_norm_iterations: int = MIN_NORM_ITERATIONS
@@ -122,8 +138,9 @@ class SolverPlan:
     loop : {"compiled", "python"}
         The compiled dense loop first (it hands over to the Python loop at a sample it
         cannot solve), or the Python loop all the way.
-    solver : {"dense", "refactor", "superlu"}
-        The linear solver of the Python loop.
+    solver : {"dense", "refactor", "superlu", "dissection"}
+        The linear solver of the Python loop (``"dissection"``: `DissectionSolver`,
+        ``"auto"`` on meshes only).
     ordering : {"colamd", "metis"}
         A refactorization's fill-reducing order.
     chord : bool
@@ -132,6 +149,9 @@ class SolverPlan:
         Reuse the refactorization across samples once its fill-in exceeds this many
         entries per Jacobian entry (``"auto"`` only); None: never.
     thresholds : Thresholds
+    points : ndarray or None
+        Where the bodies are drawn, shape (n_bodies, 2): the places `DissectionSolver` cuts
+        between (``"dissection"`` only).
     """
 
     loop: str
@@ -140,19 +160,25 @@ class SolverPlan:
     chord: bool = True
     reuse_fill: float | None = None
     thresholds: Thresholds = field(default_factory=Thresholds)
+    points: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def make_solver(self):
         """A fresh linear solver of the plan."""
+        if self.solver == "dissection":
+            return DissectionSolver(self.points)
         if self.solver == "refactor":
             return RefactorSolver(ordering=self.ordering)
         return _SOLVER_CLASSES[self.solver]()
 
     def reuses(self, linear_solver, nnz: int) -> bool:
         """Whether the run should go on reusing `linear_solver`'s factorization across samples:
-        a refactorization with more fill-in than `reuse_fill` per entry of a Jacobian of
-        `nnz` entries."""
-        return (self.reuse_fill is not None and isinstance(linear_solver, RefactorSolver)
-                and linear_solver.nnz_factors > self.reuse_fill * nnz)  # fmt: skip
+        a mesh's `DissectionSolver` (it has no refactorization), or a refactorization with
+        more fill-in than `reuse_fill` per entry of a Jacobian of `nnz` entries."""
+        if self.reuse_fill is None:
+            return False
+        if isinstance(linear_solver, DissectionSolver):
+            return True
+        return isinstance(linear_solver, RefactorSolver) and linear_solver.nnz_factors > self.reuse_fill * nnz
 
     def reusing(self, linear_solver):
         """`linear_solver` wrapped to reuse its factorization, which it holds already."""
@@ -175,6 +201,10 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
         and supports_compiled(discretization.mechanism)
     )
     metis = auto and n >= thresholds.min_metis_coordinates and metis_installed()
+    if auto and solver == "refactor" and n >= thresholds.min_dissection_coordinates and _is_mesh(discretization):
+        points = pattern.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
+        return SolverPlan(loop="python", solver="dissection", reuse_fill=thresholds.max_refactor_fill,
+                          thresholds=thresholds, points=points)  # fmt: skip
     return SolverPlan(
         loop="compiled" if compiled else "python",
         solver=solver,
@@ -183,6 +213,15 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
         reuse_fill=thresholds.max_refactor_fill if auto else None,
         thresholds=thresholds,
     )
+
+
+def _is_mesh(discretization: Discretization) -> bool:
+    """Whether the model is a mesh `DissectionSolver` takes: grid repeats, as many equations
+    as coordinates (an overconstrained grid keeps the refactorization of its reduced
+    system), the coordinates those of the bodies."""
+    pattern, mechanism = discretization.constraints, discretization.mechanism
+    return (any(copies.is_grid for copies in mechanism.copies) and pattern.n_equations == pattern.n_coordinates
+            and pattern.n_coordinates == COORDINATES_PER_BODY * mechanism.n_bodies)  # fmt: skip
 
 
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None) -> SolverPlan:

@@ -1,0 +1,176 @@
+"""`DissectionSolver`: the LU of a mesh's Jacobian in a nested-dissection order of its bodies.
+
+On a mesh the first sample is one factorization and every step is solves with it (the
+run reuses it across samples: `sparsekin.engine.krylov.ReusingSolver`).  This solver cuts
+both costs down to SuperLU's own:
+
+* the order is free: a nested dissection of the bodies' graph with geometric cuts
+  (`sparsekin.engine.ordering.geometric_column_order`, from where the bodies are drawn),
+  computed once per pattern in O(n log n), where METIS's order cost as much as a
+  factorization at 10^6 bodies;
+* SuperLU factors the Jacobian's columns in that order (``permc_spec="NATURAL"``: its own
+  partial pivoting and supernodes, in panels of `PANEL_SIZE` columns with relaxed
+  supernodes of `RELAXED_SUPERNODE` columns), the Jacobian's exact zeros left out (a
+  fresh factorization each time: nothing needs room for them later);
+* the factors are taken out of SuperLU once, its supernodal storage dropped, and the
+  solves run on them as compressed columns with the kernels of `RefactorSolver`
+  (`sparsekin.engine.linalg.solve_factored`), faster than SuperLU's own solves with the
+  permutations of its Python wrapper.
+
+Every `factor` is a fresh factorization (its pivoting its own); there is no
+refactorization on a fixed pattern: a mesh's run refactors rarely (when GMRES with the
+held factors slows down), and SuperLU with the order held is as fast as a refactorization
+with static pivots on these matrices (docs/design-notes.md, "Sparse LU on meshes").
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import _lu_kernels
+from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square, has_pattern, solve_factored
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_array
+
+__all__ = ["DissectionSolver", "PANEL_SIZE", "RELAXED_SUPERNODE"]
+
+#: SuperLU's panel size and relaxed-supernode size in the dissection's order.  Its defaults
+#: were 1.3–1.5 times slower than these on the lattice at 3·10^5 bodies (three interleaved
+#: rounds, one process: 7.3–8.5 s against 5.4–5.6 s; COLAMD 5.6–6.3 s) and 1.2 times at
+#: 10^5; other pairs tried (relax 1, 2, 8; panel 2, 8) were not faster.
+PANEL_SIZE = 4
+RELAXED_SUPERNODE = 4
+
+_NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
+
+
+class DissectionSolver:
+    """SuperLU on the Jacobian's coordinates in a geometric nested dissection of its bodies,
+    solves on its factors by numba kernels.
+
+    Parameters
+    ----------
+    points : array_like, shape (n_bodies, 2)
+        Where each body is drawn (its origin): the places the dissection cuts between.
+        The Jacobian's columns are the bodies' coordinates, `COORDINATES_PER_BODY` a body.
+
+    Attributes
+    ----------
+    n_factorizations, n_refactorizations, n_solves : int
+        As every linear solver's (`sparsekin.engine.linalg`); no refactorizations.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.sparse import csr_array
+    >>> solver = DissectionSolver([[0.0, 0.0], [1.0, 0.0]])
+    >>> jacobian = csr_array(np.eye(6) * 2.0 + np.eye(6, k=3))
+    >>> solver.factor(jacobian)
+    >>> solver.solve(np.full(6, 2.0)).tolist()
+    [0.5, 0.5, 0.5, 1.0, 1.0, 1.0]
+    """
+
+    name = "dissection"
+
+    def __init__(self, points) -> None:
+        points = np.asarray(points, dtype=float)
+        if points.ndim != 2 or points.shape[1] != 2:
+            raise ValueError(f"`points` must have shape (n_bodies, 2), got {points.shape}.")
+        self.points = points
+        self._order = None  # the column order of the pattern `_pattern`, once computed
+        self._ordered = None  # (indptr, indices, gather): J[:, order] in CSC is (J.data[gather], indices, indptr)
+        self._pattern = None
+        self._factors = None
+        self._n = 0
+        self.n_factorizations = 0
+        self.n_refactorizations = 0
+        self.n_solves = 0
+
+    @property
+    def nnz_factors(self) -> int:
+        """Entries of the last L and U (SuperLU's nonzeros, the diagonals included)."""
+        if self._factors is None:
+            raise RuntimeError(_NOT_FACTORED)
+        _, _, (l_indptr, _, _), (u_indptr, _, _, _) = self._factors
+        return int(l_indptr[-1] + u_indptr[-1] + 2 * self._n)
+
+    def factor(self, jacobian: csr_array) -> None:
+        """Factor `jacobian` (square CSR, its columns the bodies' coordinates in turn);
+        raise `SingularMatrix` if it is exactly singular or not finite."""
+        n = _checked_square(jacobian)
+        self.n_factorizations += 1
+        self._factors = None
+        order = self._column_order(jacobian)
+        if not np.all(np.isfinite(jacobian.data)):
+            raise SingularMatrix("the Jacobian has entries that are not finite")
+        from scipy.sparse import csc_array
+        from scipy.sparse.linalg import splu
+
+        indptr, indices, gather = self._ordered
+        values = np.take(jacobian.data, gather).astype(float, copy=False)
+        ordered = csc_array((values, indices, indptr), shape=jacobian.shape, copy=True)
+        # The Jacobian's exact zeros (a bar along an axis at the drawing: a third of the
+        # lattice's entries at t = 0) left out: SuperLU's fill and work follow its pattern,
+        # and a fresh factorization needs no room for them (a refactorization on a fixed
+        # pattern would); 0.41x COLAMD's time at 3·10^5 bodies instead of 1.4x.
+        ordered.eliminate_zeros()
+        try:
+            lu = splu(ordered, permc_spec="NATURAL", relax=RELAXED_SUPERNODE, panel_size=PANEL_SIZE)
+        except RuntimeError as error:  # "Factor is exactly singular"
+            raise SingularMatrix(str(error)) from error
+        # SuperLU: Pr (J Q) Pc = L U with Q = the order; as one column permutation of J,
+        # column order[k] of J goes to position perm_c[k].
+        perm_c = np.empty(n, dtype=np.int64)
+        perm_c[order] = lu.perm_c
+        perm_r = lu.perm_r.astype(np.int64)
+        lower, upper = lu.L, lu.U
+        del lu  # its supernodal storage: the factors live on as compressed columns
+        unit = np.empty(n)
+        l_indptr = _lu_kernels.split_off_diagonal(lower.indptr, lower.indices, lower.data, unit)
+        diagonal = np.empty(n)
+        u_indptr = _lu_kernels.split_off_diagonal(upper.indptr, upper.indices, upper.data, diagonal)
+        with np.errstate(divide="ignore"):
+            u_inverse = 1.0 / diagonal
+        if not np.all(np.isfinite(u_inverse)):
+            raise SingularMatrix("a pivot of the factorization is zero or not finite")
+        self._n = n
+        self._factors = (perm_r, perm_c, (l_indptr, lower.indices, lower.data),
+                         (u_indptr, upper.indices, upper.data, u_inverse))  # fmt: skip
+        self._work = np.empty(n)
+        self._probe = np.zeros(1)
+
+    def solve(
+        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
+    ) -> np.ndarray:
+        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`: one
+        right-hand side, or one per column of a 2-D `rhs`, optionally into `out` (which may
+        be `rhs`); parameters, returns and errors as `RefactorSolver.solve`'s."""
+        if self._factors is None:
+            raise RuntimeError(_NOT_FACTORED)
+        rhs, out = _checked_rhs(rhs, self._n, out)
+        kernel = _lu_kernels.solve_lu_transposed if transposed else _lu_kernels.solve_lu
+        finite = solve_factored(kernel, self._factors, rhs, out, self._work, self._probe)
+        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
+        if not finite:
+            raise SingularMatrix("the solution is not finite")
+        return out
+
+    def _column_order(self, jacobian: csr_array) -> np.ndarray:
+        """The nested-dissection order of the coordinates; computed again only for a new pattern."""
+        if not has_pattern(jacobian, self._pattern):
+            from .ordering import geometric_column_order
+
+            self._order = self._pattern = None  # until the new order is there
+            n = jacobian.shape[1]
+            if n != COORDINATES_PER_BODY * self.points.shape[0]:
+                raise ValueError(
+                    f"`jacobian` has {n} columns, expected {COORDINATES_PER_BODY} for each of the "
+                    f"{self.points.shape[0]} bodies."
+                )
+            self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            self._ordered = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, self._order)
+            self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
+        return self._order
