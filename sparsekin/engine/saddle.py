@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _dynamics_kernels as kernels
-from . import _force_kernels, _kernels
+from . import _kernels, _motion_kernels
+from .actuators import actuator_kernel_arrays
 from .assembly import Assembler
 from .discretization import Discretization
 
@@ -130,6 +131,7 @@ class DynamicSystem:
         self._turns = np.zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
         self._actuator_weights = np.zeros(n_laws)
+        self._actuator_arrays = actuator_kernel_arrays(self.actuators, n_laws, pattern.n_bodies)
         arrays = self.loads.arrays
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
@@ -173,12 +175,8 @@ class DynamicSystem:
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
         self._load(coordinates, velocities, accelerations)
-        _force_kernels.fill_applied_forces(self.loads.arrays, self._q, self._qd, self._qdd, self._turns,
-                                           self.law_values, True, self._applied)  # fmt: skip
-        out[:] = self._applied[:-3]
-        if self.actuators is not None:
-            self.actuators.fill(self._q, self._turns)
-            self.actuators.add_forces(self.law_values, out)
+        _motion_kernels.fill_motion_forces(self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._qdd,
+                                           self._turns, self.law_values, self._applied, out)  # fmt: skip
         return out
 
     def residual(self, coordinates, velocities, accelerations, multipliers, out: np.ndarray) -> np.ndarray:
@@ -194,24 +192,13 @@ class DynamicSystem:
 
     def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
         self._load(coordinates, velocities, accelerations)
-        arrays, p = self.loads.arrays, self.pattern
-        rows, cols, vals = self._rows, self._cols, self._vals
-        gradient, rate_gradient, d, hessian, block = self._scratch
-        e = kernels.fill_inertia_triplets(arrays.masses, arrays.gravity, self._qd, self._qdd, self._turns, a, b, c,
-                                          rows, cols, vals, 0)  # fmt: skip
-        e = kernels.fill_point_force_triplets(arrays.force, self._turns, self.law_values, c, rows, cols, vals, e)
-        e = kernels.fill_spring_triplets(arrays.spring, self._q, self._qd, self._turns, b, c, gradient, rate_gradient,
-                                         d, hessian, block, rows, cols, vals, e)  # fmt: skip
-        e = kernels.fill_torsion_triplets(arrays.torsion, b, c, rows, cols, vals, e)
-        e = kernels.fill_primitive_hessians(p.primitives, self._q, self._turns, multipliers, c, d, hessian,
-                                            rows, cols, vals, e)  # fmt: skip
-        if self.actuators is not None:
-            np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
-            e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
-                                                self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
-        e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
-                                             rows, cols, vals, e)  # fmt: skip
-        kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
+        p = self.pattern
+        _motion_kernels.fill_saddle_triplets(
+            self.loads.arrays, p.primitives, self._actuator_arrays, self._q, self._qd, self._qdd, self._turns,
+            self.law_values, multipliers, self._actuator_weights, (p.indptr, p.indices, self.assembler.values),
+            self.kept_row, self.kept_rows.size, (float(a), float(b), float(c)), float(regularization), self._scratch,
+            self._rows, self._cols, self._vals,
+        )  # fmt: skip
 
     def fill_matrix(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
                     regularization: float = 0.0):  # fmt: skip
@@ -235,12 +222,8 @@ class DynamicSystem:
         dampers, W; Phi_q and the drivers' rates from the last `fill_constraints` /
         `set_time`."""
         self._load(coordinates, velocities, self._qdd[:-3])
-        arrays = self.loads.arrays
-        power = kernels.applied_power(arrays, self._qd, self._turns, self.law_values)
-        if self.actuators is not None:
-            self.actuators.fill(self._q, self._turns)
-            power += self.actuators.power(self.law_values, velocities)
-        rows = self.pattern.driven_row
-        power -= float(multipliers[rows] @ self.assembler.velocity_rhs[rows])  # a driver's force is −λ
-        dissipated = kernels.damping_power(arrays.spring, arrays.torsion, self._qd, self._q, self._turns)
+        power, dissipated = _motion_kernels.motion_powers(
+            self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._turns, self.law_values, multipliers,
+            self.pattern.driven_row, self.assembler.velocity_rhs,
+        )  # fmt: skip
         return power, dissipated
