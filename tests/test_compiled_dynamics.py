@@ -14,11 +14,11 @@ through its singular crossings 4e-10.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import actuator_round_trip
 
 import sparsekin as sk
 from sparsekin.engine.discretization import discretize
@@ -102,16 +102,7 @@ def test_task5_with_masses_and_drivers_is_the_python_steppers(compiled_loops):
 
 
 def test_actuator_round_trip_is_the_python_steppers(compiled_loops):
-    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
-    samples = np.linspace(0.0, 0.2, 201)
-    kinematic = sk.solve_kinematics(mechanism, samples)
-    start = kinematic.velocities[0].reshape(-1, 3)
-    actuators = [sk.Actuator(f"actuator{k}", sk.Spline(tuple(samples), tuple(kinematic.driver_force(f"cylinder{k}").force)))
-                 for k in (1, 2)]  # fmt: skip
-    free = dataclasses.replace(
-        mechanism, drivers=[], loads=[*mechanism.loads, *actuators],
-        bodies=[dataclasses.replace(body, velocity=tuple(start[k])) for k, body in enumerate(mechanism.bodies)],
-    )  # fmt: skip
+    free, _ = actuator_round_trip(0.2, 1e-3)
     python, compiled = both_paths(free, np.linspace(0.0, 0.2, 21), 1e-3)
     assert_same_run(python, compiled, 1e-3, compiled_loops)
 

@@ -56,7 +56,18 @@ __all__ = ["CompiledDynamicsLoop", "supports_compiled_dynamics"]
 
 #: What a step, a projection or a block ends with.
 _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
-#: Positions in the state's scalars and counts.
+#: The flat tuples the compiled functions share (flat: taking an item from a tuple of
+#: tuples of arrays would count a reference to every array in it, which dominated a
+#: small model's step).  The model (read only):
+(_PRIMITIVES, _INDPTR, _INDICES, _WEIGHTS, _TARGET0, _DRIVEN_ROW, _DRIVER_LAWS, _KEPT_ROWS, _KEPT_ROW, _KEPT_WEIGHTS,
+ _COORDINATE_WEIGHTS, _LOADS, _LOAD_LAWS, _ACTUATORS, _SLOTS, _SADDLE_INDPTR, _SADDLE_INDICES) = range(17)  # fmt: skip
+#: the work arrays: the constraints' side (`Assembler`), the system's (`DynamicSystem`), scratch
+(_Q_CONSTRAINTS, _TURNS_CONSTRAINTS, _RESIDUAL, _JACOBIAN, _TARGET, _VELOCITY_RHS, _KEPT_RESIDUAL, _DRIVER_VALUES,
+ _LAW_VALUES, _Q_GROUND, _V_GROUND, _A_GROUND, _TURNS, _APPLIED, _DATA, _ROWS, _COLS, _VALS, _SCRATCH,
+ _ACTUATOR_WEIGHTS, _DRIFT, _ZEROS, _GOAL, _SOLUTION, _REFINED, _INCREMENT, _PRODUCT, _FORCE, _RHS,
+ _DELTA) = range(30)  # fmt: skip
+#: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
+_Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
 _TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0 = range(7)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED = range(7)
 #: Most samples in one call (a Ctrl-C waits for the call to end).
@@ -72,81 +83,87 @@ def supports_compiled_dynamics(mechanism) -> bool:
 @njit(inline="always", **JIT)
 def _set_time(model, work, t):
     """Driver targets and rates, and the load laws, at time `t` (`DynamicSystem.set_time`)."""
-    constraints, loads = model[0], model[1]
-    driven_row, driver_laws = constraints[5], constraints[6]
-    target, velocity_rhs, driver_values, law_values = work[4], work[5], work[7], work[8]
-    fill_laws(driver_laws, t, driver_values[0], driver_values[1], driver_values[2])
+    driven_row, driver_values, law_values = model[_DRIVEN_ROW], work[_DRIVER_VALUES], work[_LAW_VALUES]
+    target, velocity_rhs = work[_TARGET], work[_VELOCITY_RHS]
+    fill_laws(model[_DRIVER_LAWS], t, driver_values[0], driver_values[1], driver_values[2])
     for d in range(driven_row.size):
         target[driven_row[d]] = driver_values[0, d]
         velocity_rhs[driven_row[d]] = driver_values[1, d]
-    fill_laws(loads[1], t, law_values[0], law_values[1], law_values[2])
+    fill_laws(model[_LOAD_LAWS], t, law_values[0], law_values[1], law_values[2])
 
 
 @njit(inline="always", **JIT)
 def _fill_constraints(model, work, q):
     """Φ and Φq at `q`; the weighted norm of Φ on the kept rows (`DynamicSystem.fill_constraints`)."""
-    primitives, weights, kept_rows, kept_weights = model[0][0], model[0][3], model[0][7], model[0][9]
-    q_constraints, turns_constraints, residual, jac_data, target, kept_residual = work[0], work[1], work[2], work[3], work[4], work[6]
-    n = q.size
-    for c in range(n):
+    q_constraints, residual, kept_residual, kept_rows = work[_Q_CONSTRAINTS], work[_RESIDUAL], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
+    for c in range(q.size):
         q_constraints[c] = q[c]
-    fill_residual_jacobian(primitives, q_constraints, turns_constraints, target, weights, residual, jac_data)
+    fill_residual_jacobian(model[_PRIMITIVES], q_constraints, work[_TURNS_CONSTRAINTS], work[_TARGET],
+                           model[_WEIGHTS], residual, work[_JACOBIAN])  # fmt: skip
     for k in range(kept_rows.size):
         kept_residual[k] = residual[kept_rows[k]]
-    return weighted_norm(kept_residual, kept_weights)
+    return weighted_norm(kept_residual, model[_KEPT_WEIGHTS])
 
 
 @njit(inline="always", **JIT)
-def _load(motion, q, v, a):
+def _load(work, q, v, a):
     """The system's copies with the ground appended, and the turns at `q`."""
-    q_g, v_g, a_g, turns = motion
+    q_g, v_g, a_g = work[_Q_GROUND], work[_V_GROUND], work[_A_GROUND]
     for c in range(q.size):
         q_g[c], v_g[c], a_g[c] = q[c], v[c], a[c]
-    fill_body_turns(q_g, turns)
+    fill_body_turns(q_g, work[_TURNS])
 
 
 @njit(inline="always", **JIT)
 def _velocity_drift(model, work, v, out):
     """Φq v + Φt of every equation, at the last `_fill_constraints`."""
-    indptr, indices = model[0][1], model[0][2]
-    fill_row_products(indptr, indices, work[3], v, out)
-    velocity_rhs = work[5]
+    fill_row_products(model[_INDPTR], model[_INDICES], work[_JACOBIAN], v, out)
+    velocity_rhs = work[_VELOCITY_RHS]
     for r in range(out.size):
         out[r] -= velocity_rhs[r]
 
 
 @njit(inline="always", **JIT)
-def _motion_residual(model, work, system, q, v, a, lam, out):
+def _kept_drift_norm(model, work, v):
+    """The weighted norm of the velocity drift on the kept rows (into ``work[_KEPT_RESIDUAL]``)."""
+    drift, kept_drift, kept_rows = work[_DRIFT], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
+    _velocity_drift(model, work, v, drift)
+    for k in range(kept_rows.size):
+        kept_drift[k] = drift[kept_rows[k]]
+    return weighted_norm(kept_drift, model[_KEPT_WEIGHTS])
+
+
+@njit(inline="always", **JIT)
+def _motion_residual(model, work, q, v, a, lam, out):
     """``M a + h − Q + Φqᵀ λ`` (`DynamicSystem.residual`)."""
-    loads, actuators = model[1][0], model[1][2]
-    motion, applied = system[0], system[1]
-    _load(motion, q, v, a)
-    fill_motion_forces(loads, actuators, motion[0], motion[1], motion[2], motion[3], work[8][0], applied, out)
+    _load(work, q, v, a)
+    fill_motion_forces(model[_LOADS], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND], work[_A_GROUND],
+                       work[_TURNS], work[_LAW_VALUES][0], work[_APPLIED], out)  # fmt: skip
     for c in range(out.size):
         out[c] = -out[c]
-    add_transposed_product(model[0][1], model[0][2], work[3], lam, out)
+    add_transposed_product(model[_INDPTR], model[_INDICES], work[_JACOBIAN], lam, out)
 
 
 @njit(inline="always", **JIT)
-def _fill_matrix(model, work, system, q, v, a, lam, coefficients, regularization):
-    """The saddle matrix's CSR values (`DynamicSystem.fill_matrix`) into ``system[2]``."""
-    constraints, loads, saddle = model[0], model[1], model[2]
-    motion, data, triplets, scratch, actuator_weights = system[0], system[2], system[3], system[4], system[5]
-    _load(motion, q, v, a)
-    fill_saddle_triplets(loads[0], constraints[0], loads[2], motion[0], motion[1], motion[2], motion[3], work[8][0],
-                         lam, actuator_weights, (constraints[1], constraints[2], work[3]), constraints[8],
-                         constraints[7].size, coefficients, regularization, scratch, triplets[0], triplets[1],
-                         triplets[2])  # fmt: skip
-    scatter_add(triplets[2], saddle[0], data)
+def _fill_matrix(model, work, q, v, a, lam, coefficients, regularization):
+    """The saddle matrix's CSR values (`DynamicSystem.fill_matrix`) into ``work[_DATA]``."""
+    _load(work, q, v, a)
+    vals = work[_VALS]
+    fill_saddle_triplets(model[_LOADS], model[_PRIMITIVES], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND],
+                         work[_A_GROUND], work[_TURNS], work[_LAW_VALUES][0], lam, work[_ACTUATOR_WEIGHTS],
+                         (model[_INDPTR], model[_INDICES], work[_JACOBIAN]), model[_KEPT_ROW],
+                         model[_KEPT_ROWS].size, coefficients, regularization, work[_SCRATCH], work[_ROWS],
+                         work[_COLS], vals)  # fmt: skip
+    scatter_add(vals, model[_SLOTS], work[_DATA])
 
 
 @njit(inline="always", **JIT)
-def _refactor(model, work, system, state, settings, q, v, a, lam, coefficients):
+def _refactor(model, work, state, settings, q, v, a, lam, coefficients):
     """Fill the regularized matrix and factor it (`GeneralizedAlphaStepper._factor`)."""
-    saddle, lu, pivots, counts = model[2], state[6], state[7], state[8]
-    _fill_matrix(model, work, system, q, v, a, lam, coefficients, settings[7])
+    counts = state[_COUNTS]
+    _fill_matrix(model, work, q, v, a, lam, coefficients, settings[7])
     counts[_FACTORIZATIONS] += 1
-    if not _factor(saddle[1], saddle[2], system[2], lu, pivots):
+    if not _factor(model[_SADDLE_INDPTR], model[_SADDLE_INDICES], work[_DATA], state[_LU], state[_PIVOTS]):
         return False
     counts[_FACTORED] = 1
     return True
@@ -157,8 +174,8 @@ def _solve(state, rhs, out):
     """`out` = the held factorization's solution of `rhs`; False if not finite."""
     for k in range(rhs.size):
         out[k] = rhs[k]
-    state[8][_SOLVES] += 1
-    dense_lu_solve(state[6], state[7], out)
+    state[_COUNTS][_SOLVES] += 1
+    dense_lu_solve(state[_LU], state[_PIVOTS], out)
     for value in out:
         if not math.isfinite(value):
             return False
@@ -166,27 +183,21 @@ def _solve(state, rhs, out):
 
 
 # ---------------------------------------------------------------------- one step
-@njit(**JIT)
-def _project_velocities(model, work, system, state, settings, rules_, q, v, lam, coefficients, h):
+@njit(inline="always", **JIT)
+def _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h):
     """`GeneralizedAlphaStepper._project_velocities`, on the held dense factorization."""
     tolerance = settings[4]
     rounding, noise, iterations, refinement = rules_[0], rules_[2], rules_[4], rules_[5]
-    constraints, saddle = model[0], model[2]
-    kept_rows, kept_weights, coordinate_weights = constraints[7], constraints[9], constraints[10]
-    n, n_kept = q.size, kept_rows.size
+    coordinate_weights, kept_drift = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL]
+    n, n_kept = q.size, model[_KEPT_ROWS].size
     size_ = n + n_kept
-    scratch = system[6]
-    drift_all, zeros = scratch[0], scratch[1]
-    goal, solution, residual, increment, product = scratch[2], scratch[3], scratch[4], scratch[5], scratch[6]
-    kept_drift = work[6]
+    zeros, goal, solution, residual = work[_ZEROS], work[_GOAL], work[_SOLUTION], work[_REFINED]
+    increment, product = work[_INCREMENT], work[_PRODUCT]
     scale = max(1.0, weighted_norm(v, coordinate_weights))
     bound = max(tolerance * h * scale, rounding * noise * scale)
-    _velocity_drift(model, work, v, drift_all)
-    for k in range(n_kept):
-        kept_drift[k] = drift_all[kept_rows[k]]
-    if weighted_norm(kept_drift, kept_weights) <= bound:
+    if _kept_drift_norm(model, work, v) <= bound:
         return _OK
-    _fill_matrix(model, work, system, q, v, zeros, lam, coefficients, 0.0)
+    _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
     for k in range(size_):
         goal[k] = 0.0 if k < n else kept_drift[k - n]
         solution[k] = 0.0
@@ -205,9 +216,9 @@ def _project_velocities(model, work, system, state, settings, rules_, q, v, lam,
         if size > refinement * last:
             if fresh:
                 break
-            if not _refactor(model, work, system, state, settings, q, v, zeros, lam, coefficients):
+            if not _refactor(model, work, state, settings, q, v, zeros, lam, coefficients):
                 return _STEP_FAILED
-            _fill_matrix(model, work, system, q, v, zeros, lam, coefficients, 0.0)
+            _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
             fresh = True
             for k in range(size_):
                 solution[k] = 0.0
@@ -215,35 +226,31 @@ def _project_velocities(model, work, system, state, settings, rules_, q, v, lam,
             last = math.inf
             continue
         last = size
-        fill_row_products(saddle[1], saddle[2], system[2], solution, product)
+        fill_row_products(model[_SADDLE_INDPTR], model[_SADDLE_INDICES], work[_DATA], solution, product)
         for k in range(size_):
             residual[k] = goal[k] - product[k]
     # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
     for c in range(n):
         increment[c] = v[c] - solution[c]
-    _velocity_drift(model, work, increment[:n], drift_all)
-    for k in range(n_kept):
-        kept_drift[k] = drift_all[kept_rows[k]]
-    if weighted_norm(kept_drift, kept_weights) <= bound:
+    if _kept_drift_norm(model, work, increment[:n]) <= bound:
         for c in range(n):
             v[c] -= solution[c]
         return _OK
     return _STEP_FAILED
 
 
-@njit(**JIT)
-def _step(model, work, system, state, settings, rules_, h, t_next, after):
+@njit(inline="always", **JIT)
+def _step(model, work, state, settings, rules_, h, t_next, after):
     """One generalized-α step of size `h` from the state into `after` ``(q, v, a, pseudo,
     lam)`` (`GeneralizedAlphaStepper._step`); returns `_OK`, `_STEP_FAILED` or `_HAND_BACK`."""
     alpha_m, alpha_f, gamma, beta, tolerance, max_iterations = settings[:6]
     rounding, stall_factor, noise, contraction = rules_[0], rules_[1], rules_[2], rules_[3]
-    q0, v0, a0, p0, lam0 = state[0], state[1], state[2], state[3], state[4]
-    scalars, counts = state[5], state[8]
+    q0, v0, a0, p0, lam0 = state[_Q], state[_V], state[_A], state[_PSEUDO], state[_LAM]
+    scalars, counts = state[_SCALARS], state[_COUNTS]
     q, v, a, pseudo, lam = after
-    constraints = model[0]
-    kept_rows, coordinate_weights = constraints[7], constraints[10]
+    kept_rows, coordinate_weights, residual = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS], work[_RESIDUAL]
     n, n_kept = q.size, kept_rows.size
-    force, rhs, delta = system[7][0], system[7][1], system[7][2]
+    force, rhs, delta = work[_FORCE], work[_RHS], work[_DELTA]
     beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
     gamma_prime = gamma / (h * beta)
     coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
@@ -266,20 +273,19 @@ def _step(model, work, system, state, settings, rules_, h, t_next, after):
             break
         if iteration == max_iterations:
             return _STEP_FAILED
-        _motion_residual(model, work, system, q, v, a, lam, force)
+        _motion_residual(model, work, q, v, a, lam, force)
         if not math.isfinite(phi_norm):
             return _STEP_FAILED
         for c in range(n):
             if not math.isfinite(force[c]):
                 return _STEP_FAILED
         if counts[_FACTORED] == 0:
-            if not _refactor(model, work, system, state, settings, q, v, a, lam, coefficients):
+            if not _refactor(model, work, state, settings, q, v, a, lam, coefficients):
                 return _STEP_FAILED
             fresh = True
         scale = -1.0 / beta_prime
         for c in range(n):
             rhs[c] = force[c] * scale
-        residual = work[2]
         for k in range(n_kept):
             rhs[n + k] = -residual[kept_rows[k]]
         if not _solve(state, rhs, delta):
@@ -310,16 +316,15 @@ def _step(model, work, system, state, settings, rules_, h, t_next, after):
         else:
             fresh = False
         last = correction
-    outcome = _project_velocities(model, work, system, state, settings, rules_, q, v, lam, coefficients, h)
+    outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
     if outcome != _OK:
         return outcome
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
-    _load(system[0], q, v, a)
-    motion = system[0]
-    power, damping = motion_powers(model[1][0], model[1][2], motion[0], motion[1], motion[3], work[8][0], lam,
-                                   constraints[5], work[5])  # fmt: skip
+    _load(work, q, v, a)
+    power, damping = motion_powers(model[_LOADS], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND], work[_TURNS],
+                                   work[_LAW_VALUES][0], lam, model[_DRIVEN_ROW], work[_VELOCITY_RHS])  # fmt: skip
     scalars[_WORK] = scalars[_WORK] + 0.5 * h * (scalars[_POWER] + power)
     scalars[_DISSIPATED] = scalars[_DISSIPATED] + 0.5 * h * (scalars[_DAMPING] + damping)
     scalars[_POWER], scalars[_DAMPING] = power, damping
@@ -328,21 +333,20 @@ def _step(model, work, system, state, settings, rules_, h, t_next, after):
 
 
 # ---------------------------------------------------------------------- samples
-@njit(**JIT)
-def _publish(model, work, system, state, k, out, forces):
+@njit(inline="always", **JIT)
+def _publish(model, work, state, k, out, forces):
     """Row `k` of the outputs: q, q̇, q̈, energy and drift, and the force columns
     (`GeneralizedAlphaStepper._publish` and the run's force columns)."""
-    q, v, a, lam, scalars = state[0], state[1], state[2], state[4], state[5]
+    q, v, a, lam, scalars = state[_Q], state[_V], state[_A], state[_LAM], state[_SCALARS]
     coordinates, velocities, accelerations, energy, drift = out[0], out[1], out[2], out[4], out[5]
-    loads = model[1][0]
+    loads = model[_LOADS]
     phi = _fill_constraints(model, work, q)
-    drift_all = system[6][0]
+    drift_all = work[_DRIFT]
     _velocity_drift(model, work, v, drift_all)
-    drift_norm = weighted_norm(drift_all, model[0][3])
-    motion = system[0]
-    _load(motion, q, v, a)
+    drift_norm = weighted_norm(drift_all, model[_WEIGHTS])
+    _load(work, q, v, a)
     kinetic, potential, elastic = kinetic_potential_elastic(loads.masses, loads.gravity, loads.spring, loads.torsion,
-                                                            motion[0], motion[1], motion[3])  # fmt: skip
+                                                            work[_Q_GROUND], work[_V_GROUND], work[_TURNS])  # fmt: skip
     balance = kinetic + potential + elastic + scalars[_DISSIPATED] - scalars[_WORK]
     energy[k, 0], energy[k, 1], energy[k, 2] = kinetic, potential, elastic
     energy[k, 3], energy[k, 4], energy[k, 5] = scalars[_DISSIPATED], scalars[_WORK], balance - scalars[_BALANCE0]
@@ -351,7 +355,8 @@ def _publish(model, work, system, state, k, out, forces):
         coordinates[k, c], velocities[k, c], accelerations[k, c] = q[c], v[c], a[c]
     outputs, reaction_work, rows = forces
     if rows.shape[1]:
-        fill_force_outputs(outputs, work[3], lam, motion[0], motion[3], work[5], reaction_work, rows[k])
+        fill_force_outputs(outputs, work[_JACOBIAN], lam, work[_Q_GROUND], work[_TURNS], work[_VELOCITY_RHS],
+                           reaction_work, rows[k])  # fmt: skip
 
 
 @njit(inline="always", **JIT)
@@ -363,44 +368,47 @@ def _copy_state(source, target):
         target[4][r] = source[4][r]
 
 
+@njit(inline="always", **JIT)
+def _work_arrays(model, n, n_laws):
+    """The work arrays of a model of `n` coordinates and `n_laws` load laws (see `_Q_CONSTRAINTS` …)."""
+    m, n_kept, n_triplets = model[_TARGET0].size, model[_KEPT_ROWS].size, model[_SLOTS].size
+    size = n + n_kept
+    return (np.zeros(n + 3), np.zeros((n // 3 + 1, 2)), np.zeros(m), np.zeros(model[_INDPTR][-1] + 1),
+            model[_TARGET0].copy(), np.zeros(m), np.zeros(n_kept), np.zeros((3, model[_DRIVEN_ROW].size)),
+            np.zeros((3, n_laws)), np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3), np.zeros((n // 3 + 1, 2)),
+            np.zeros(n + 3), np.zeros(model[_SADDLE_INDPTR][-1] + 1), np.zeros(n_triplets, dtype=np.int64),
+            np.zeros(n_triplets, dtype=np.int64), np.zeros(n_triplets),
+            (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6))), np.zeros(n_laws),
+            np.zeros(m), np.zeros(n), np.zeros(size), np.zeros(size), np.zeros(size), np.zeros(size), np.zeros(size),
+            np.zeros(n), np.zeros(size), np.zeros(size))  # fmt: skip
+
+
 @njit(**JIT)
-def _advance_samples(model, state, settings, rules_, times, out, forces):
+def _advance_samples(model, state, n_laws, settings, rules_, times, out, forces):
     """Integrate from the state to each of `times` in turn, publishing row k of `out`
     ``(coordinates, velocities, accelerations, iterations, energy, drift)`` (and of
     ``forces[2]``) at ``times[k]``; returns the samples solved.  At a sample it cannot
     solve it stops with the state of the sample before (see the module docstring)."""
-    constraints, loads, saddle = model
-    q0 = state[0]
-    n, m, n_kept = q0.size, constraints[4].size, constraints[7].size
-    size = n + n_kept
-    n_laws = state[9]
-    work = (np.zeros(n + 3), np.zeros((n // 3 + 1, 2)), np.zeros(m), np.zeros(constraints[1][-1] + 1),
-            constraints[4].copy(), np.zeros(m), np.zeros(n_kept), np.zeros((3, constraints[5].size)),
-            np.zeros((3, n_laws)))  # fmt: skip
-    n_triplets = saddle[0].size
-    motion = (np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3), np.zeros((n // 3 + 1, 2)))
-    system = (motion, np.zeros(n + 3), np.zeros(saddle[1][-1] + 1),
-              (np.zeros(n_triplets, dtype=np.int64), np.zeros(n_triplets, dtype=np.int64), np.zeros(n_triplets)),
-              (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6))), np.zeros(n_laws),
-              (np.zeros(m), np.zeros(n), np.zeros(size), np.zeros(size), np.zeros(size), np.zeros(size),
-               np.zeros(size)),
-              (np.zeros(n), np.zeros(size), np.zeros(size)))  # fmt: skip
+    q0 = state[_Q]
+    n, m = q0.size, state[_LAM].size
+    work = _work_arrays(model, n, n_laws)
     after = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m))
-    saved = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m), np.zeros(state[5].size))
-    scalars, counts = state[5], state[8]
+    saved = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m))
+    scalars, counts = state[_SCALARS], state[_COUNTS]
+    saved_scalars = np.zeros(scalars.size)
     max_step, max_halvings, growth_after = settings[6], rules_[6], rules_[7]
     iterations = out[3]
     for k in range(times.size):
         t = times[k]
         _copy_state(state, saved)
         for j in range(scalars.size):
-            saved[5][j] = scalars[j]
+            saved_scalars[j] = scalars[j]
         step, good, before = scalars[_STEP], 0, counts[_NEWTON]
         while scalars[_TIME] < t:
             now = scalars[_TIME]
             remaining = t - now
             h = remaining if remaining <= step * (1.0 + 1e-9) else step
-            outcome = _step(model, work, system, state, settings, rules_, h, t if h == remaining else now + h, after)
+            outcome = _step(model, work, state, settings, rules_, h, t if h == remaining else now + h, after)
             if outcome == _OK:
                 _copy_state(after, state)
                 scalars[_TIME] = t if h == remaining else now + h
@@ -415,11 +423,11 @@ def _advance_samples(model, state, settings, rules_, times, out, forces):
             if outcome == _HAND_BACK or step < max_step * 0.5**max_halvings:
                 _copy_state(saved, state)
                 for j in range(scalars.size):
-                    scalars[j] = saved[5][j]
+                    scalars[j] = saved_scalars[j]
                 return k
         scalars[_STEP] = step
         iterations[k] = counts[_NEWTON] - before
-        _publish(model, work, system, state, k, out, forces)
+        _publish(model, work, state, k, out, forces)
     return times.size
 
 
@@ -462,14 +470,18 @@ class CompiledDynamicsLoop:
         if python.time is None or self.fell_back:
             return self._steps.advance_block(times)
         if self._state is None:
+            if python.redundant_rows.size:  # the forces of a redundant set: the Python stepper's
+                self.fell_back = True
+                return self._steps.advance_block(times)
             self._prepare()
         count = min(len(times), self._chunk)
         times = np.ascontiguousarray(times[:count], dtype=float)
         out = tuple(array[:count] for array in self._out)
         forces = (*self._forces[:2], self._forces[2][:count])
-        counts = self._state[8].copy()
-        solved = int(_advance_samples(self._model, self._state, self._settings, self._rules, times, out, forces))
-        self._count(self._state[8] - counts)
+        counts = self._state[_COUNTS].copy()
+        solved = int(_advance_samples(self._model, self._state, self._n_laws, self._settings, self._rules, times, out,
+                                      forces))  # fmt: skip
+        self._count(self._state[_COUNTS] - counts)
         self.n_compiled += solved
         if solved < count:
             self.fell_back = True
@@ -506,12 +518,12 @@ class CompiledDynamicsLoop:
         system, pattern = python.system, python.pattern
         assembler, loads, kept = system.assembler, system.loads, system.kept_rows
         actuators = actuator_kernel_arrays(loads.actuators, loads.n_laws, pattern.n_bodies)
-        constraints = (pattern.primitives, pattern.indptr, pattern.indices,
-                       assembler.weights, pattern.target.astype(float), pattern.driven_row,
-                       python.discretization.driver_laws.table, kept.astype(np.int64), system.kept_row,
-                       np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights)  # fmt: skip
         saddle = system.saddle
-        self._model = (constraints, (loads.arrays, loads.laws, actuators), (saddle.slots, saddle.indptr, saddle.indices))
+        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights, pattern.target.astype(float),
+                       pattern.driven_row, python.discretization.driver_laws.table, kept.astype(np.int64),
+                       system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
+                       loads.arrays, loads.laws, actuators, saddle.slots, saddle.indptr, saddle.indices)  # fmt: skip
+        self._n_laws = int(loads.n_laws)
         self._settings, self._rules = python.compiled_settings()
         start = python.state
         power, damping = python.power
@@ -519,8 +531,7 @@ class CompiledDynamicsLoop:
         counts = np.zeros(7, dtype=np.int64)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
                        start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
-                       np.zeros((system.size, system.size)), np.zeros(system.size, dtype=np.int64), counts,
-                       int(loads.n_laws))  # fmt: skip
+                       np.zeros((system.size, system.size)), np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
         n, rows = pattern.n_coordinates, self._chunk
         self._out = (np.zeros((rows, n)), np.zeros((rows, n)), np.zeros((rows, n)), np.zeros(rows, dtype=np.int64),
                      np.zeros((rows, 6)), np.zeros((rows, 2)))  # fmt: skip
