@@ -15,7 +15,9 @@ Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` wit
 ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
 indptr, indices, values, value, zeros, ones, rates)`` of
 `sparsekin.engine.actuators.actuator_kernel_arrays` (no rows' entries for a model without
-actuators: one signature for every model, compiled once for both paths).
+actuators: one signature for every model, compiled once for both paths).  They are
+inlined into the compiled loop: a call passes the loads', primitives' and actuators' arrays,
+whose reference counts at every call cost more than a small model's arithmetic.
 """
 
 from __future__ import annotations
@@ -37,10 +39,10 @@ from ._dynamics_kernels import (
     fill_torsion_triplets,
 )
 from ._force_kernels import fill_applied_forces
-from ._kernels import fill_residual_jacobian
+from ._kernels import residual_jacobian
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers, actuator_weights,
                          jacobian, kept_row, n_kept, coefficients, regularization, scratch, rows, cols, vals):  # fmt: skip
     """The triplets of ``[[a M + b C_t + c K_t, Φqᵀ], [Φq, −regularization · I]]`` (returns
@@ -70,14 +72,14 @@ def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_va
     return e
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def _actuator_gradients(actuators, q, turns):
     """∇s of every actuator at `q` (into ``actuators[3]``)."""
     primitives, indptr, indices, values, value, zeros, ones, rates = actuators
-    fill_residual_jacobian(primitives, q, turns, zeros, ones, value, values)
+    residual_jacobian(primitives, q, turns, zeros, ones, value, values)
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def fill_motion_forces(loads, actuators, q, qd, qdd, turns, law_values, applied, out):
     """``out`` (n_coordinates) = gravity, loads and actuators minus the inertial forces;
     `applied` (n_coordinates + 3) is scratch."""
@@ -88,7 +90,7 @@ def fill_motion_forces(loads, actuators, q, qd, qdd, turns, law_values, applied,
     add_transposed_product(actuators[1], actuators[2], actuators[3], law_values, out)
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def motion_powers(loads, actuators, q, qd, turns, law_values, multipliers, driven_row, velocity_rhs):
     """``(power, dissipated)``: the power of the loads, actuators and drivers (a driver's
     force is −λ) and the power the dampers dissipate, W."""

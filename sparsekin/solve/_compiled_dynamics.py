@@ -42,7 +42,7 @@ from ..engine._dynamics_kernels import (
     weighted_norm,
 )
 from ..engine._force_kernels import fill_force_outputs
-from ..engine._kernels import fill_body_turns, fill_residual_jacobian
+from ..engine._kernels import fill_body_turns, residual_jacobian
 from ..engine._lu_kernels import dense_lu_solve
 from ..engine.actuators import actuator_kernel_arrays
 from ..engine.force_columns import ForceOutputs
@@ -98,7 +98,7 @@ def _fill_constraints(model, work, q):
     q_constraints, residual, kept_residual, kept_rows = work[_Q_CONSTRAINTS], work[_RESIDUAL], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     for c in range(q.size):
         q_constraints[c] = q[c]
-    fill_residual_jacobian(model[_PRIMITIVES], q_constraints, work[_TURNS_CONSTRAINTS], work[_TARGET],
+    residual_jacobian(model[_PRIMITIVES], q_constraints, work[_TURNS_CONSTRAINTS], work[_TARGET],
                            model[_WEIGHTS], residual, work[_JACOBIAN])  # fmt: skip
     for k in range(kept_rows.size):
         kept_residual[k] = residual[kept_rows[k]]
