@@ -144,7 +144,7 @@ def _motion_residual(model, work, q, v, a, lam, out):
     add_transposed_product(model[_INDPTR], model[_INDICES], work[_JACOBIAN], lam, out)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _fill_matrix(model, work, q, v, a, lam, coefficients, regularization):
     """The saddle matrix's CSR values (`DynamicSystem.fill_matrix`) into ``work[_DATA]``."""
     _load(work, q, v, a)
@@ -157,7 +157,7 @@ def _fill_matrix(model, work, q, v, a, lam, coefficients, regularization):
     scatter_add(vals, model[_SLOTS], work[_DATA])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _refactor(model, work, state, settings, q, v, a, lam, coefficients):
     """Fill the regularized matrix and factor it (`GeneralizedAlphaStepper._factor`)."""
     counts = state[_COUNTS]
@@ -185,18 +185,26 @@ def _solve(state, rhs, out):
 # ---------------------------------------------------------------------- one step
 @njit(inline="always", **JIT)
 def _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h):
-    """`GeneralizedAlphaStepper._project_velocities`, on the held dense factorization."""
-    tolerance = settings[4]
-    rounding, noise, iterations, refinement = rules_[0], rules_[2], rules_[4], rules_[5]
+    """`GeneralizedAlphaStepper._project_velocities`: nothing to do when the drift is within
+    the bound (most steps), else `_refine_projection`."""
+    scale = max(1.0, weighted_norm(v, model[_COORDINATE_WEIGHTS]))
+    bound = max(settings[4] * h * scale, rules_[0] * rules_[2] * scale)
+    if _kept_drift_norm(model, work, v) <= bound:
+        return _OK
+    return _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+
+
+@njit(**JIT)
+def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound):
+    """The projection's solve (drift in ``work[_KEPT_RESIDUAL]``), refined on the held dense
+    factorization, refactored when the refinement stalls (a function of its own: it runs
+    at a few steps only, and compiles once)."""
+    iterations, refinement = rules_[4], rules_[5]
     coordinate_weights, kept_drift = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL]
     n, n_kept = q.size, model[_KEPT_ROWS].size
     size_ = n + n_kept
     zeros, goal, solution, residual = work[_ZEROS], work[_GOAL], work[_SOLUTION], work[_REFINED]
     increment, product = work[_INCREMENT], work[_PRODUCT]
-    scale = max(1.0, weighted_norm(v, coordinate_weights))
-    bound = max(tolerance * h * scale, rounding * noise * scale)
-    if _kept_drift_norm(model, work, v) <= bound:
-        return _OK
     _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
     for k in range(size_):
         goal[k] = 0.0 if k < n else kept_drift[k - n]
