@@ -52,7 +52,7 @@ from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled import _factor, _unsupported_law
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
-__all__ = ["CompiledDynamicsLoop", "supports_compiled_dynamics"]
+__all__ = ["CompiledDynamicsLoop", "mirrors", "supports_compiled_dynamics"]
 
 #: What a step, a projection or a block ends with.
 _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
@@ -77,6 +77,18 @@ MAX_BLOCK = 1000
 def supports_compiled_dynamics(mechanism) -> bool:
     """Whether every driver and load law is one the compiled loop evaluates."""
     return _unsupported_law(mechanism) is None
+
+
+def mirrors(stepper_type) -> bool:
+    """Whether the compiled step is `stepper_type`'s algorithm (a `GeneralizedAlphaStepper`).
+
+    It mirrors the stepper of this branch: Newton stopping at ``tolerance / γ′``, the velocity
+    projection.  A stepper that also projects the accelerations (``_project_accelerations``,
+    with Newton and the projections stopping at ``tolerance · h`` and the rank-loss
+    projection rule, branch d25acc) is not mirrored yet: its runs keep the Python stepper
+    (`sparsekin.solve.dynamics.run_dynamics`), so that the two paths never give different
+    answers."""
+    return not hasattr(stepper_type, "_project_accelerations")
 
 
 # ---------------------------------------------------------------------- the system

@@ -59,7 +59,7 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
-from ._compiled_dynamics import CompiledDynamicsLoop, supports_compiled_dynamics
+from ._compiled_dynamics import CompiledDynamicsLoop, mirrors, supports_compiled_dynamics
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -746,8 +746,9 @@ def run_dynamics(discretization: Discretization, times: np.ndarray, options: Sol
     recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     variables, outputs = RecordedVariables(selection), selection.forces
     pattern = discretization.constraints
+    compilable = supports_compiled_dynamics(discretization.mechanism) and mirrors(GeneralizedAlphaStepper)
     plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              supports_compiled_dynamics(discretization.mechanism))  # fmt: skip
+                              compilable)  # fmt: skip
     if plan.loop == "compiled":
         steps = CompiledDynamicsLoop(stepper, recorder.size, outputs)
     else:
