@@ -22,16 +22,13 @@ from helpers import actuator_round_trip
 
 import sparsekin as sk
 from sparsekin.engine.discretization import discretize
-from sparsekin.solve._compiled_dynamics import mirrors
-from sparsekin.solve.dynamics import GeneralizedAlpha, GeneralizedAlphaStepper, run_dynamics
+from sparsekin.solve.dynamics import GeneralizedAlpha, run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds, plan_saddle_solver
 from sparsekin.testset import n_four_bar, task5
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 TOLERANCE = 1e-10
-pytestmark = pytest.mark.skipif(not mirrors(GeneralizedAlphaStepper), reason="the compiled step does not mirror this "
-                                "GeneralizedAlphaStepper (acceleration projection): runs keep the Python stepper")  # fmt: skip
 #: The Python stepper only, and the compiled loop wherever the plan allows it.
 PYTHON, COMPILED = Thresholds(compiled_saddle_max_size=0), Thresholds()
 

@@ -3,7 +3,9 @@
 For a model of a few dozen coordinates the generalized-α step of
 `sparsekin.solve.dynamics.GeneralizedAlphaStepper` spends its time in Python call overhead,
 not in arithmetic.  `CompiledDynamicsLoop` runs the same step — predictor, modified Newton
-on the scaled index-3 saddle system, velocity projection, step halving and growth, the
+on the scaled index-3 saddle system, velocity projection (and, for a stepper that has
+``_project_accelerations``, the acceleration projection with its stopping rules: both
+forms, chosen by `GeneralizedAlphaStepper.compiled_start`), step halving and growth, the
 work and dissipated energy — for a whole block of samples inside one compiled function,
 on a dense LU (`sparsekin.engine._lu_kernels`) of the saddle matrix.  It calls what the
 Python path calls: the constraint wiring of `sparsekin.engine._kernels`, the laws of
@@ -23,7 +25,9 @@ fails at that sample again with the detailed error if it must.
 
 Supported: everything `solve_dynamics` integrates whose laws are all built in
 (`sparsekin.solve._compiled.supports_compiled`'s laws; actuators included).  Other
-law objects run the Python stepper (`sparsekin.solve.policy.plan_saddle_solver`).
+law objects run the Python stepper (`sparsekin.solve.policy.plan_saddle_solver`), and so
+does a model with redundant equations (the multipliers of a redundant set are the Python
+stepper's to publish).
 """
 
 from __future__ import annotations
@@ -42,7 +46,7 @@ from ..engine._dynamics_kernels import (
     weighted_norm,
 )
 from ..engine._force_kernels import fill_force_outputs
-from ..engine._kernels import fill_body_turns, residual_jacobian
+from ..engine._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
 from ..engine._lu_kernels import dense_lu_solve
 from ..engine.actuators import actuator_kernel_arrays
 from ..engine.force_columns import ForceOutputs
@@ -52,7 +56,7 @@ from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled import _factor, _unsupported_law
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
-__all__ = ["CompiledDynamicsLoop", "mirrors", "supports_compiled_dynamics"]
+__all__ = ["CompiledDynamicsLoop", "supports_compiled_dynamics"]
 
 #: What a step, a projection or a block ends with.
 _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
@@ -65,11 +69,14 @@ _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
 (_Q_CONSTRAINTS, _TURNS_CONSTRAINTS, _RESIDUAL, _JACOBIAN, _TARGET, _VELOCITY_RHS, _KEPT_RESIDUAL, _DRIVER_VALUES,
  _LAW_VALUES, _Q_GROUND, _V_GROUND, _A_GROUND, _TURNS, _APPLIED, _DATA, _ROWS, _COLS, _VALS, _SCRATCH,
  _ACTUATOR_WEIGHTS, _DRIFT, _ZEROS, _GOAL, _SOLUTION, _REFINED, _INCREMENT, _PRODUCT, _FORCE, _RHS,
- _DELTA) = range(30)  # fmt: skip
+ _DELTA, _V_CONSTRAINTS, _ACCELERATION_RHS) = range(32)  # fmt: skip
 #: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
 _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
 _TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0 = range(7)
-_STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED = range(7)
+_STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
+#: Positions in the rules (`GeneralizedAlphaStepper.compiled_start`).
+(_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS, _GROWTH_AFTER,
+ _PROJECTS_ACCELERATIONS) = range(9)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
 MAX_BLOCK = 1000
 
@@ -77,18 +84,6 @@ MAX_BLOCK = 1000
 def supports_compiled_dynamics(mechanism) -> bool:
     """Whether every driver and load law is one the compiled loop evaluates."""
     return _unsupported_law(mechanism) is None
-
-
-def mirrors(stepper_type) -> bool:
-    """Whether the compiled step is `stepper_type`'s algorithm (a `GeneralizedAlphaStepper`).
-
-    It mirrors the stepper of this branch: Newton stopping at ``tolerance / γ′``, the velocity
-    projection.  A stepper that also projects the accelerations (``_project_accelerations``,
-    with Newton and the projections stopping at ``tolerance · h`` and the rank-loss
-    projection rule, branch d25acc) is not mirrored yet: its runs keep the Python stepper
-    (`sparsekin.solve.dynamics.run_dynamics`), so that the two paths never give different
-    answers."""
-    return not hasattr(stepper_type, "_project_accelerations")
 
 
 # ---------------------------------------------------------------------- the system
@@ -196,44 +191,89 @@ def _solve(state, rhs, out):
 
 # ---------------------------------------------------------------------- one step
 @njit(inline="always", **JIT)
+def _converges_in_time(correction, rate, target, corrections_left):
+    """`sparsekin.solve.dynamics._converges_in_time`."""
+    return correction * rate ** max(corrections_left, 0) <= target
+
+
+@njit(inline="always", **JIT)
 def _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h):
     """`GeneralizedAlphaStepper._project_velocities`: nothing to do when the drift is within
-    the bound (most steps), else `_refine_projection`."""
+    the bound (most steps), else `_refine_projection` and v ← v − Δ."""
     scale = max(1.0, weighted_norm(v, model[_COORDINATE_WEIGHTS]))
-    bound = max(settings[4] * h * scale, rules_[0] * rules_[2] * scale)
+    bound = max(settings[4] * h * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
     if _kept_drift_norm(model, work, v) <= bound:
         return _OK
-    return _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    if outcome == _OK:
+        solution = work[_SOLUTION]
+        for c in range(q.size):
+            v[c] -= solution[c]
+    return outcome
+
+
+@njit(inline="always", **JIT)
+def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients):
+    """`GeneralizedAlphaStepper._project_accelerations` (the stepper that projects them):
+    a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound."""
+    kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
+    n, n_kept = q.size, kept_rows.size
+    v_constraints, gamma, drift, kept_drift = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS], work[_DRIFT], work[_KEPT_RESIDUAL]
+    for c in range(n):
+        v_constraints[c] = v[c]
+    acceleration_rhs(model[_PRIMITIVES], work[_Q_CONSTRAINTS], v_constraints, work[_TURNS_CONSTRAINTS], gamma)
+    driven_row, driver_values = model[_DRIVEN_ROW], work[_DRIVER_VALUES]
+    for d in range(driven_row.size):
+        gamma[driven_row[d]] += driver_values[2, d]
+    fill_row_products(model[_INDPTR], model[_INDICES], work[_JACOBIAN], a, drift)
+    for r in range(drift.size):
+        drift[r] -= gamma[r]
+    for k in range(n_kept):
+        kept_drift[k] = drift[kept_rows[k]]
+    scale = max(1.0, weighted_norm(a, coordinate_weights))
+    bound = max(settings[4] * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
+    if weighted_norm(kept_drift, model[_KEPT_WEIGHTS]) <= bound:
+        return _OK
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    if outcome == _OK:
+        solution = work[_SOLUTION]
+        for c in range(n):
+            a[c] -= solution[c]
+            pseudo[c] -= solution[c]
+        for k in range(n_kept):
+            lam[kept_rows[k]] -= solution[n + k]
+    return outcome
 
 
 @njit(**JIT)
 def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound):
-    """The projection's solve (drift in ``work[_KEPT_RESIDUAL]``), refined on the held dense
-    factorization, refactored when the refinement stalls (a function of its own: it runs
-    at a few steps only, and compiles once)."""
-    iterations, refinement = rules_[4], rules_[5]
-    coordinate_weights, kept_drift = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL]
-    n, n_kept = q.size, model[_KEPT_ROWS].size
+    """The projection's solve ``[Δ; μ]`` into ``work[_SOLUTION]`` (drift on the kept rows in
+    ``work[_KEPT_RESIDUAL]``), refined on the held dense factorization, refactored when the
+    refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
+    a few steps only, and compiles once)."""
+    iterations, refinement, accelerations = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION], rules_[_PROJECTS_ACCELERATIONS]
+    coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
+    n, n_kept = q.size, kept_rows.size
     size_ = n + n_kept
     zeros, goal, solution, residual = work[_ZEROS], work[_GOAL], work[_SOLUTION], work[_REFINED]
     increment, product = work[_INCREMENT], work[_PRODUCT]
+    before = weighted_norm(kept_drift, model[_KEPT_WEIGHTS])
     _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
     for k in range(size_):
         goal[k] = 0.0 if k < n else kept_drift[k - n]
         solution[k] = 0.0
         residual[k] = goal[k]
     last, fresh, size = math.inf, False, math.inf
-    for _ in range(iterations):
+    for iteration in range(iterations):
         if not _solve(state, residual, increment):
             return _HAND_BACK  # the Python stepper raises SingularMatrix here
         for k in range(size_):
             solution[k] += increment[k]
         size = weighted_norm(increment[:n], coordinate_weights)
         if size <= bound:
-            for c in range(n):
-                v[c] -= solution[c]
             return _OK
-        if size > refinement * last:
+        slow = accelerations and not (fresh or _converges_in_time(size, size / last, bound, iterations - iteration - 1))
+        if size > refinement * last or slow:
             if fresh:
                 break
             if not _refactor(model, work, state, settings, q, v, zeros, lam, coefficients):
@@ -249,12 +289,19 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         fill_row_products(model[_SADDLE_INDPTR], model[_SADDLE_INDICES], work[_DATA], solution, product)
         for k in range(size_):
             residual[k] = goal[k] - product[k]
+    drift, left = work[_DRIFT], work[_KEPT_RESIDUAL]
+    if accelerations:  # kept where Φq has lost rank if it left less drift than there was
+        fill_row_products(model[_INDPTR], model[_INDICES], work[_JACOBIAN], solution[:n], drift)
+        for k in range(n_kept):
+            left[k] = goal[n + k] - drift[kept_rows[k]]
+        if fresh and weighted_norm(left, model[_KEPT_WEIGHTS]) <= before:
+            state[_COUNTS][_SINGULAR_PROJECTIONS] += 1
+            return _OK
+        return _STEP_FAILED
     # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
     for c in range(n):
         increment[c] = v[c] - solution[c]
     if _kept_drift_norm(model, work, increment[:n]) <= bound:
-        for c in range(n):
-            v[c] -= solution[c]
         return _OK
     return _STEP_FAILED
 
@@ -284,7 +331,8 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
         lam[r] = lam0[r]
     _set_time(model, work, t_next)
     last, fresh, rate, settled, stalled = math.inf, False, contraction, False, 0.0
-    bound = tolerance / gamma_prime
+    accelerations = rules_[_PROJECTS_ACCELERATIONS]
+    bound = (tolerance * h if accelerations else tolerance) / gamma_prime  # d25acc: tolerance · h per step
     for iteration in range(max_iterations + 1):
         phi_norm = _fill_constraints(model, work, q)
         floor = rounding * (1.0 + weighted_norm(q, coordinate_weights))
@@ -334,6 +382,9 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
             else:
                 counts[_FACTORED] = 0  # a fresh matrix at the next iterate
         else:
+            if accelerations and not (settled or fresh) and iteration > 0 and not _converges_in_time(
+                    correction, rate, max(bound, floor), max_iterations - iteration - 1):  # fmt: skip
+                counts[_FACTORED] = 0  # the held matrix contracts, but too slowly for the corrections left
             fresh = False
         last = correction
     outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
@@ -342,6 +393,10 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
+    if accelerations:
+        outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
+        if outcome != _OK:
+            return outcome
     _load(work, q, v, a)
     power, damping = motion_powers(model[_LOADS], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND], work[_TURNS],
                                    work[_LAW_VALUES][0], lam, model[_DRIVEN_ROW], work[_VELOCITY_RHS])  # fmt: skip
@@ -400,7 +455,7 @@ def _work_arrays(model, n, n_laws):
             np.zeros(n_triplets, dtype=np.int64), np.zeros(n_triplets),
             (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6))), np.zeros(n_laws),
             np.zeros(m), np.zeros(n), np.zeros(size), np.zeros(size), np.zeros(size), np.zeros(size), np.zeros(size),
-            np.zeros(n), np.zeros(size), np.zeros(size))  # fmt: skip
+            np.zeros(n), np.zeros(size), np.zeros(size), np.zeros(n + 3), np.zeros(m))  # fmt: skip
 
 
 @njit(**JIT)
@@ -470,7 +525,7 @@ class CompiledDynamicsLoop:
     Parameters
     ----------
     stepper : GeneralizedAlphaStepper
-        Not started yet; ``stepper.compiled_settings()`` gives the step's parameters and rules.
+        Not started yet; ``stepper.compiled_start()`` gives the step's parameters and rules.
     chunk : int
         Most samples per block (at most `MAX_BLOCK`).
     forces : ForceOutputs, optional
@@ -529,6 +584,8 @@ class CompiledDynamicsLoop:
         python.n_subdivisions += int(counts[_SUBDIVISIONS])
         python.n_newton += int(counts[_NEWTON])
         python.n_stalls += int(counts[_STALLS])
+        if hasattr(python, "n_singular_projections"):
+            python.n_singular_projections += int(counts[_SINGULAR_PROJECTIONS])
         self._factorizations += int(counts[_FACTORIZATIONS])
         self._solves += int(counts[_SOLVES])
 
@@ -544,11 +601,10 @@ class CompiledDynamicsLoop:
                        system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
                        loads.arrays, loads.laws, actuators, saddle.slots, saddle.indptr, saddle.indices)  # fmt: skip
         self._n_laws = int(loads.n_laws)
-        self._settings, self._rules = python.compiled_settings()
+        self._settings, self._rules, (power, damping, balance0) = python.compiled_start()
         start = python.state
-        power, damping = python.power
-        scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, python.balance0])
-        counts = np.zeros(7, dtype=np.int64)
+        scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0])
+        counts = np.zeros(8, dtype=np.int64)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
                        start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
                        np.zeros((system.size, system.size)), np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip

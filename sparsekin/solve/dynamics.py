@@ -59,7 +59,7 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
-from ._compiled_dynamics import CompiledDynamicsLoop, mirrors, supports_compiled_dynamics
+from ._compiled_dynamics import CompiledDynamicsLoop, supports_compiled_dynamics
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -364,25 +364,18 @@ class GeneralizedAlphaStepper:
         self._factored = False
         self._publish()
 
-    def compiled_settings(self) -> tuple[tuple, tuple]:
-        """The step's parameters ``(alpha_m, alpha_f, gamma, beta, tolerance, max_iterations,
-        max_step, regularization)`` and rules ``(ROUNDING, STALL, NOISE, CONTRACTION,
-        PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS, GROWTH_AFTER)``, after
-        `start`, for the compiled loop."""
+    def compiled_start(self) -> tuple[tuple, tuple, tuple]:
+        """After `start`, for the compiled loop (`sparsekin.solve._compiled_dynamics`, which
+        mirrors both forms of the step): the step's parameters ``(alpha_m, alpha_f, gamma,
+        beta, tolerance, max_iterations, max_step, regularization)``, its rules ``(ROUNDING,
+        STALL, NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
+        GROWTH_AFTER, whether the accelerations are projected too)``, and ``(power, dissipated
+        power, energy balance of the first sample)`` at the state."""
         settings = (*self.integrator.coefficients, float(self.tolerance), int(self.options.max_iterations),
                     float(self.max_step), float(self._regularization))  # fmt: skip
-        return settings, (ROUNDING, STALL, NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION,
-                          MAX_HALVINGS, GROWTH_AFTER)  # fmt: skip
-
-    @property
-    def power(self) -> tuple[float, float]:
-        """The power of the loads, actuators and drivers and the dissipated power at the state, W."""
-        return self._power
-
-    @property
-    def balance0(self) -> float | None:
-        """The energy balance at the first sample (the recorded balance is measured from it), J."""
-        return self._balance0
+        rules = (ROUNDING, STALL, NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
+                 GROWTH_AFTER, hasattr(self, "_project_accelerations"))  # fmt: skip
+        return settings, rules, (*self._power, self._balance0)
 
     def recorded(self) -> dict:
         """The current sample's energy balance and drift, one row each (the schema's
@@ -746,9 +739,8 @@ def run_dynamics(discretization: Discretization, times: np.ndarray, options: Sol
     recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     variables, outputs = RecordedVariables(selection), selection.forces
     pattern = discretization.constraints
-    compilable = supports_compiled_dynamics(discretization.mechanism) and mirrors(GeneralizedAlphaStepper)
     plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              compilable)  # fmt: skip
+                              supports_compiled_dynamics(discretization.mechanism))  # fmt: skip
     if plan.loop == "compiled":
         steps = CompiledDynamicsLoop(stepper, recorder.size, outputs)
     else:
