@@ -36,7 +36,7 @@ PYTHON, COMPILED = Thresholds(compiled_saddle_max_size=0), Thresholds()
 @pytest.fixture(autouse=True)
 def compiled_loops(monkeypatch):
     """The compiled loops the runs made (to check that the compiled path did run)."""
-    from sparsekin.solve import _compiled_dynamics, dynamics
+    from sparsekin.solve import _compiled_dynamics
 
     loops = []
 
@@ -45,7 +45,7 @@ def compiled_loops(monkeypatch):
             super().__init__(*args, **kwargs)
             loops.append(self)
 
-    monkeypatch.setattr(dynamics, "CompiledDynamicsLoop", Recorded)
+    monkeypatch.setattr(_compiled_dynamics, "CompiledDynamicsLoop", Recorded)
     return loops
 
 

@@ -5,7 +5,7 @@ For a model of a few dozen coordinates the generalized-α step of
 not in arithmetic.  `CompiledDynamicsLoop` runs the same step — predictor, modified Newton
 on the scaled index-3 saddle system, velocity projection (and, for a stepper that has
 ``_project_accelerations``, the acceleration projection with its stopping rules: both
-forms, chosen by `GeneralizedAlphaStepper.compiled_start`), step halving and growth, the
+forms, chosen by `compiled_start`), step halving and growth, the
 work and dissipated energy — for a whole block of samples inside one compiled function,
 on a dense LU (`sparsekin.engine._lu_kernels`) of the saddle matrix.  It calls what the
 Python path calls: the constraint wiring of `sparsekin.engine._kernels`, the laws of
@@ -20,7 +20,7 @@ accelerations and multipliers) is the Python stepper's, run once.  Contract, as 
 compiled kinematics (`sparsekin.solve._compiled`): the loop stops at the first sample it
 cannot solve — a step failed after `MAX_HALVINGS` halvings, or a solve the Python path
 would raise on — and returns the samples solved before it; the Python stepper then goes
-on from the last of them (its state handed over, `GeneralizedAlphaStepper.resume`) and
+on from the last of them (its state handed over, `resume`) and
 fails at that sample again with the detailed error if it must.
 
 Supported: everything `solve_dynamics` integrates whose laws are all built in
@@ -33,6 +33,7 @@ stepper's to publish).
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from numba import njit
@@ -54,9 +55,10 @@ from ..engine._motion_kernels import fill_motion_forces, fill_saddle_triplets, m
 from ..model.laws import fill_laws
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled import _factor, _unsupported_law
+from .policy import plan_saddle_solver
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
-__all__ = ["CompiledDynamicsLoop", "supports_compiled_dynamics"]
+__all__ = ["CompiledDynamicsLoop", "block_stepper", "compiled_start", "resume", "supports_compiled_dynamics"]
 
 #: What a step, a projection or a block ends with.
 _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
@@ -74,7 +76,7 @@ _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
 _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
 _TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0 = range(7)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
-#: Positions in the rules (`GeneralizedAlphaStepper.compiled_start`).
+#: Positions in the rules (`compiled_start`).
 (_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS, _GROWTH_AFTER,
  _PROJECTS_ACCELERATIONS) = range(9)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
@@ -84,6 +86,48 @@ MAX_BLOCK = 1000
 def supports_compiled_dynamics(mechanism) -> bool:
     """Whether every driver and load law is one the compiled loop evaluates."""
     return _unsupported_law(mechanism) is None
+
+
+def block_stepper(stepper, options, chunk: int, forces=None):
+    """The block stepper of a forward-dynamics run (`sparsekin.solve.dynamics.run_dynamics`):
+    a `CompiledDynamicsLoop` around `stepper` (a `GeneralizedAlphaStepper` not started yet)
+    where `sparsekin.solve.policy.plan_saddle_solver` plans the loop ``"compiled"`` (small
+    models whose laws are all built in), else ``SampleSteps(stepper, stepper.recorded)``."""
+    pattern = stepper.discretization.constraints
+    plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
+                              supports_compiled_dynamics(stepper.mechanism))  # fmt: skip
+    if plan.loop == "compiled":
+        return CompiledDynamicsLoop(stepper, chunk, forces)
+    return SampleSteps(stepper, stepper.recorded)
+
+
+def compiled_start(stepper) -> tuple[tuple, tuple, tuple]:
+    """After ``stepper.start``: the step's parameters ``(alpha_m, alpha_f, gamma, beta,
+    tolerance, max_iterations, max_step, regularization)``, its rules ``(ROUNDING, STALL,
+    NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
+    GROWTH_AFTER, whether the accelerations are projected too)``, and ``(power, dissipated
+    power, energy balance of the first sample)`` at its state.  (A friend of
+    `GeneralizedAlphaStepper`: it reads the stepper's own state, as `resume` sets it, and
+    the constants of the stepper's module, `sparsekin.solve.dynamics`, which imports this one.)"""
+    rules = sys.modules[type(stepper).__module__]
+
+    settings = (*stepper.integrator.coefficients, float(stepper.tolerance), int(stepper.options.max_iterations),
+                float(stepper.max_step), float(stepper._regularization))  # fmt: skip
+    constants = (rules.ROUNDING, rules.STALL, rules.NOISE, rules.CONTRACTION, rules.PROJECTION_ITERATIONS,
+                 rules.REFINEMENT_CONTRACTION, rules.MAX_HALVINGS, rules.GROWTH_AFTER,
+                 hasattr(stepper, "_project_accelerations"))  # fmt: skip
+    return settings, constants, (*stepper._power, stepper._balance0)
+
+
+def resume(stepper, q, v, a, pseudo, lam, t: float, step: float, work: float, dissipated: float, power) -> None:
+    """``stepper`` (a `GeneralizedAlphaStepper`) goes on from the state the compiled loop
+    reached: q, q̇, q̈, ã, λ at time `t` with the next `step`, the `work` and `dissipated`
+    energy so far and ``power = (power, dissipated power)`` there; its held factorization is
+    dropped, its sample published again."""
+    stepper._state = type(stepper.state)(float(t), q, v, a, pseudo, lam, float(step), float(work), float(dissipated))
+    stepper._power = tuple(power)
+    stepper._factored = False
+    stepper._publish()
 
 
 # ---------------------------------------------------------------------- the system
@@ -102,7 +146,8 @@ def _set_time(model, work, t):
 @njit(inline="always", **JIT)
 def _fill_constraints(model, work, q):
     """Φ and Φq at `q`; the weighted norm of Φ on the kept rows (`DynamicSystem.fill_constraints`)."""
-    q_constraints, residual, kept_residual, kept_rows = work[_Q_CONSTRAINTS], work[_RESIDUAL], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
+    q_constraints, residual, kept_residual = work[_Q_CONSTRAINTS], work[_RESIDUAL], work[_KEPT_RESIDUAL]
+    kept_rows = model[_KEPT_ROWS]
     for c in range(q.size):
         q_constraints[c] = q[c]
     residual_jacobian(model[_PRIMITIVES], q_constraints, work[_TURNS_CONSTRAINTS], work[_TARGET],
@@ -218,7 +263,8 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
     a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound."""
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
-    v_constraints, gamma, drift, kept_drift = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS], work[_DRIFT], work[_KEPT_RESIDUAL]
+    v_constraints, gamma = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS]
+    drift, kept_drift = work[_DRIFT], work[_KEPT_RESIDUAL]
     for c in range(n):
         v_constraints[c] = v[c]
     acceleration_rhs(model[_PRIMITIVES], work[_Q_CONSTRAINTS], v_constraints, work[_TURNS_CONSTRAINTS], gamma)
@@ -251,7 +297,8 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
     ``work[_KEPT_RESIDUAL]``), refined on the held dense factorization, refactored when the
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
     a few steps only, and compiles once)."""
-    iterations, refinement, accelerations = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION], rules_[_PROJECTS_ACCELERATIONS]
+    iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
+    accelerations = rules_[_PROJECTS_ACCELERATIONS]
     coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     n, n_kept = q.size, kept_rows.size
     size_ = n + n_kept
@@ -525,7 +572,7 @@ class CompiledDynamicsLoop:
     Parameters
     ----------
     stepper : GeneralizedAlphaStepper
-        Not started yet; ``stepper.compiled_start()`` gives the step's parameters and rules.
+        Not started yet (`compiled_start` reads its parameters and rules after its start).
     chunk : int
         Most samples per block (at most `MAX_BLOCK`).
     forces : ForceOutputs, optional
@@ -561,8 +608,8 @@ class CompiledDynamicsLoop:
         if solved < count:
             self.fell_back = True
             q, v, a, pseudo, lam, scalars = (array.copy() for array in self._state[:6])
-            python.resume(q, v, a, pseudo, lam, scalars[_TIME], scalars[_STEP], scalars[_WORK], scalars[_DISSIPATED],
-                          (scalars[_POWER], scalars[_DAMPING]))  # fmt: skip
+            resume(python, q, v, a, pseudo, lam, scalars[_TIME], scalars[_STEP], scalars[_WORK], scalars[_DISSIPATED],
+                   (scalars[_POWER], scalars[_DAMPING]))  # fmt: skip
             if solved == 0:
                 return self._steps.advance_block(times)
         recorded = {ENERGY: out[4][:solved], DRIFT: out[5][:solved]}
@@ -596,12 +643,13 @@ class CompiledDynamicsLoop:
         assembler, loads, kept = system.assembler, system.loads, system.kept_rows
         actuators = actuator_kernel_arrays(loads.actuators, loads.n_laws, pattern.n_bodies)
         saddle = system.saddle
-        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights, pattern.target.astype(float),
+        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights,
+                       pattern.target.astype(float),
                        pattern.driven_row, python.discretization.driver_laws.table, kept.astype(np.int64),
                        system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
                        loads.arrays, loads.laws, actuators, saddle.slots, saddle.indptr, saddle.indices)  # fmt: skip
         self._n_laws = int(loads.n_laws)
-        self._settings, self._rules, (power, damping, balance0) = python.compiled_start()
+        self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0])
         counts = np.zeros(8, dtype=np.int64)

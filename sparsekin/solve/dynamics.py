@@ -59,7 +59,7 @@ from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
-from ._compiled_dynamics import CompiledDynamicsLoop, supports_compiled_dynamics
+from ._compiled_dynamics import block_stepper
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -353,29 +353,6 @@ class GeneralizedAlphaStepper:
             assembler.csr_positions, lambda: assembler.jacobian, assembler.velocity_rhs, None,
             None if kept.size == self.pattern.n_equations else kept, self.redundant_rows, state.multipliers,
         )  # fmt: skip
-
-    def resume(self, q, v, a, pseudo, lam, t: float, step: float, work: float, dissipated: float, power) -> None:
-        """Go on from a state another stepper of this start reached (the compiled loop's
-        hand-over, `sparsekin.solve._compiled_dynamics`): q, q̇, q̈, ã, λ at time `t` with the
-        next `step`, the `work` and `dissipated` energy so far and ``power = (power,
-        dissipated power)`` there; the held factorization is dropped."""
-        self._state = DynamicState(float(t), q, v, a, pseudo, lam, float(step), float(work), float(dissipated))
-        self._power = tuple(power)
-        self._factored = False
-        self._publish()
-
-    def compiled_start(self) -> tuple[tuple, tuple, tuple]:
-        """After `start`, for the compiled loop (`sparsekin.solve._compiled_dynamics`, which
-        mirrors both forms of the step): the step's parameters ``(alpha_m, alpha_f, gamma,
-        beta, tolerance, max_iterations, max_step, regularization)``, its rules ``(ROUNDING,
-        STALL, NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
-        GROWTH_AFTER, whether the accelerations are projected too)``, and ``(power, dissipated
-        power, energy balance of the first sample)`` at the state."""
-        settings = (*self.integrator.coefficients, float(self.tolerance), int(self.options.max_iterations),
-                    float(self.max_step), float(self._regularization))  # fmt: skip
-        rules = (ROUNDING, STALL, NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
-                 GROWTH_AFTER, hasattr(self, "_project_accelerations"))  # fmt: skip
-        return settings, rules, (*self._power, self._balance0)
 
     def recorded(self) -> dict:
         """The current sample's energy balance and drift, one row each (the schema's
@@ -738,29 +715,22 @@ def run_dynamics(discretization: Discretization, times: np.ndarray, options: Sol
     stepper = GeneralizedAlphaStepper(discretization, options=options, dynamics=dynamics)
     recorder = open_recorder(selection, store, times.size, request.chunk_samples)
     variables, outputs = RecordedVariables(selection), selection.forces
-    pattern = discretization.constraints
-    plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              supports_compiled_dynamics(discretization.mechanism))  # fmt: skip
-    if plan.loop == "compiled":
-        steps = CompiledDynamicsLoop(stepper, recorder.size, outputs)
-    else:
-        steps = SampleSteps(stepper, stepper.recorded)
     if outputs is not None:
         work, row = np.zeros((len(outputs.joint_indices), 3)), np.zeros(outputs.n_columns)
 
     def record(block: SampleBlock) -> None:
-        forces = block.recorded.get(FORCES)
+        forces, lin = block.recorded.get(FORCES), block.linearization
         if outputs is not None and forces is None:
-            lin = block.linearization
             forces = outputs.fill(lin, lin.multipliers, work, row)[None]
         arrays = variables.block(block.coordinates, block.velocities, block.accelerations, forces)
         if selection.records_energy:
-            arrays |= {ENERGY: block.recorded[ENERGY], DRIFT: block.recorded[DRIFT]}
+            arrays |= block.recorded
         recorder.add_block(block.times, arrays)
 
     def finish(state) -> DynamicsResult:
-        return recorded_result(DynamicsResult, discretization, recorder, steps.stats(), state.iterations,
+        return recorded_result(DynamicsResult, discretization, recorder, state.stepper.stats(), state.iterations,
                                times.size, "dynamics", n_steps=stepper.n_steps,
                                rho_inf=stepper.integrator.rho_inf)  # fmt: skip
 
-    return run(steps, times, record, finish, progress=progress, chunk=recorder.size)
+    return run(block_stepper(stepper, options, recorder.size, outputs), times, record, finish, progress=progress,
+               chunk=recorder.size)  # a compiled block stepper for small models
