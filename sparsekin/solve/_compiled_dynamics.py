@@ -558,7 +558,7 @@ class CompiledDynamicsLoop:
 
     The first sample is the Python stepper's `start`; every block after it runs in one
     compiled call from the state of the sample before.  At a sample the loop cannot
-    solve, the Python stepper resumes from the last sample solved (`stepper.resume`) and
+    solve, the Python stepper resumes from the last sample solved (`resume`) and
     solves the rest one sample per block, failing there with the detailed error if it
     must.
 
