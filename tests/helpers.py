@@ -111,3 +111,26 @@ def solve_with(mechanism, times, *, thresholds=None, guard=None, chunk_samples=N
     solve_options = SolveOptions(**how, thresholds=thresholds or Thresholds(), guard=guard or BranchGuard())
     request = Request(**options, chunk_samples=chunk_samples)
     return run_kinematics(discretize(mechanism), check_times(times, mechanism), solve_options, request, store=store)
+
+
+def actuator_round_trip(horizon: float, sampling: float):
+    """Task 5 with masses (examples/task5_dynamics.toml) with its drivers replaced by actuators
+    pushing with their inverse-dynamics forces (splines through the kinematic run's samples
+    every `sampling` s up to `horizon`), from the same initial velocities: ``(the free
+    linkage, the kinematic run)``, the prescribed motion that forward dynamics must give back."""
+    import dataclasses
+    from pathlib import Path
+
+    import sparsekin as sk
+
+    mechanism = sk.load_model(Path(__file__).resolve().parents[1] / "examples" / "task5_dynamics.toml")
+    samples = np.arange(0.0, horizon + sampling / 2, sampling)
+    kinematic = sk.solve_kinematics(mechanism, samples)
+    start = kinematic.velocities[0].reshape(-1, 3)
+    actuators = [sk.Actuator(f"actuator{k}", sk.Spline(tuple(samples), tuple(kinematic.driver_force(f"cylinder{k}").force)))
+                 for k in (1, 2)]  # fmt: skip
+    free = dataclasses.replace(
+        mechanism, drivers=[], loads=[*mechanism.loads, *actuators],
+        bodies=[dataclasses.replace(body, velocity=tuple(start[k])) for k, body in enumerate(mechanism.bodies)],
+    )  # fmt: skip
+    return free, kinematic

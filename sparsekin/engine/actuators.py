@@ -16,7 +16,7 @@ from ..model.loads import actuator_blocks
 from ..model.primitives import pack
 from . import _dynamics_kernels, _kernels
 
-__all__ = ["ActuatorForces", "build_actuators"]
+__all__ = ["ActuatorForces", "actuator_kernel_arrays", "build_actuators"]
 
 
 def build_actuators(blocks, n_laws: int, frames: np.ndarray) -> ActuatorForces | None:
@@ -36,6 +36,14 @@ def build_actuators(blocks, n_laws: int, frames: np.ndarray) -> ActuatorForces |
     return ActuatorForces(pack(coordinates, n_laws, frames)) if coordinates else None
 
 
+def actuator_kernel_arrays(actuators: ActuatorForces | None, n_laws: int, n_bodies: int) -> tuple:
+    """`ActuatorForces.kernel_arrays` of `actuators`, or of none (rows for the `n_laws` load
+    laws, no entries) for a model without: one type for the numba cores either way."""
+    if actuators is None:
+        actuators = ActuatorForces(pack([], n_laws, np.zeros((n_bodies + 1, 3))))
+    return actuators.kernel_arrays()
+
+
 class ActuatorForces:
     """``F ∇s`` of every actuator, ∇s refilled at each configuration.
 
@@ -53,6 +61,14 @@ class ActuatorForces:
         self.values = np.zeros(int(equations.indptr[-1]) + 1)
         self._value, self._ones = np.zeros(n_rows), np.ones(n_rows)
         self.rates = np.zeros(n_rows)
+
+    def kernel_arrays(self) -> tuple:
+        """The actuators as the numba cores of `sparsekin.engine._motion_kernels` take them:
+        ``(primitives, indptr, indices, values, value, zeros, ones, rates)`` (`values` and
+        `rates` are this object's own, refilled there)."""
+        e = self.equations
+        return (e.primitives, e.indptr, e.indices, self.values, self._value, np.zeros(self._value.size), self._ones,
+                self.rates)  # fmt: skip
 
     def fill(self, q: np.ndarray, turns: np.ndarray) -> None:
         """∇s at `q` (the ground appended; `turns` filled there)."""

@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _dynamics_kernels as kernels
-from . import _force_kernels, _kernels
+from . import _kernels, _motion_kernels
+from .actuators import actuator_kernel_arrays
 from .assembly import Assembler
 from .discretization import Discretization
 
@@ -127,6 +128,7 @@ class DynamicSystem:
         self._turns = np.zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
         self._actuator_weights = np.zeros(n_laws)
+        self._actuator_arrays = actuator_kernel_arrays(self.actuators, n_laws, pattern.n_bodies)
         arrays = self.loads.arrays
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
@@ -180,12 +182,8 @@ class DynamicSystem:
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
         self._load(coordinates, velocities, accelerations)
-        _force_kernels.fill_applied_forces(self.loads.arrays, self._q, self._qd, self._qdd, self._turns,
-                                           self.law_values, True, self._applied)  # fmt: skip
-        out[:] = self._applied[:-3]
-        if self.actuators is not None:
-            self.actuators.fill(self._q, self._turns)
-            self.actuators.add_forces(self.law_values, out)
+        _motion_kernels.fill_motion_forces(self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._qdd,
+                                           self._turns, self.law_values, self._applied, out)  # fmt: skip
         return out
 
     def residual(self, coordinates, velocities, accelerations, multipliers, out: np.ndarray) -> np.ndarray:
@@ -263,12 +261,8 @@ class DynamicSystem:
         dampers, W; Phi_q and the drivers' rates from the last `fill_constraints` /
         `set_time`."""
         self._load(coordinates, velocities, self._qdd[:-3])
-        arrays = self.loads.arrays
-        power = kernels.applied_power(arrays, self._qd, self._turns, self.law_values)
-        if self.actuators is not None:
-            self.actuators.fill(self._q, self._turns)
-            power += self.actuators.power(self.law_values, velocities)
-        rows = self.pattern.driven_row
-        power -= float(multipliers[rows] @ self.assembler.velocity_rhs[rows])  # a driver's force is −λ
-        dissipated = kernels.damping_power(arrays.spring, arrays.torsion, self._qd, self._q, self._turns)
+        power, dissipated = _motion_kernels.motion_powers(
+            self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._turns, self.law_values, multipliers,
+            self.pattern.driven_row, self.assembler.velocity_rhs,
+        )  # fmt: skip
         return power, dissipated

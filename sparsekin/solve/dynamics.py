@@ -61,7 +61,8 @@ from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, w
 from ..model.mechanism import Mechanism
 from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
-from ..results.schema import DRIFT, ENERGY
+from ..results.schema import DRIFT, ENERGY, FORCES
+from ._compiled_dynamics import block_stepper
 from ._dynamics_start import (
     REDUNDANCY_CHECK_COORDINATES,
     assembled,
@@ -75,7 +76,7 @@ from .options import DynamicsOptions, Request, SolveOptions, check_progress, che
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
 from .rounding_floor import RoundingFloor
 from .run import run
-from .steppers import SampleBlock, SampleSteps, StepperStats
+from .steppers import SampleBlock, StepperStats
 
 __all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
            "LINEAR_SOLVERS"]
@@ -769,16 +770,18 @@ def run_dynamics(discretization: Discretization, times: np.ndarray, options: Sol
         work, row = np.zeros((len(outputs.joint_indices), 3)), np.zeros(outputs.n_columns)
 
     def record(block: SampleBlock) -> None:
-        lin = block.linearization
-        forces = None if outputs is None else outputs.fill(lin, lin.multipliers, work, row)[None]
+        forces, lin = block.recorded.get(FORCES), block.linearization
+        if outputs is not None and forces is None:
+            forces = outputs.fill(lin, lin.multipliers, work, row)[None]
         arrays = variables.block(block.coordinates, block.velocities, block.accelerations, forces)
         if selection.records_energy:
             arrays |= block.recorded
         recorder.add_block(block.times, arrays)
 
     def finish(state) -> DynamicsResult:
-        return recorded_result(DynamicsResult, discretization, recorder, stepper.stats(), state.iterations,
+        return recorded_result(DynamicsResult, discretization, recorder, state.stepper.stats(), state.iterations,
                                times.size, "dynamics", n_steps=stepper.n_steps,
                                rho_inf=stepper.integrator.rho_inf)  # fmt: skip
 
-    return run(SampleSteps(stepper, stepper.recorded), times, record, finish, progress=progress)
+    return run(block_stepper(stepper, options, recorder.size, outputs), times, record, finish, progress=progress,
+               chunk=recorder.size)  # a compiled block stepper for small models

@@ -55,6 +55,7 @@ __all__ = [
     "SolverPlan",
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
+    "COMPILED_SADDLE_MAX_SIZE",
     "plan_linear_solver",
     "plan_saddle_solver",
 ]
@@ -85,6 +86,10 @@ MIN_DISSECTION_COORDINATES = 30_000
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
 #: kept equations) densely up to this size, with `RefactorSolver` above.
 SADDLE_DENSE_MAX_SIZE = 400
+#: ``linear_solver="auto"`` or ``"dense"`` of forward dynamics runs the compiled block
+#: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
+#: equations), when the model's laws are all built in.
+COMPILED_SADDLE_MAX_SIZE = 400
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
 
@@ -117,6 +122,8 @@ class Thresholds:
         the minimum-norm multipliers before the augmented LU takes over.
     saddle_dense_max_size : int
         `SADDLE_DENSE_MAX_SIZE`.
+    compiled_saddle_max_size : int
+        `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop).
     """
 
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
@@ -127,6 +134,7 @@ class Thresholds:
     smallest_tall_lu: int = SMALLEST_TALL_LU
     min_norm_iterations: int = MIN_NORM_ITERATIONS
     saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
+    compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
 
 
 @dataclass(frozen=True)
@@ -224,13 +232,18 @@ def _is_mesh(discretization: Discretization) -> bool:
             and pattern.n_coordinates == COORDINATES_PER_BODY * mechanism.n_bodies)  # fmt: skip
 
 
-def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None) -> SolverPlan:
+def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
+                       compilable: bool = False) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
-    kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`): the
-    Python loop, ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``,
-    ``"refactor"`` above; never reused across steps (the integrator holds its own
-    factorization while Newton contracts)."""
+    kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
+    ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
+    above; never reused across steps (the integrator holds its own factorization while
+    Newton contracts).  A dense plan of a `compilable` model (its laws all built in) up to
+    `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
+    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop."""
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
-    return SolverPlan(loop="python", solver=linear_solver, chord=False, thresholds=thresholds)
+    compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
+    return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
+                      thresholds=thresholds)  # fmt: skip

@@ -1,0 +1,109 @@
+"""numba cores of the equations of motion, shared by `DynamicSystem` and the compiled dynamics loop.
+
+`sparsekin.engine.saddle.DynamicSystem` (the Python stepper's system) and the compiled block
+stepper of small models (`sparsekin.solve._compiled_dynamics`) call the same three
+functions, so the two paths evaluate the same arithmetic in the same order:
+
+* `fill_saddle_triplets` — every triplet of the saddle matrix
+  [[a M + b C_t + c K_t, Φqᵀ], [Φq, −r I]] (the kernels of
+  `sparsekin.engine._dynamics_kernels`, in the order that fixes its pattern);
+* `fill_motion_forces` — ``Q − M q̈ − h``: gravity, loads and actuators minus the
+  inertial forces;
+* `motion_powers` — the power of the loads, actuators and drivers, and that dissipated.
+
+Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` with the
+ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
+indptr, indices, values, value, zeros, ones, rates)`` of
+`sparsekin.engine.actuators.actuator_kernel_arrays` (no rows' entries for a model without
+actuators: one signature for every model, compiled once for both paths).  They are
+inlined into the compiled loop: a call passes the loads', primitives' and actuators' arrays,
+whose reference counts at every call cost more than a small model's arithmetic.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from .._jit import JIT
+from ._dynamics_kernels import (
+    add_transposed_product,
+    applied_power,
+    damping_power,
+    fill_diagonal_triplets,
+    fill_inertia_triplets,
+    fill_multiplier_triplets,
+    fill_point_force_triplets,
+    fill_primitive_hessians,
+    fill_row_products,
+    fill_spring_triplets,
+    fill_torsion_triplets,
+)
+from ._force_kernels import fill_applied_forces
+from ._kernels import residual_jacobian
+
+
+@njit(inline="always", **JIT)
+def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers, actuator_weights,
+                         jacobian, kept_row, n_kept, coefficients, regularization, scratch, rows, cols, vals):  # fmt: skip
+    """The triplets of ``[[a M + b C_t + c K_t, Φqᵀ], [Φq, −regularization · I]]`` (returns
+    how many: all of them, every call).
+
+    `multipliers` has one entry per equation (0 on those left out).
+    `jacobian` is ``(indptr, indices, values)`` of Φq; `kept_row` maps an equation to its
+    index among the kept ones (−1: left out), `n_kept` counts them; `coefficients` is
+    ``(a, b, c)``; `actuator_weights` (one per load law) is scratch for −F; `scratch`
+    ``(gradient, rate_gradient, d, hessian, block)`` of shapes (6,), (6,), (2, 6), (6, 6),
+    (6, 6)."""
+    a, b, c = coefficients
+    gradient, rate_gradient, d, hessian, block = scratch
+    e = fill_inertia_triplets(loads.masses, loads.gravity, qd, qdd, turns, a, b, c, rows, cols, vals, 0)
+    e = fill_point_force_triplets(loads.force, turns, law_values, c, rows, cols, vals, e)
+    e = fill_spring_triplets(loads.spring, q, qd, turns, b, c, gradient, rate_gradient, d, hessian, block,
+                             rows, cols, vals, e)  # fmt: skip
+    e = fill_torsion_triplets(loads.torsion, b, c, rows, cols, vals, e)
+    e = fill_primitive_hessians(primitives, q, turns, multipliers, c, d, hessian, rows, cols, vals, e)
+    for k in range(law_values.size):
+        actuator_weights[k] = -law_values[k]  # f = −Q: −F ∇²s
+    e = fill_primitive_hessians(actuators[0], q, turns, actuator_weights, c, d, hessian, rows, cols, vals, e)
+    indptr, indices, values = jacobian
+    n_ground = q.size  # equations follow the coordinates and the ground's three
+    e = fill_multiplier_triplets(indptr, indices, values, kept_row, n_ground, rows, cols, vals, e)
+    e = fill_diagonal_triplets(n_ground, n_kept, -regularization, rows, cols, vals, e)
+    return e
+
+
+@njit(inline="always", **JIT)
+def _actuator_gradients(actuators, q, turns):
+    """∇s of every actuator at `q` (into ``actuators[3]``)."""
+    primitives, indptr, indices, values, value, zeros, ones, rates = actuators
+    residual_jacobian(primitives, q, turns, zeros, ones, value, values)
+
+
+@njit(inline="always", **JIT)
+def fill_motion_forces(loads, actuators, q, qd, qdd, turns, law_values, applied, out):
+    """``out`` (n_coordinates) = gravity, loads and actuators minus the inertial forces;
+    `applied` (n_coordinates + 3) is scratch."""
+    fill_applied_forces(loads, q, qd, qdd, turns, law_values, True, applied)
+    for k in range(out.size):
+        out[k] = applied[k]
+    _actuator_gradients(actuators, q, turns)
+    add_transposed_product(actuators[1], actuators[2], actuators[3], law_values, out)
+
+
+@njit(inline="always", **JIT)
+def motion_powers(loads, actuators, q, qd, turns, law_values, multipliers, driven_row, velocity_rhs):
+    """``(power, dissipated)``: the power of the loads, actuators and drivers (a driver's
+    force is −λ) and the power the dampers dissipate, W."""
+    power = applied_power(loads, qd, turns, law_values)
+    _actuator_gradients(actuators, q, turns)
+    rates = actuators[7]
+    fill_row_products(actuators[1], actuators[2], actuators[3], qd, rates)
+    total = 0.0
+    for k in range(rates.size):
+        total += law_values[k] * rates[k]
+    power += total
+    drivers = 0.0
+    for k in range(driven_row.size):
+        drivers += multipliers[driven_row[k]] * velocity_rhs[driven_row[k]]
+    power -= drivers
+    return power, damping_power(loads.spring, loads.torsion, qd, q, turns)
