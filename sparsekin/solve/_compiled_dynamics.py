@@ -3,9 +3,8 @@
 For a model of a few dozen coordinates the generalized-α step of
 `sparsekin.solve.dynamics.GeneralizedAlphaStepper` spends its time in Python call overhead,
 not in arithmetic.  `CompiledDynamicsLoop` runs the same step — predictor, modified Newton
-on the scaled index-3 saddle system, velocity projection (and, for a stepper that has
-``_project_accelerations``, the acceleration projection with its stopping rules: both
-forms, chosen by `compiled_start`), step halving and growth, the
+on the scaled index-3 saddle system, velocity and acceleration projections, step halving
+and growth, the
 work and dissipated energy — for a whole block of samples inside one compiled function,
 on a dense LU (`sparsekin.engine._lu_kernels`) of the saddle matrix.  It calls what the
 Python path calls: the constraint wiring of `sparsekin.engine._kernels`, the laws of
@@ -77,8 +76,8 @@ _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
 _TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0 = range(7)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
 #: Positions in the rules (`compiled_start`).
-(_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS, _GROWTH_AFTER,
- _PROJECTS_ACCELERATIONS) = range(9)  # fmt: skip
+(_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS,
+ _GROWTH_AFTER) = range(8)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
 MAX_BLOCK = 1000
 
@@ -105,7 +104,7 @@ def compiled_start(stepper) -> tuple[tuple, tuple, tuple]:
     """After ``stepper.start``: the step's parameters ``(alpha_m, alpha_f, gamma, beta,
     tolerance, max_iterations, max_step, regularization)``, its rules ``(ROUNDING, STALL,
     NOISE, CONTRACTION, PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, MAX_HALVINGS,
-    GROWTH_AFTER, whether the accelerations are projected too)``, and ``(power, dissipated
+    GROWTH_AFTER)``, and ``(power, dissipated
     power, energy balance of the first sample)`` at its state.  (A friend of
     `GeneralizedAlphaStepper`: it reads the stepper's own state, as `resume` sets it, and
     the constants of the stepper's module, `sparsekin.solve.dynamics`, which imports this one.)"""
@@ -114,8 +113,7 @@ def compiled_start(stepper) -> tuple[tuple, tuple, tuple]:
     settings = (*stepper.integrator.coefficients, float(stepper.tolerance), int(stepper.options.max_iterations),
                 float(stepper.max_step), float(stepper._regularization))  # fmt: skip
     constants = (rules.ROUNDING, rules.STALL, rules.NOISE, rules.CONTRACTION, rules.PROJECTION_ITERATIONS,
-                 rules.REFINEMENT_CONTRACTION, rules.MAX_HALVINGS, rules.GROWTH_AFTER,
-                 hasattr(stepper, "_project_accelerations"))  # fmt: skip
+                 rules.REFINEMENT_CONTRACTION, rules.MAX_HALVINGS, rules.GROWTH_AFTER)  # fmt: skip
     return settings, constants, (*stepper._power, stepper._balance0)
 
 
@@ -259,7 +257,7 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
 
 @njit(inline="always", **JIT)
 def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients):
-    """`GeneralizedAlphaStepper._project_accelerations` (the stepper that projects them):
+    """`GeneralizedAlphaStepper._project_accelerations`:
     a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound."""
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
@@ -298,7 +296,6 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
     a few steps only, and compiles once)."""
     iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
-    accelerations = rules_[_PROJECTS_ACCELERATIONS]
     coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     n, n_kept = q.size, kept_rows.size
     size_ = n + n_kept
@@ -319,7 +316,7 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         size = weighted_norm(increment[:n], coordinate_weights)
         if size <= bound:
             return _OK
-        slow = accelerations and not (fresh or _converges_in_time(size, size / last, bound, iterations - iteration - 1))
+        slow = not (fresh or _converges_in_time(size, size / last, bound, iterations - iteration - 1))
         if size > refinement * last or slow:
             if fresh:
                 break
@@ -337,18 +334,14 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         for k in range(size_):
             residual[k] = goal[k] - product[k]
     drift, left = work[_DRIFT], work[_KEPT_RESIDUAL]
-    if accelerations:  # kept where Φq has lost rank if it left less drift than there was
-        fill_row_products(model[_INDPTR], model[_INDICES], work[_JACOBIAN], solution[:n], drift)
-        for k in range(n_kept):
-            left[k] = goal[n + k] - drift[kept_rows[k]]
-        if fresh and weighted_norm(left, model[_KEPT_WEIGHTS]) <= before:
-            state[_COUNTS][_SINGULAR_PROJECTIONS] += 1
-            return _OK
-        return _STEP_FAILED
-    # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
-    for c in range(n):
-        increment[c] = v[c] - solution[c]
-    if _kept_drift_norm(model, work, increment[:n]) <= bound:
+    fill_row_products(model[_INDPTR], model[_INDICES], work[_JACOBIAN], solution[:n], drift)
+    for k in range(n_kept):
+        left[k] = goal[n + k] - drift[kept_rows[k]]
+    remaining = weighted_norm(left, model[_KEPT_WEIGHTS])
+    if remaining <= bound:  # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
+        return _OK
+    if fresh and remaining <= before:  # kept where Φq has lost rank if it left less drift than there was
+        state[_COUNTS][_SINGULAR_PROJECTIONS] += 1
         return _OK
     return _STEP_FAILED
 
@@ -378,8 +371,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
         lam[r] = lam0[r]
     _set_time(model, work, t_next)
     last, fresh, rate, settled, stalled = math.inf, False, contraction, False, 0.0
-    accelerations = rules_[_PROJECTS_ACCELERATIONS]
-    bound = (tolerance * h if accelerations else tolerance) / gamma_prime  # d25acc: tolerance · h per step
+    bound = tolerance * h / gamma_prime  # `step_velocity_bound`: tolerance · h per step
     for iteration in range(max_iterations + 1):
         phi_norm = _fill_constraints(model, work, q)
         floor = rounding * (1.0 + weighted_norm(q, coordinate_weights))
@@ -429,7 +421,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
             else:
                 counts[_FACTORED] = 0  # a fresh matrix at the next iterate
         else:
-            if accelerations and not (settled or fresh) and iteration > 0 and not _converges_in_time(
+            if not (settled or fresh) and iteration > 0 and not _converges_in_time(
                     correction, rate, max(bound, floor), max_iterations - iteration - 1):  # fmt: skip
                 counts[_FACTORED] = 0  # the held matrix contracts, but too slowly for the corrections left
             fresh = False
@@ -440,10 +432,9 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
-    if accelerations:
-        outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
-        if outcome != _OK:
-            return outcome
+    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
+    if outcome != _OK:
+        return outcome
     _load(work, q, v, a)
     power, damping = motion_powers(model[_LOADS], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND], work[_TURNS],
                                    work[_LAW_VALUES][0], lam, model[_DRIVEN_ROW], work[_VELOCITY_RHS])  # fmt: skip
