@@ -33,6 +33,7 @@ from dynamics_reference import (
     pendulum_period,
     pendulum_point,
 )
+from helpers import actuator_round_trip
 
 import sparsekin as sk
 from sparsekin.testset import n_four_bar
@@ -148,17 +149,7 @@ def test_andrews_mechanism_converges_to_the_published_angles():
 @pytest.fixture(scope="module")
 def task5_round_trip():
     """Task 5 with masses: its driver forces (inverse dynamics) as actuator loads, drivers removed."""
-    mechanism = sk.load_model(EXAMPLES / "task5_dynamics.toml")
-    horizon = 0.3
-    samples = np.linspace(0.0, horizon, 301)
-    kinematic = sk.solve_kinematics(mechanism, samples)
-    start = kinematic.velocities[0].reshape(-1, 3)
-    actuators = [sk.Actuator(f"actuator{k}", sk.Spline(tuple(samples), tuple(kinematic.driver_force(f"cylinder{k}").force)))
-                 for k in (1, 2)]  # fmt: skip
-    free = dataclasses.replace(
-        mechanism, drivers=[], loads=[*mechanism.loads, *actuators],
-        bodies=[dataclasses.replace(body, velocity=tuple(start[k])) for k, body in enumerate(mechanism.bodies)],
-    )  # fmt: skip
+    free, kinematic = actuator_round_trip(horizon=0.3, sampling=1e-3)
     return kinematic, free
 
 
