@@ -16,30 +16,29 @@ import warnings
 
 import numpy as np
 
-TREE = sys.argv[1]
-sys.path[:0] = [TREE + "/benchmarks", TREE]
-
-from families import STEP, build  # noqa: E402
-from harness import Stepper  # noqa: E402
-
-from sparsekin import testset  # noqa: E402
-
+#: The models, by name, made from the tree's `families.build` and `sparsekin.testset`.
 MODELS = {
-    "task5_chain_1e4": lambda: build("task5_chain", 10_000),
-    "four_bar_chain_1e4": lambda: build("four_bar_chain", 10_000),
-    "task5_chain_1e6": lambda: build("task5_chain", 1_000_000),
-    "four_bar_chain_1e6": lambda: build("four_bar_chain", 1_000_000),
-    "rotating_squares_60": lambda: testset.rotating_squares(60),
-    "parallel_bar_chain_1e3": lambda: testset.parallel_bar_chain(1000),
+    "task5_chain_1e4": lambda build, testset: build("task5_chain", 10_000),
+    "four_bar_chain_1e4": lambda build, testset: build("four_bar_chain", 10_000),
+    "task5_chain_1e6": lambda build, testset: build("task5_chain", 1_000_000),
+    "four_bar_chain_1e6": lambda build, testset: build("four_bar_chain", 1_000_000),
+    "rotating_squares_60": lambda build, testset: testset.rotating_squares(60),
+    "parallel_bar_chain_1e3": lambda build, testset: testset.parallel_bar_chain(1000),
 }
 ROUNDS, STEPS_PER_ROUND = 5, 10
 
 
-def main(names: list[str]) -> None:
+def main(tree: str, names: list[str]) -> None:
+    sys.path[:0] = [tree + "/benchmarks", tree]  # the tree's harness and sparsekin (read at run time, not at import)
+    from families import STEP, build
+    from harness import Stepper
+
+    from sparsekin import testset
+
     warnings.simplefilter("ignore")  # the overconstrained models' redundancy warnings
     Stepper(build("task5_chain", 100), "sparsekin", STEP).run(1)  # compile outside the timings
     for name in names:
-        mechanism = MODELS[name]()
+        mechanism = MODELS[name](build, testset)
         start = time.perf_counter()
         stepper = Stepper(mechanism, "sparsekin", STEP)
         first = time.perf_counter() - start
@@ -49,9 +48,9 @@ def main(names: list[str]) -> None:
             start = time.perf_counter()
             stepper.run(STEPS_PER_ROUND)
             rounds.append((time.perf_counter() - start) / STEPS_PER_ROUND)
-        print(json.dumps({"tree": TREE, "model": name, "path": stepper.path, "first_s": first,
+        print(json.dumps({"tree": tree, "model": name, "path": stepper.path, "first_s": first,
                           "per_step_s": float(np.median(rounds))}), flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
-    main(sys.argv[2:] or [name for name in MODELS if not name.endswith("1e6")])
+    main(sys.argv[1], sys.argv[2:] or [name for name in MODELS if not name.endswith("1e6")])
