@@ -132,3 +132,19 @@ def test_ctrl_c_while_the_package_loads_is_one_line(tmp_path):
         # comes while the files are written, which finishes them (its own one line)
         lines = ("sparsekin: interrupted: ", "sparsekin: Ctrl-C while writing: finished first; wrote all ")
         assert len(error.splitlines()) == 1 and error.startswith(lines), error
+
+
+def test_a_signal_inside_a_callback_from_compiled_code_comes_again_after_it():
+    """numba's compiler writes its cache through llvmlite, calling back into Python: an
+    exception raised there would be printed as "Exception ignored …" (a traceback on a
+    Ctrl-C) and dropped.  A signal arriving there is delivered again after the callback."""
+    from sparsekin.cli import signals
+
+    namespace: dict = {}
+    source = "import signal\ndef notify():\n    signal.raise_signal(signal.SIGINT)\n    return 'finished'\n"
+    exec(compile(source, os.path.join(os.sep, "site-packages", "llvmlite", "binding", "engine.py"), "exec"), namespace)
+    with signals.stop_on_signals():
+        assert namespace["notify"]() == "finished"  # not stopped inside the callback
+        with pytest.raises(signals.StopSignal):
+            time.sleep(10)  # stopped here, when the signal comes again
+        assert signals.received() == signal.SIGINT

@@ -10,6 +10,7 @@ the signal's number: 130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP (`exit_stat
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from collections.abc import Iterator
@@ -36,12 +37,34 @@ class _State:
 _state = _State()
 
 
+#: Where Python code runs as a callback from compiled code (numba's compiler writing its
+#: cache through llvmlite): an exception raised there is printed as "Exception ignored"
+#: and dropped by the caller, so a signal arriving there is delivered again a moment later.
+FOREIGN_CALLBACKS = (f"{os.sep}llvmlite{os.sep}",)
+#: How long to wait before delivering such a signal again, s.
+REDELIVERY_DELAY = 0.05
+
+
 def _on_signal(signum: int, frame) -> None:
     if _state.received is not None:
         return  # a second signal: the first one is being dealt with
+    if not _state.holding and _in_foreign_callback(frame):
+        timer = threading.Timer(REDELIVERY_DELAY, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
     _state.received = signum
     if not _state.holding:
         raise StopSignal
+
+
+def _in_foreign_callback(frame) -> bool:
+    """Whether `frame` or one of its callers runs in a `FOREIGN_CALLBACKS` module."""
+    while frame is not None:
+        if any(part in frame.f_code.co_filename for part in FOREIGN_CALLBACKS):
+            return True
+        frame = frame.f_back
+    return False
 
 
 @contextmanager
