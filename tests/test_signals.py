@@ -142,7 +142,7 @@ def test_a_signal_inside_a_callback_from_compiled_code_comes_again_after_it():
 
     namespace: dict = {}
     source = "import signal\ndef notify():\n    signal.raise_signal(signal.SIGINT)\n    return 'finished'\n"
-    exec(compile(source, os.path.join(os.sep, "site-packages", "llvmlite", "binding", "engine.py"), "exec"), namespace)
+    exec(compile(source, os.path.join(os.sep, "site-packages", "llvmlite", "binding", "engine.py"), "exec"), namespace)  # noqa: S102 (a function whose frame is llvmlite's)
     with signals.stop_on_signals():
         assert namespace["notify"]() == "finished"  # not stopped inside the callback
         with pytest.raises(signals.StopSignal):
