@@ -4,7 +4,8 @@
 stepper of small models (`sparsekin.solve._compiled_dynamics`) call the same three
 functions, so the two paths evaluate the same arithmetic in the same order:
 
-* `fill_saddle_triplets` — every triplet of the saddle matrix
+* `fill_saddle_triplets` — every triplet of the saddle matrix (`fill_block_triplets` those
+  of its leading block, which the matrix-free product of the large path uses alone)
   [[a M + b C_t + c K_t, Φqᵀ], [Φq, −r I]] (the kernels of
   `sparsekin.engine._dynamics_kernels`, in the order that fixes its pattern);
 * `fill_motion_forces` — ``Q − M q̈ − h``: gravity, loads and actuators minus the
@@ -43,6 +44,24 @@ from ._kernels import residual_jacobian
 
 
 @njit(inline="always", **JIT)
+def fill_block_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers, actuator_weights,
+                        coefficients, scratch, rows, cols, vals):  # fmt: skip
+    """The triplets of the leading block ``a M + b C_t + c K_t`` of the saddle matrix, from
+    the first on (returns how many; arguments as for `fill_saddle_triplets`)."""
+    a, b, c = coefficients
+    gradient, rate_gradient, d, hessian, block = scratch
+    e = fill_inertia_triplets(loads.masses, loads.gravity, qd, qdd, turns, a, b, c, rows, cols, vals, 0)
+    e = fill_point_force_triplets(loads.force, turns, law_values, c, rows, cols, vals, e)
+    e = fill_spring_triplets(loads.spring, q, qd, turns, b, c, gradient, rate_gradient, d, hessian, block,
+                             rows, cols, vals, e)  # fmt: skip
+    e = fill_torsion_triplets(loads.torsion, b, c, rows, cols, vals, e)
+    e = fill_primitive_hessians(primitives, q, turns, multipliers, c, d, hessian, rows, cols, vals, e)
+    for k in range(law_values.size):
+        actuator_weights[k] = -law_values[k]  # f = −Q: −F ∇²s
+    return fill_primitive_hessians(actuators[0], q, turns, actuator_weights, c, d, hessian, rows, cols, vals, e)
+
+
+@njit(inline="always", **JIT)
 def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers, actuator_weights,
                          jacobian, kept_row, n_kept, coefficients, regularization, scratch, rows, cols, vals):  # fmt: skip
     """The triplets of ``[[a M + b C_t + c K_t, Φqᵀ], [Φq, −regularization · I]]`` (returns
@@ -54,17 +73,8 @@ def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_va
     ``(a, b, c)``; `actuator_weights` (one per load law) is scratch for −F; `scratch`
     ``(gradient, rate_gradient, d, hessian, block)`` of shapes (6,), (6,), (2, 6), (6, 6),
     (6, 6)."""
-    a, b, c = coefficients
-    gradient, rate_gradient, d, hessian, block = scratch
-    e = fill_inertia_triplets(loads.masses, loads.gravity, qd, qdd, turns, a, b, c, rows, cols, vals, 0)
-    e = fill_point_force_triplets(loads.force, turns, law_values, c, rows, cols, vals, e)
-    e = fill_spring_triplets(loads.spring, q, qd, turns, b, c, gradient, rate_gradient, d, hessian, block,
-                             rows, cols, vals, e)  # fmt: skip
-    e = fill_torsion_triplets(loads.torsion, b, c, rows, cols, vals, e)
-    e = fill_primitive_hessians(primitives, q, turns, multipliers, c, d, hessian, rows, cols, vals, e)
-    for k in range(law_values.size):
-        actuator_weights[k] = -law_values[k]  # f = −Q: −F ∇²s
-    e = fill_primitive_hessians(actuators[0], q, turns, actuator_weights, c, d, hessian, rows, cols, vals, e)
+    e = fill_block_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers,
+                            actuator_weights, coefficients, scratch, rows, cols, vals)  # fmt: skip
     indptr, indices, values = jacobian
     n_ground = q.size  # equations follow the coordinates and the ground's three
     e = fill_multiplier_triplets(indptr, indices, values, kept_row, n_ground, rows, cols, vals, e)

@@ -200,22 +200,10 @@ class DynamicSystem:
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
         self._load(coordinates, velocities, accelerations)
-        arrays, p = self.loads.arrays, self.pattern
-        rows, cols, vals = self._rows, self._cols, self._vals
-        gradient, rate_gradient, d, hessian, block = self._scratch
-        e = kernels.fill_inertia_triplets(arrays.masses, arrays.gravity, self._qd, self._qdd, self._turns, a, b, c,
-                                          rows, cols, vals, 0)  # fmt: skip
-        e = kernels.fill_point_force_triplets(arrays.force, self._turns, self.law_values, c, rows, cols, vals, e)
-        e = kernels.fill_spring_triplets(arrays.spring, self._q, self._qd, self._turns, b, c, gradient, rate_gradient,
-                                         d, hessian, block, rows, cols, vals, e)  # fmt: skip
-        e = kernels.fill_torsion_triplets(arrays.torsion, b, c, rows, cols, vals, e)
-        e = kernels.fill_primitive_hessians(p.primitives, self._q, self._turns, multipliers, c, d, hessian,
-                                            rows, cols, vals, e)  # fmt: skip
-        if self.actuators is not None:
-            np.negative(self.law_values, out=self._actuator_weights)  # f = −Q: −F ∇²s
-            e = kernels.fill_primitive_hessians(self.actuators.equations.primitives, self._q, self._turns,
-                                                self._actuator_weights, c, d, hessian, rows, cols, vals, e)  # fmt: skip
-        return e
+        return _motion_kernels.fill_block_triplets(self.loads.arrays, self.pattern.primitives, self._actuator_arrays,
+                                                   self._q, self._qd, self._qdd, self._turns, self.law_values,
+                                                   multipliers, self._actuator_weights, (a, b, c), self._scratch,
+                                                   self._rows, self._cols, self._vals)  # fmt: skip
 
     def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
         rows, cols, vals, p = self._rows, self._cols, self._vals, self.pattern
