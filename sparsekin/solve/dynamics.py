@@ -526,8 +526,7 @@ class GeneralizedAlphaStepper:
         drift is within the bound."""
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
-        _, _, gamma, beta = self.integrator.coefficients
-        noise = PROJECTION_NOISE * gamma / (h * beta) * self._floor.level if self._floor.enabled else 0.0
+        noise = self._projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
         change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity", noise)
         if change is not None:
             v -= change[: v.size]
@@ -547,14 +546,19 @@ class GeneralizedAlphaStepper:
         assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
-        # Newton's acceleration noise β′ · floor (β′ = 1 / coefficients[2]), as for the velocities
-        noise = PROJECTION_NOISE * self._floor.level / coefficients[2] if self._floor.enabled else 0.0
+        noise = self._projection_noise(1.0 / coefficients[2])  # β′
         change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
                                "acceleration", noise)  # fmt: skip
         if change is not None:
             a -= change[: a.size]
             pseudo -= change[: a.size]
             lam[self.system.kept_rows] -= change[a.size :]
+
+    def _projection_noise(self, rate: float) -> float:
+        """A tenth (`PROJECTION_NOISE`) of the noise Newton leaves in the velocities
+        (`rate` γ′) or accelerations (`rate` β′): `rate` times the measured rounding floor of
+        its corrections (`RoundingFloor`; large path only, else 0: refine to the bound)."""
+        return PROJECTION_NOISE * rate * self._floor.level if self._floor.enabled else 0.0
 
     def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0):
         """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
