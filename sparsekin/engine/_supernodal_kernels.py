@@ -443,16 +443,66 @@ def _swap_rows(w, a, pivots, k, backwards):
 
 
 @njit(**_JIT)
+def _push_into_set(w, a, k, rows, block):
+    """``w[rows] -= block @ w[a:a + k]`` (block of shape (rows.size, k), any layout)."""
+    m = rows.size
+    if m * k >= _SMALL_BLOCK:
+        product = np.dot(block, w[a : a + k])
+        for t in range(m):
+            for c in range(w.shape[1]):
+                w[rows[t], c] -= product[t, c]
+    else:
+        for t in range(m):
+            g = rows[t]
+            for j in range(k):
+                entry = block[t, j]
+                for c in range(w.shape[1]):
+                    w[g, c] -= entry * w[a + j, c]
+
+
+@njit(**_JIT)
+def _pull_from_set(w, a, k, rows, block):
+    """``w[a:a + k] -= block @ w[rows]`` (block of shape (k, rows.size), any layout)."""
+    m = rows.size
+    if m * k >= _SMALL_BLOCK:
+        known = np.empty((m, w.shape[1]))
+        for t in range(m):
+            known[t] = w[rows[t]]
+        product = np.dot(block, known)
+        for i in range(k):
+            for c in range(w.shape[1]):
+                w[a + i, c] -= product[i, c]
+    else:
+        for i in range(k):
+            for t in range(m):
+                entry = block[i, t]
+                g = rows[t]
+                for c in range(w.shape[1]):
+                    w[a + i, c] -= entry * w[g, c]
+
+
+@njit(**_JIT)
+def _blocks(s, first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper):
+    """Supernode s's first index, size, set (its rows beyond it), and blocks L21 (m × k) and
+    U12 (k × m) as views of the factors."""
+    a = first[s]
+    k = first[s + 1] - a
+    rows = struct_idx[struct_ptr[s] : struct_ptr[s + 1]]
+    m = rows.size
+    base = lower_ptr[s]
+    below = lower[base + k * k : base + (k + m) * k].reshape((m, k))
+    beside = upper[upper_ptr[s] : upper_ptr[s] + k * m].reshape((k, m))
+    return a, k, rows, below, beside
+
+
+@njit(**_JIT)
 def _solve_lu(first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper, pivots, w):
     """B z = w in place (w of shape (n, n_rhs)): L forward, then U backward, supernode by
-    supernode; the off-diagonal blocks by matrix products (BLAS)."""
+    supernode; the off-diagonal blocks by matrix products (BLAS) unless small."""
     n_super = first.size - 1
     r = w.shape[1]
     for s in range(n_super):
-        a = first[s]
-        k = first[s + 1] - a
-        sp = struct_ptr[s]
-        m = struct_ptr[s + 1] - sp
+        a, k, rows, below, _ = _blocks(s, first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper)
         base = lower_ptr[s]
         _swap_rows(w, a, pivots, k, False)
         for i in range(1, k):  # L11, unit lower
@@ -461,46 +511,11 @@ def _solve_lu(first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper,
                 entry = lower[row + j]
                 for c in range(r):
                     w[a + i, c] -= entry * w[a + j, c]
-        if m == 0:
-            continue
-        block = lower[base + k * k : base + (k + m) * k].reshape((m, k))
-        if m * k >= _SMALL_BLOCK:
-            product = np.dot(block, w[a : a + k])
-            for t in range(m):
-                g = struct_idx[sp + t]
-                for c in range(r):
-                    w[g, c] -= product[t, c]
-        else:
-            for t in range(m):
-                g = struct_idx[sp + t]
-                for j in range(k):
-                    entry = block[t, j]
-                    for c in range(r):
-                        w[g, c] -= entry * w[a + j, c]
+        _push_into_set(w, a, k, rows, below)
     for s in range(n_super - 1, -1, -1):
-        a = first[s]
-        k = first[s + 1] - a
-        sp = struct_ptr[s]
-        m = struct_ptr[s + 1] - sp
+        a, k, rows, _, beside = _blocks(s, first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper)
         base = lower_ptr[s]
-        if m > 0:
-            block = upper[upper_ptr[s] : upper_ptr[s] + k * m].reshape((k, m))
-            if m * k >= _SMALL_BLOCK:
-                known = np.empty((m, r))
-                for t in range(m):
-                    for c in range(r):
-                        known[t, c] = w[struct_idx[sp + t], c]
-                product = np.dot(block, known)
-                for i in range(k):
-                    for c in range(r):
-                        w[a + i, c] -= product[i, c]
-            else:
-                for i in range(k):
-                    for t in range(m):
-                        entry = block[i, t]
-                        g = struct_idx[sp + t]
-                        for c in range(r):
-                            w[a + i, c] -= entry * w[g, c]
+        _pull_from_set(w, a, k, rows, beside)
         for i in range(k - 1, -1, -1):  # U11
             row = base + i * k
             for j in range(i + 1, k):
@@ -518,10 +533,7 @@ def _solve_lu_transposed(first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lo
     n_super = first.size - 1
     r = w.shape[1]
     for s in range(n_super):
-        a = first[s]
-        k = first[s + 1] - a
-        sp = struct_ptr[s]
-        m = struct_ptr[s + 1] - sp
+        a, k, rows, _, beside = _blocks(s, first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper)
         base = lower_ptr[s]
         for j in range(k):  # U11ᵀ, each solved entry pushed along its row of U11
             row = base + j * k
@@ -532,46 +544,11 @@ def _solve_lu_transposed(first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lo
                 entry = lower[row + i]
                 for c in range(r):
                     w[a + i, c] -= entry * w[a + j, c]
-        if m == 0:
-            continue
-        block = upper[upper_ptr[s] : upper_ptr[s] + k * m].reshape((k, m))
-        if m * k >= _SMALL_BLOCK:
-            product = np.dot(block.T, w[a : a + k])
-            for t in range(m):
-                g = struct_idx[sp + t]
-                for c in range(r):
-                    w[g, c] -= product[t, c]
-        else:
-            for j in range(k):
-                for t in range(m):
-                    entry = block[j, t]
-                    g = struct_idx[sp + t]
-                    for c in range(r):
-                        w[g, c] -= entry * w[a + j, c]
+        _push_into_set(w, a, k, rows, beside.T)
     for s in range(n_super - 1, -1, -1):
-        a = first[s]
-        k = first[s + 1] - a
-        sp = struct_ptr[s]
-        m = struct_ptr[s + 1] - sp
+        a, k, rows, below, _ = _blocks(s, first, struct_ptr, struct_idx, lower_ptr, upper_ptr, lower, upper)
         base = lower_ptr[s]
-        if m > 0:
-            block = lower[base + k * k : base + (k + m) * k].reshape((m, k))
-            if m * k >= _SMALL_BLOCK:
-                known = np.empty((m, r))
-                for t in range(m):
-                    for c in range(r):
-                        known[t, c] = w[struct_idx[sp + t], c]
-                product = np.dot(block.T, known)
-                for j in range(k):
-                    for c in range(r):
-                        w[a + j, c] -= product[j, c]
-            else:
-                for t in range(m):
-                    g = struct_idx[sp + t]
-                    for j in range(k):
-                        entry = block[t, j]
-                        for c in range(r):
-                            w[a + j, c] -= entry * w[g, c]
+        _pull_from_set(w, a, k, rows, below.T)
         for i in range(k - 1, 0, -1):  # L11ᵀ, each solved entry pushed along its row of L11
             row = base + i * k
             for j in range(i):

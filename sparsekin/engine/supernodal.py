@@ -32,7 +32,7 @@ import numpy as np
 
 from . import _supernodal_kernels as _kernels
 from .dissection import DissectionSolver
-from .linalg import SingularMatrix, _checked_rhs, _checked_square, has_pattern
+from .linalg import MIN_PIVOT_RATIO, SingularMatrix, _checked_rhs, _checked_square, has_pattern
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -40,9 +40,11 @@ if TYPE_CHECKING:
 __all__ = ["PIVOT_THRESHOLD", "SupernodalSolver"]
 
 #: The smallest accepted ratio of a pivot (chosen among its supernode's rows) to the largest
-#: entry of its column in the rows below the supernode, which cannot be pivots: MUMPS's
-#: default threshold; an entry of L grows by at most 1 / PIVOT_THRESHOLD per step.
-PIVOT_THRESHOLD = 0.01
+#: entry of its column in the rows below the supernode, which cannot be pivots: the
+#: refactorization's guard (`MIN_PIVOT_RATIO`, KLU's default; an entry of L is at most its
+#: inverse).  MUMPS's 0.01 failed on the lattice at 10^6 bodies at a generic pose (smallest
+#: ratios 0.05 at 10^4, 0.02 at 10^5: they fall with the separators' size).
+PIVOT_THRESHOLD = MIN_PIVOT_RATIO
 
 #: Relaxed supernodes: a supernode joins its parent when both hold at most SMALL_SUPERNODE
 #: indices together, or when the dense blocks gain at most ZEROS_SHARE of their entries as zeros.
