@@ -395,17 +395,24 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
             "SuperLU (COLAMD) factorization of the Jacobian at t = 0. Path lines: the harness's stepper",
             "(`sparsekin`: `auto` now; `sparsekin-refactor`: `auto` before; `supernodal`: `SupernodalSolver`,",
             "reused the same way; its first sample solves twice on the reuse path) and the median of three",
-            "rounds of four steps.",
+            "rounds of four steps; long run (`--long=N`): one run of N steps from t = 0 on the same path, its",
+            "refactorizations at moved poses included.",
             "",
-            "| run | bodies | what | round | path taken | first sample | per step | solves per step | peak memory |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "| run | bodies | what | round | path taken | first sample | per step | solves per step | long run "
+            "| peak memory |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in steps:
             first = r.get("first_sample_s", r.get("factorization_s"))
             step = _seconds(r["per_step_s"]) if "per_step_s" in r else "—"
             solves = _seconds(r["split_s"]["solves"]) if "split_s" in r else "—"
+            long_run = "—"
+            if "long_steps" in r:
+                long_run = (f"{r['long_steps']} steps: {_seconds(r['long_mean_step_s'])} a step "
+                            f"(solves {_seconds(r['long_split_s']['solves'])}), "
+                            f"{r['long_factorizations']} factorizations")  # fmt: skip
             cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", r["path"], str(r.get("round", "—")),
-                     r.get("taken", "—"), _seconds(first), step, solves,
+                     r.get("taken", "—"), _seconds(first), step, solves, long_run,
                      f"{r['peak_rss_bytes'] / 2**30:.2f} GB"]  # fmt: skip
             lines.append("| " + " | ".join(cells) + " |")
     return lines
