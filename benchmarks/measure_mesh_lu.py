@@ -122,18 +122,14 @@ def measure(option: str, jacobian, b: np.ndarray, points: np.ndarray) -> dict | 
 
     if option == "superlu":
         return _solver_option(linalg.SuperLUSolver(), jacobian, b, refactor=False)
-    if option == "dissection":
+    if option in ("dissection", "supernodal"):
         from sparsekin.engine.dissection import DissectionSolver
-        from sparsekin.engine.ordering import geometric_column_order
-
-        ordering_s, _ = _timed(lambda: geometric_column_order(jacobian, points, block=linalg.COORDINATES_PER_BODY))
-        return dict(_solver_option(DissectionSolver(points), jacobian, b), ordering_s=ordering_s)
-    if option == "supernodal":
         from sparsekin.engine.ordering import geometric_column_order
         from sparsekin.engine.supernodal import SupernodalSolver
 
         ordering_s, _ = _timed(lambda: geometric_column_order(jacobian, points, block=linalg.COORDINATES_PER_BODY))
-        return dict(_solver_option(SupernodalSolver(points), jacobian, b), ordering_s=ordering_s)
+        solver = DissectionSolver(points) if option == "dissection" else SupernodalSolver(points)
+        return dict(_solver_option(solver, jacobian, b), ordering_s=ordering_s)
     if option == "refactor-metis":
         return _solver_option(linalg.RefactorSolver(ordering="metis"), jacobian, b)
     if option == "superlu-metis":
