@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _dynamics_kernels as kernels
-from . import _kernels, _motion_kernels
+from . import _motion_kernels
 from .actuators import actuator_kernel_arrays
 from .assembly import Assembler
 from .discretization import Discretization
@@ -158,26 +158,39 @@ class DynamicSystem:
 
     def fill_constraints(self, coordinates: np.ndarray) -> float:
         """Phi and Phi_q at `coordinates` (`assembler.residual`, `assembler.values`); returns
-        the weighted norm of Phi on the kept rows."""
-        self.assembler.fill_residual_jacobian(coordinates)
+        the weighted norm of Phi on the kept rows (the fill's own norm when all are kept)."""
+        norm = self.assembler.fill_residual_jacobian(coordinates)
+        if self.kept_rows.size == self.pattern.n_equations:
+            return norm
         return kernels.weighted_norm(self.kept(self.assembler.residual), self.kept(self.assembler.weights))
 
     def kept(self, values: np.ndarray) -> np.ndarray:
         """`values` of every equation on the kept rows only: itself when all are kept (no copy)."""
         return values if self.kept_rows.size == self.pattern.n_equations else values[self.kept_rows]
 
-    def velocity_drift(self, velocities: np.ndarray) -> np.ndarray:
-        """Phi_q qd + Phi_t of every equation, at the last `fill_constraints`."""
-        return self.assembler.jacobian @ velocities - self.assembler.velocity_rhs
+    def velocity_drift(self, velocities: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Phi_q qd + Phi_t of every equation, at the last `fill_constraints` (into `out`,
+        shape (n_equations,), if given)."""
+        return self.jacobian_product(velocities, self.assembler.velocity_rhs, out)
+
+    def jacobian_product(self, x: np.ndarray, minus: np.ndarray | None = None,
+                         out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """``Phi_q x − minus`` of every equation (Phi_q of the last `fill_constraints`), into
+        `out` (shape (n_equations,)) if given: no temporaries on the large path."""
+        out = np.empty(self.pattern.n_equations) if out is None else out
+        p = self.pattern
+        kernels.fill_row_products(p.indptr, p.indices, self.assembler.values, x, out)
+        if minus is not None:
+            np.subtract(out, minus, out=out)
+        return out
 
     # ------------------------------------------------------------------ motion
     def _load(self, coordinates, velocities, accelerations) -> None:
-        self._q[:-3], self._qd[:-3], self._qdd[:-3] = coordinates, velocities, accelerations
+        """The kernels' q, qd, qdd and turns (from the constraints' last refill when it was
+        at these coordinates), in one pass."""
         filled, _, turns = self.assembler.filled_motion()
-        if np.array_equal(filled, self._q):  # the constraints' last refill was at these coordinates
-            np.copyto(self._turns, turns)
-        else:
-            _kernels.fill_body_turns(self._q, self._turns)
+        kernels.load_motion(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
+                            self._turns)  # fmt: skip
 
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
