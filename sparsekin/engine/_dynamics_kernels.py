@@ -380,6 +380,23 @@ def scatter_add(vals, slots, data):
 
 
 @njit(**JIT)
+def scatter_saddle(vals, jacobian, diagonal, block_slots, jacobian_slots, diagonal_slots, data):
+    """``data[:] = 0``, then the coordinate block's triplets `vals` at `block_slots`, each
+    Jacobian value at its two slots (Φq, Φqᵀ: ``jacobian_slots[2 s]``, ``[2 s + 1]``) and
+    `diagonal` at `diagonal_slots`: `scatter_add` of every triplet of S in the same order,
+    without Φq's triplets.  The last entry of `data` is the discard slot."""
+    for k in range(data.size):
+        data[k] = 0.0
+    for e in range(vals.size):
+        data[block_slots[e]] += vals[e]
+    for s in range(jacobian.size):
+        data[jacobian_slots[2 * s]] += jacobian[s]
+        data[jacobian_slots[2 * s + 1]] += jacobian[s]
+    for k in range(diagonal_slots.size):
+        data[diagonal_slots[k]] += diagonal
+
+
+@njit(**JIT)
 def add_transposed_product(indptr, indices, values, weights, out):
     """``out += Jᵀ weights`` for a CSR J: the generalized force of row weights (actuators:
     ``F ∇s``; constraints: ``Φqᵀ λ``)."""

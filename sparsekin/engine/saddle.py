@@ -145,8 +145,14 @@ class DynamicSystem:
         drawn = pattern.initial_coordinates
         self.assembler.set_time(0.0)
         self.assembler.fill_residual_jacobian(drawn)
-        self._fill_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
+        block = self._fill_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
         self.saddle = SaddlePattern.from_triplets(self._rows, self._cols, n, self.size)
+        # From now on only the coordinate block goes through triplets: Φq, Φqᵀ and the (2, 2)
+        # diagonal are scattered from the Jacobian's values straight into their slots
+        # (`kernels.scatter_saddle`), which saves 16 bytes for each of 2 nnz(Φq) + m triplets.
+        self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        slots = self.saddle.slots
+        self._slots = (slots[:block], slots[block : block + 2 * pattern.nnz], slots[block + 2 * pattern.nnz :])
         self._data = np.zeros(self.saddle.nnz + 1)
         self.matrix = csr_array((self._data[:-1], self.saddle.indices, self.saddle.indptr), shape=(self.size, self.size))
 
@@ -218,20 +224,23 @@ class DynamicSystem:
                                                    multipliers, self._actuator_weights, (a, b, c), self._scratch,
                                                    self._rows, self._cols, self._vals)  # fmt: skip
 
-    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c, regularization=0.0) -> None:
+    def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
+        """Every triplet of S (the pattern's run): the block's, Φq's and Φqᵀ's, the (2, 2)
+        diagonal's; returns the block's count."""
         rows, cols, vals, p = self._rows, self._cols, self._vals, self.pattern
-        e = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        block = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
         e = kernels.fill_multiplier_triplets(p.indptr, p.indices, self.assembler.values, self.kept_row, self.n + 3,
-                                             rows, cols, vals, e)  # fmt: skip
-        kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, -regularization, rows, cols, vals, e)
+                                             rows, cols, vals, block)  # fmt: skip
+        kernels.fill_diagonal_triplets(self.n + 3, self.kept_rows.size, 0.0, rows, cols, vals, e)
+        return block
 
     def fill_matrix(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
                     regularization: float = 0.0):  # fmt: skip
         """S = [[a M + b C_t + c K_t, Phi_qᵀ], [Phi_q, −regularization · I]] at the state
         given, Phi_q from the last `fill_constraints` (at the same coordinates); returns
         `matrix`."""
-        self._fill_triplets(coordinates, velocities, accelerations, multipliers, a, b, c, regularization)
-        kernels.scatter_add(self._vals, self.saddle.slots, self._data)
+        self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        kernels.scatter_saddle(self._vals, self.assembler.values, -regularization, *self._slots, self._data)
         return self.matrix
 
     def product(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
