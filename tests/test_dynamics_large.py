@@ -158,7 +158,7 @@ def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
     factorization's measured contraction allows it (`RoundingFloor.skips_refinement`),
     with fewer solves than without the rule, B0 on the exact answer as before, and the
     drifts at the tolerance at every sample."""
-    import sparsekin.solve.rounding_floor as rounding_floor
+    from sparsekin.solve import rounding_floor
 
     loops, times = 50000, np.linspace(0.0, 0.02, 21)
     exact, _ = n_four_bar_b0(times, n_loops=loops)
