@@ -288,9 +288,9 @@ class GeneralizedAlphaStepper:
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system.size)
-        self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
-        # the projections': goal, solution, residual, S x, increment; drift, drift left (every equation);
-        self._projection_work = tuple(np.zeros(size) for size in (system.size,) * 5 + (m, m, n))  # and zeros (q̈)
+        self._work = (np.zeros(system.size), np.zeros(n))  # Newton's rhs (its correction solved in place), force
+        # the projections': solution, residual; drift, drift left (every equation); zeros (q̈)
+        self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
@@ -407,7 +407,7 @@ class GeneralizedAlphaStepper:
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
         phi = system.fill_constraints(q) if phi is None else phi
-        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[6]),
+        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]),
                                                 system.assembler.weights)  # fmt: skip
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
@@ -434,7 +434,7 @@ class GeneralizedAlphaStepper:
         system.set_time(t_next)
         self._floor.step_begins()
         weights = self._weights
-        rhs, force, delta = self._work
+        rhs, force = self._work
         all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
@@ -460,7 +460,7 @@ class GeneralizedAlphaStepper:
                 self._factor(q, v, a, lam, coefficients)
                 fresh = True
             try:
-                solver.solve(rhs, out=delta)
+                delta = solver.solve(rhs, out=rhs)
             except SingularMatrix as error:
                 raise _StepFailed(str(error)) from None
             self.n_newton += 1
@@ -531,7 +531,7 @@ class GeneralizedAlphaStepper:
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
-        drift = self.system.velocity_drift(v, self._projection_work[5])
+        drift = self.system.velocity_drift(v, self._projection_work[2])
         change = self._project(q, v, lam, coefficients, drift, bound, "velocity", noise)
         if change is not None:
             v -= change[: v.size]
@@ -552,7 +552,7 @@ class GeneralizedAlphaStepper:
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
-        drift = self.system.jacobian_product(a, assembler.acceleration_rhs, self._projection_work[5])
+        drift = self.system.jacobian_product(a, assembler.acceleration_rhs, self._projection_work[2])
         change = self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
         if change is not None:
             a -= change[: a.size]
@@ -585,12 +585,13 @@ class GeneralizedAlphaStepper:
         before = _dynamics_kernels.weighted_norm(drift, weights)
         if before <= bound:
             return None
-        goal, solution, residual, product, increment = self._projection_work[:5]  # no temporaries (10^6 bodies)
-        goal[:n], goal[n:], solution[:] = 0.0, drift, 0.0
-        residual[:] = goal
-        matrix, last, fresh, filled, zeros = None, math.inf, False, False, self._projection_work[7]
+        # in two arrays made at `start` (10^6 bodies: no temporaries), the increments solved in
+        # place of the residual [0; drift] − S · solution
+        solution, residual, zeros = self._projection_work[0], self._projection_work[1], self._projection_work[4]
+        residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
+        matrix, last, fresh, filled = None, math.inf, False, False
         for iteration in range(PROJECTION_ITERATIONS):
-            self.solver.solve(residual, out=increment)
+            increment = self.solver.solve(residual, out=residual)
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], self._weights)
             if size <= bound or (size <= noise and self._drift_left(drift, solution, weights) <= bound):
@@ -606,19 +607,18 @@ class GeneralizedAlphaStepper:
                     break
                 self._factor(q, v, zeros, lam, coefficients)
                 matrix, fresh, filled = None, True, False
-                solution[:] = 0.0
-                residual[:] = goal
+                residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
                 last = math.inf
                 continue
             last = size
             if self._floor.enabled:  # the large path: S x without assembling S
-                np.subtract(goal, system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled),
-                            out=residual)  # fmt: skip
+                product = system.product(q, v, zeros, lam, *coefficients, solution, residual, same_state=filled)
                 filled = True
-                continue
-            if matrix is None:
-                matrix = self._projection_matrix(q, v, lam, coefficients)
-            np.subtract(goal, matrix @ solution, out=residual)
+            else:
+                matrix = self._projection_matrix(q, v, lam, coefficients) if matrix is None else matrix
+                product = matrix @ solution
+            np.subtract(0.0, product[:n], out=residual[:n])
+            np.subtract(drift, product[n:], out=residual[n:])
         left = self._drift_left(drift, solution, weights)
         if left <= bound:  # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
             return solution
@@ -635,7 +635,7 @@ class GeneralizedAlphaStepper:
         """The weighted drift of the kept equations, `drift` (theirs), after a projection's
         change ``solution[:n]`` (Φq at the converged q)."""
         system = self.system
-        left = system.kept(system.jacobian_product(solution[: system.n], out=self._projection_work[6]))
+        left = system.kept(system.jacobian_product(solution[: system.n], out=self._projection_work[3]))
         np.subtract(drift, left, out=left)
         return _dynamics_kernels.weighted_norm(left, weights)
 
