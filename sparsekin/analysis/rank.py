@@ -359,8 +359,8 @@ def analyse_jacobian(
     )
 
 
-#: `independent_rows` decides by a dense SVD up to this many coordinates and equations (a
-#: few milliseconds at this size, against tens for `analyse_jacobian`'s iterations).
+#: `independent_rows` decides by a dense SVD up to this many coordinates and equations
+#: (microseconds for a few bodies, tens of milliseconds at this size).
 DENSE_INDEPENDENCE_MAX_SIZE = 400
 #: ... and certifies rows independent only above this multiple of the rank tolerance, far
 #: beyond `analyse_jacobian`'s own estimates (sigma_max to < 1 %).

@@ -648,19 +648,19 @@ class CompiledDynamicsLoop:
                        loads.arrays, loads.laws, actuators, saddle.slots, saddle.indptr, saddle.indices)  # fmt: skip
         n, m = pattern.n_coordinates, python.state.multipliers.size
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
-        self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
-                       tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(7))  # fmt: skip
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0])
         counts = np.zeros(8, dtype=np.int64)
+        self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
+                       tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip
         # the factorization column-major: the column-oriented substitutions of `dense_lu_solve`
         # (a dozen per step on A03) then run along contiguous memory (41 unknowns: 1.8 µs a
         # solve against 2.4 row-major; the factorization the same within 5 %)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
                        start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
                        np.zeros((system.size, system.size), order="F"), np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
-        n, rows = pattern.n_coordinates, self._chunk
+        rows = self._chunk
         self._out = (np.zeros((rows, n)), np.zeros((rows, n)), np.zeros((rows, n)), np.zeros(rows, dtype=np.int64),
                      np.zeros((rows, 6)), np.zeros((rows, 2)))  # fmt: skip
         outputs = ForceOutputs(python.discretization, (), ()) if self.forces is None else self.forces
