@@ -211,13 +211,17 @@ def _micro(seconds: float | None) -> str:
     return "—" if seconds is None else f"{seconds * 1e6:.3g} µs"
 
 
+#: The unit of each model's error (`error`).
+ERROR_UNIT = {"A01": "m", "A03": "rad", "Task 5": "m"}
+
+
 def results_section(runs: list[dict]) -> list[str]:
     """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `SMALL_DYNAMICS`."""
     lines = [
         "## Forward dynamics of small models: compiled loop, Python stepper, Exudyn (`measure_small_dynamics.py`)",
         "",
         "Not part of the pytest-benchmark run: `benchmarks/small_dynamics.jsonl` holds the runs of",
-        "`python3 benchmarks/measure_small_dynamics.py --rounds 5 --skip-a02 --out benchmarks/small_dynamics.jsonl`",
+        "`python3 benchmarks/measure_small_dynamics.py --rounds 5 [--skip-a02] --out benchmarks/small_dynamics.jsonl`",
         "(issue 25). Per model, in one process: sparsekin's compiled block stepper",
         "(`sparsekin.solve._compiled_dynamics`, the default of `solve_dynamics` for these models), its",
         "Python stepper (`Thresholds(compiled_saddle_max_size=0)`) and Exudyn 1.13.6",
@@ -245,10 +249,13 @@ def results_section(runs: list[dict]) -> list[str]:
             equal, equal_cells = row.get("exudyn_equal_accuracy_per_step"), ["same step", ratio]
             if equal:
                 equal_cells = [f"{_micro(equal)} ({row['exudyn_equal_accuracy_step'] * 1e3:g} ms steps, "
-                               f"{row['exudyn_equal_accuracy_error']:.3g})", f"{row['compiled_per_step'] / equal:.2f}×"]  # fmt: skip
-            cells = [f"{name} ({row['n_steps']} steps)", f"{row['step'] * 1e3:g} ms", _micro(row["compiled_per_step"]),
-                     _micro(row.get("python_per_step")), _micro(exudyn), ratio, f"{row['compiled_error']:.3g}",
-                     f"{row['exudyn_error']:.3g}" if "exudyn_error" in row else "—", *equal_cells]  # fmt: skip
+                               f"{row['exudyn_equal_accuracy_error']:.3g} {ERROR_UNIT.get(name, '')})",
+                               f"{row['compiled_per_step'] / equal:.2f}×"]  # fmt: skip
+            unit, step = ERROR_UNIT.get(name, ""), row["step"]
+            cells = [f"{name} ({row['n_steps']} steps)", f"{step * 1e3:g} ms" if step >= 1e-3 else f"{step * 1e6:g} µs",
+                     _micro(row["compiled_per_step"]), _micro(row.get("python_per_step")), _micro(exudyn), ratio,
+                     f"{row['compiled_error']:.3g} {unit}", f"{row['exudyn_error']:.3g} {unit}" if "exudyn_error" in row
+                     else "—", *equal_cells]  # fmt: skip
             lines.append("| " + " | ".join(cells) + " |")
         a02 = run["rows"].get("A02")
         if a02:
