@@ -388,8 +388,10 @@ def independent_rows(jacobian, *, tolerance: float | None = None) -> bool:
         return False
     if tolerance is None:
         tolerance = max(m, n, 100) * _EPS
-    scaled, _, _ = _equilibrate(jacobian)
-    values = np.linalg.svd(scaled.toarray(), compute_uv=False)
+    dense = jacobian.toarray()  # scaled as `_equilibrate` scales (its sparse products cost more here)
+    dense *= _power_of_two_inverse(np.abs(dense).max(axis=1))[:, None]
+    dense *= _power_of_two_inverse(np.abs(dense).max(axis=0))[None, :]
+    values = np.linalg.svd(dense, compute_uv=False)
     return bool(values[-1] > INDEPENDENCE_MARGIN * tolerance * values[0])
 
 
