@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
+from measure_small_dynamics import SMALL_DYNAMICS
+from measure_small_dynamics import results_section as small_dynamics_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -200,6 +202,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
     if MEMORY_ESTIMATES.exists():
         lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
+    if SMALL_DYNAMICS.exists():
+        lines += ["", *small_dynamics_section([json.loads(line) for line in SMALL_DYNAMICS.read_text().splitlines() if line])]
     if document.get("hubs"):
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():
