@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
+from measure_lattice_dynamics import LATTICE_DYNAMICS
+from measure_lattice_dynamics import results_section as lattice_dynamics_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -204,6 +206,9 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():
         lines += ["", *dynamics_chain_section([json.loads(line) for line in DYNAMICS_CHAIN.read_text().splitlines() if line])]
+    if LATTICE_DYNAMICS.exists():
+        lines += ["", *lattice_dynamics_section([json.loads(line) for line in LATTICE_DYNAMICS.read_text().splitlines()
+                                                 if line])]  # fmt: skip
     if document["others"]:
         lines += [
             "",

@@ -56,6 +56,11 @@ class DissectionSolver:
     points : array_like, shape (n_bodies, 2)
         Where each body is drawn (its origin): the places the dissection cuts between.
         The Jacobian's columns are the bodies' coordinates, `COORDINATES_PER_BODY` a body.
+        A square matrix with more columns is a saddle matrix of forward dynamics
+        (`sparsekin.engine.saddle`), structurally symmetric: its first unknowns the
+        coordinates, then one multiplier per kept equation, which goes with the body of
+        the first coordinate in its row (`_saddle_groups`); the bodies' unknowns are
+        ordered by the same dissection of the bodies.
 
     Attributes
     ----------
@@ -164,13 +169,32 @@ class DissectionSolver:
             from .ordering import geometric_column_order
 
             self._order = self._pattern = None  # until the new order is there
-            n = jacobian.shape[1]
-            if n != COORDINATES_PER_BODY * self.points.shape[0]:
+            n, coordinates = jacobian.shape[1], COORDINATES_PER_BODY * self.points.shape[0]
+            if n < coordinates:
                 raise ValueError(
                     f"`jacobian` has {n} columns, expected {COORDINATES_PER_BODY} for each of the "
-                    f"{self.points.shape[0]} bodies."
+                    f"{self.points.shape[0]} bodies (and, for a saddle matrix, one per multiplier after them)."
                 )
-            self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            if n == coordinates:
+                self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            else:
+                groups = _saddle_groups(jacobian, coordinates)
+                self._order = geometric_column_order(jacobian, self.points, groups=groups)
             self._ordered = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, self._order)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order
+
+
+def _saddle_groups(matrix: csr_array, coordinates: int) -> np.ndarray:
+    """The body of each unknown of a saddle matrix [[A, Bᵀ], [B, C]] (square, CSR, its
+    first `coordinates` unknowns the bodies' coordinates in turn): a coordinate's body, and
+    for a multiplier the body of the first coordinate its equation's row holds (the row
+    of B: a joint's equation goes with the first of its bodies)."""
+    indptr, indices = matrix.indptr, matrix.indices
+    rows = indptr[coordinates:]
+    lengths = np.diff(rows)
+    first = indices[rows[:-1][lengths > 0]] if indices.size else indices[:0]
+    if first.size != lengths.size or np.any(first >= coordinates):
+        raise ValueError("a saddle matrix's multiplier rows must each hold a coordinate of a body (their columns "
+                         "sorted, the coordinates first).")  # fmt: skip
+    return np.concatenate([np.arange(coordinates) // COORDINATES_PER_BODY, first // COORDINATES_PER_BODY])

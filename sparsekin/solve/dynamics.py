@@ -200,7 +200,8 @@ class GeneralizedAlphaStepper:
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
         (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
-        unknowns, `RefactorSolver` above).
+        unknowns, `RefactorSolver` above, `DissectionSolver` for grid models from
+        `~sparsekin.solve.policy.MIN_SADDLE_DISSECTION_SIZE`).
     pattern : ConstraintPattern, optional
         With a Mechanism: its pattern, if built already.
     options : SolveOptions, optional
@@ -290,7 +291,7 @@ class GeneralizedAlphaStepper:
         n, m = pattern.n_coordinates, pattern.n_equations
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
-        self.solver = self._make_solver(system.size)
+        self.solver = self._make_solver(system)
         self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
@@ -664,8 +665,9 @@ class GeneralizedAlphaStepper:
 
         return tuple(equation_label(self.mechanism, self.pattern, int(r)) for r in self.redundant_rows)
 
-    def _make_solver(self, size: int):
-        plan = plan_saddle_solver(size, self.options.linear_solver, self.options.thresholds)
+    def _make_solver(self, system: DynamicSystem):
+        plan = plan_saddle_solver(system.size, self.options.linear_solver, self.options.thresholds,
+                                  discretization=self.discretization)  # fmt: skip
         self.path = plan.solver
         return plan.make_solver()
 

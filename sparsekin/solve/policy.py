@@ -52,6 +52,7 @@ __all__ = [
     "MAX_REFACTOR_FILL",
     "MIN_METIS_COORDINATES",
     "MIN_DISSECTION_COORDINATES",
+    "MIN_SADDLE_DISSECTION_SIZE",
     "SolverPlan",
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
@@ -86,6 +87,13 @@ MIN_DISSECTION_COORDINATES = 30_000
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
 #: kept equations) densely up to this size, with `RefactorSolver` above.
 SADDLE_DENSE_MAX_SIZE = 400
+#: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix of a grid model
+#: (grid repeats, the coordinates those of the bodies) from this size on with
+#: `DissectionSolver`: a fresh SuperLU in a geometric nested dissection of the bodies
+#: instead of `RefactorSolver`, whose first factorization and refactorizations of these
+#: matrices were 5–18 times slower at 10^5 bodies (docs/design-notes.md, "Forward dynamics
+#: on lattices").
+MIN_SADDLE_DISSECTION_SIZE = 60_000
 #: ``linear_solver="auto"`` or ``"dense"`` of forward dynamics runs the compiled block
 #: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
 #: equations), when the model's laws are all built in.
@@ -124,6 +132,8 @@ class Thresholds:
         `SADDLE_DENSE_MAX_SIZE`.
     compiled_saddle_max_size : int
         `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop).
+    min_saddle_dissection_size : int
+        `MIN_SADDLE_DISSECTION_SIZE`.
     """
 
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
@@ -135,6 +145,7 @@ class Thresholds:
     min_norm_iterations: int = MIN_NORM_ITERATIONS
     saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
     compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
+    min_saddle_dissection_size: int = MIN_SADDLE_DISSECTION_SIZE
 
 
 @dataclass(frozen=True)
@@ -210,9 +221,8 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
     )
     metis = auto and n >= thresholds.min_metis_coordinates and metis_installed()
     if auto and solver == "refactor" and n >= thresholds.min_dissection_coordinates and _is_mesh(discretization):
-        points = pattern.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
         return SolverPlan(loop="python", solver="dissection", reuse_fill=thresholds.max_refactor_fill,
-                          thresholds=thresholds, points=points)  # fmt: skip
+                          thresholds=thresholds, points=_drawn_places(discretization))  # fmt: skip
     return SolverPlan(
         loop="compiled" if compiled else "python",
         solver=solver,
@@ -224,25 +234,44 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
 
 
 def _is_mesh(discretization: Discretization) -> bool:
-    """Whether the model is a mesh `DissectionSolver` takes: grid repeats, as many equations
-    as coordinates (an overconstrained grid keeps the refactorization of its reduced
-    system), the coordinates those of the bodies."""
+    """Whether the model is a mesh `DissectionSolver` takes: a grid model (`_is_grid`) with as
+    many equations as coordinates (an overconstrained grid keeps the refactorization of its
+    reduced system)."""
+    pattern = discretization.constraints
+    return _is_grid(discretization) and pattern.n_equations == pattern.n_coordinates
+
+
+def _is_grid(discretization: Discretization) -> bool:
+    """Whether the model has grid repeats and its coordinates are those of the bodies."""
     pattern, mechanism = discretization.constraints, discretization.mechanism
-    return (any(copies.is_grid for copies in mechanism.copies) and pattern.n_equations == pattern.n_coordinates
+    return (any(copies.is_grid for copies in mechanism.copies)
             and pattern.n_coordinates == COORDINATES_PER_BODY * mechanism.n_bodies)  # fmt: skip
 
 
+def _drawn_places(discretization: Discretization) -> np.ndarray:
+    """Where the bodies are drawn, shape (n_bodies, 2): their origins."""
+    return discretization.constraints.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
+
+
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
-                       compilable: bool = False) -> SolverPlan:  # fmt: skip
+                       compilable: bool = False, discretization: Discretization | None = None) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
     kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
-    above; never reused across steps (the integrator holds its own factorization while
-    Newton contracts).  A dense plan of a `compilable` model (its laws all built in) up to
+    above, and for a grid model (its `discretization` given: grid repeats, the
+    coordinates those of the bodies; redundant equations may be left out) from
+    `Thresholds.min_saddle_dissection_size` on ``"dissection"`` (`DissectionSolver` on the
+    saddle matrix, the bodies' unknowns in a nested dissection of where they are drawn);
+    never reused across steps (the integrator holds its own factorization while Newton
+    contracts).  A dense plan of a `compilable` model (its laws all built in) up to
     `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
     ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop."""
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
+        if (discretization is not None and size >= max(thresholds.min_saddle_dissection_size, 1)
+                and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
+            return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
+                              points=_drawn_places(discretization))  # fmt: skip
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
     compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
