@@ -57,6 +57,7 @@ SOLVERS = {
     "refactor": lambda points: RefactorSolver(),
     "dense": lambda points: DenseSolver(),
     "dissection": DissectionSolver,
+    "dissection-superlu-solves": lambda points: DissectionSolver(points, take_out_factors=False),
 }
 
 

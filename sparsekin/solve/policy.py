@@ -171,6 +171,9 @@ class SolverPlan:
     points : ndarray or None
         Where the bodies are drawn, shape (n_bodies, 2): the places `DissectionSolver` cuts
         between (``"dissection"`` only).
+    take_out_factors : bool
+        `DissectionSolver`'s: solves on its factors taken out of SuperLU (the kinematics),
+        or SuperLU's own (forward dynamics's saddle matrix, factored about once a step).
     """
 
     loop: str
@@ -180,11 +183,12 @@ class SolverPlan:
     reuse_fill: float | None = None
     thresholds: Thresholds = field(default_factory=Thresholds)
     points: np.ndarray | None = field(default=None, compare=False, repr=False)
+    take_out_factors: bool = True
 
     def make_solver(self):
         """A fresh linear solver of the plan."""
         if self.solver == "dissection":
-            return DissectionSolver(self.points)
+            return DissectionSolver(self.points, self.take_out_factors)
         if self.solver == "refactor":
             return RefactorSolver(ordering=self.ordering)
         return _SOLVER_CLASSES[self.solver]()
@@ -271,7 +275,7 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
         if (discretization is not None and size >= max(thresholds.min_saddle_dissection_size, 1)
                 and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
             return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
-                              points=_drawn_places(discretization))  # fmt: skip
+                              points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
     compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
