@@ -12,10 +12,11 @@ built from the benchmark family ``lattice`` (`families.build`) or the test set:
 * ``squares`` — the rotating squares (n × n, their driver kept), squares of 1 kg and
   1/6 kg·m² under gravity: (n − 2)² redundant equations left out of the saddle.
 
-Paths (`PATHS`): ``dissection`` (``"auto"`` now: `DissectionSolver` on the saddle),
-``refactor`` (``"auto"`` before it: `RefactorSolver`, COLAMD), ``superlu`` (a fresh SuperLU,
-COLAMD, at every factorization) and ``kinematic`` (`KinematicStepper` on the same model,
-``"auto"``; driven models only).  One fresh process per path and round, the paths
+Paths (`PATHS`): ``superlu`` (``"auto"`` now above `MIN_MESH_SADDLE_SIZE`: a fresh SuperLU,
+COLAMD, at every factorization, as ``linear_solver="superlu"``), ``dissection``
+(`DissectionSolver` on the saddle, SuperLU's own solves: ``Thresholds(mesh_saddle_solver=
+"dissection")``), ``refactor`` (``"auto"`` before: `RefactorSolver`, COLAMD) and
+``kinematic`` (`KinematicStepper` on the same model, ``"auto"``; driven models only).  One fresh process per path and round, the paths
 alternating: the time from nothing to the first sample (pattern, redundancy, solver, the
 consistent start), the first step, then `--steps` steps of 1 ms, each timed (median and
 mean: modified Newton refactors on some steps only), the factorizations, solves and Newton
@@ -48,7 +49,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT)]
 
 STEP = 1e-3
-PATHS = ("dissection", "refactor", "superlu", "kinematic")
+PATHS = ("superlu", "dissection", "refactor", "kinematic")
 #: The lines `table --out` wrote for RESULTS.md.
 LATTICE_DYNAMICS = Path(__file__).resolve().with_name("lattice_dynamics.jsonl")
 
@@ -105,8 +106,9 @@ def measure(model: str, path: str, bodies: int, steps: int) -> dict:
     else:
         from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
-        before = SolveOptions(thresholds=Thresholds(min_saddle_dissection_size=2**62))  # "auto" before the dissection
-        options = {"dissection": SolveOptions(), "refactor": before, "superlu": SolveOptions(linear_solver="superlu")}
+        before = SolveOptions(thresholds=Thresholds(min_mesh_saddle_size=2**62))  # "auto" before: the refactorization
+        dissection = SolveOptions(thresholds=Thresholds(mesh_saddle_solver="dissection"))
+        options = {"dissection": dissection, "refactor": before, "superlu": SolveOptions()}
         stepper = GeneralizedAlphaStepper(mechanism, STEP, options=options[path])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the squares' redundant equations
@@ -169,9 +171,9 @@ def table(model: str, sizes: list[int], paths: list[str], rounds: int, steps: in
 
 
 def markdown(rows: list[dict]) -> str:
-    """Medians over the rounds per model, size and path, with the ratios to ``dissection``'s."""
+    """Medians over the rounds per model, size and path, with the ratios to ``superlu``'s (``"auto"``)."""
     lines = ["| model | bodies | path | saddle size | first sample | first step | per step (median) | "
-             "÷ dissection's step | factorizations a step | L + U entries | peak | runs (load) |",
+             "÷ superlu's step | factorizations a step | L + U entries | peak | runs (load) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     keys = sorted({(row["model"], row["bodies"]) for row in rows}, key=lambda key: (key[0], key[1]))
     for model, bodies in keys:
@@ -179,7 +181,7 @@ def markdown(rows: list[dict]) -> str:
         by_path = {}
         for row in group:
             by_path.setdefault(row["path"], []).append(row)
-        reference = by_path.get("dissection")
+        reference = by_path.get("superlu")
         reference_step = statistics.median(r["step_median_s"] for r in reference) if reference else None
         for path in PATHS:
             if path not in by_path:
@@ -210,10 +212,12 @@ def results_section(rows: list[dict]) -> list[str]:
         "Not part of the pytest-benchmark run: `benchmarks/lattice_dynamics.jsonl` holds the lines of",
         "`python3 benchmarks/measure_lattice_dynamics.py table MODEL SIZES --rounds R --out",
         "benchmarks/lattice_dynamics.jsonl`. One fresh process per path and round, the paths alternating",
-        "(medians over the rounds below; each run's time and load average in the last column). `dissection`:",
-        "``\"auto\"`` now (`DissectionSolver` on the saddle matrix); `refactor`: ``\"auto\"`` before",
-        "(`RefactorSolver`, COLAMD); `superlu`: a fresh SuperLU (COLAMD) at every factorization; `kinematic`:",
-        "the kinematics of the same (driven) model. Steps of 1 ms; first sample: pattern, redundancy",
+        "(medians over the rounds below; each run's time and load average in the last column). `superlu`:",
+        "``\"auto\"`` now (a fresh SuperLU, COLAMD, at every factorization of the saddle); `dissection`:",
+        "`DissectionSolver` on the saddle (the bodies' unknowns in the geometric nested dissection, SuperLU's",
+        "own solves; lines of commit 8c7874f: its solves on factors taken out); `refactor`: ``\"auto\"``",
+        "before (`RefactorSolver`, COLAMD); `kinematic`: the kinematics of the same (driven) model.",
+        "Steps of 1 ms; first sample: pattern, redundancy",
         "analysis, solver and consistent start; per step: median of the timed steps after the first.",
         "",
         *markdown(rows).splitlines(),

@@ -1,11 +1,12 @@
-"""Forward dynamics of grid models on the mesh machinery (issue 29's dynamics item):
-`DissectionSolver` on the saddle matrix, the bodies' unknowns (coordinates and the
-multipliers of the equations placed with them) in a geometric nested dissection.
+"""Forward dynamics of grid models (issue 29's dynamics item): their saddle matrix factored
+afresh (SuperLU, ``"auto"`` above `MIN_MESH_SADDLE_SIZE`) or by `DissectionSolver`, the
+bodies' unknowns (coordinates and the multipliers of the equations placed with them) in a
+geometric nested dissection.
 
 Checked: the saddle's order is a permutation keeping each body's unknowns together,
-coordinates first; bad groups are refused in one line; ``"auto"`` plans the dissection for
-grid models above the threshold only (chains keep the refactorization); a run with it gives
-the refactorization's motion to rounding, on the struck lattice (six redundant equations
+coordinates first; bad groups are refused in one line; ``"auto"`` plans the fresh
+factorization for grid models above the threshold only (chains keep the refactorization);
+a run with either gives the refactorization's motion to rounding, on the struck lattice (six redundant equations
 left out) and on a driven lattice with masses and gravity; and the physics, independently:
 the struck lattice against its one-variable equation of motion (tests/test_dynamic_gallery.py),
 the driven lattice (no degree of freedom) against the kinematics of the same lattice and
@@ -33,8 +34,10 @@ from sparsekin.solve.policy import Thresholds, plan_saddle_solver
 
 #: The Python stepper on the refactorization at any size, as ``"auto"`` above the dense size.
 REFACTOR = Thresholds(saddle_dense_max_size=0, compiled_saddle_max_size=0)
-#: The same with the saddle's dissection from any size.
-DISSECTION = dataclasses.replace(REFACTOR, min_saddle_dissection_size=0)
+#: The same with a grid model's saddle afresh by SuperLU (``"auto"`` above `MIN_MESH_SADDLE_SIZE`) or
+#: by `DissectionSolver`, from any size.
+SUPERLU = dataclasses.replace(REFACTOR, min_mesh_saddle_size=0)
+DISSECTION = dataclasses.replace(SUPERLU, mesh_saddle_solver="dissection")
 
 
 def _run(mechanism, times, max_step: float, thresholds: Thresholds, rho_inf: float = 1.0):
@@ -95,17 +98,24 @@ def test_bad_groups_and_saddles_are_refused():
 # ---------------------------------------------------------------------- the plan
 @pytest.mark.parametrize(
     ("build", "expected"),
-    [(lambda: massive_lattice(6, 8), "dissection"), (lambda: testset.n_four_bar(100), "refactor")],
+    [(lambda: massive_lattice(6, 8), "superlu"), (lambda: testset.n_four_bar(100), "refactor")],
 )
-def test_auto_takes_the_dissection_for_grid_saddles_only(build, expected):
+def test_auto_factors_grid_saddles_afresh_only(build, expected):
     discretization = discretize(build())
     size = 2 * discretization.constraints.n_coordinates
-    thresholds = Thresholds(min_saddle_dissection_size=100)
+    thresholds = Thresholds(min_mesh_saddle_size=100)
     plan = plan_saddle_solver(size, "auto", thresholds, discretization=discretization)
     assert plan.solver == expected and plan.loop == "python"
-    assert plan_saddle_solver(size, "auto", discretization=discretization).solver == "refactor"  # below 60 000
+    assert plan_saddle_solver(size, "auto", discretization=discretization).solver == "refactor"  # below 18 000
     assert plan_saddle_solver(size, "refactor", thresholds, discretization=discretization).solver == "refactor"
-    assert plan_saddle_solver(size, "auto", thresholds).solver == "refactor"  # no model: no places
+    assert plan_saddle_solver(size, "auto", thresholds).solver == "refactor"  # no model: not known as a grid
+    asked = dataclasses.replace(thresholds, mesh_saddle_solver="dissection")
+    plan = plan_saddle_solver(size, "auto", asked, discretization=discretization)
+    assert plan.solver == ("dissection" if expected == "superlu" else "refactor")
+    if plan.solver == "dissection":
+        solver = plan.make_solver()
+        assert isinstance(solver, DissectionSolver) and not solver.take_out_factors
+        assert plan.points.shape == (discretization.mechanism.n_bodies, 2)
 
 
 # ---------------------------------------------------------------------- runs
@@ -114,23 +124,26 @@ def struck_lattice():
     return sk.load_model(LATTICE)
 
 
-def test_the_struck_lattice_on_the_dissection_moves_as_its_one_degree_of_freedom(struck_lattice):
-    """The struck metamaterial (six redundant equations left out) on the saddle's dissection:
-    the refactorization's motion to rounding, and both on the exact one-angle motion within
-    the integrator's error (7.0e-6 at 5 ms; a spring 1 % stiffer is 9.6e-3 away)."""
+@pytest.mark.parametrize("thresholds", [SUPERLU, DISSECTION], ids=["superlu", "dissection"])
+def test_the_struck_lattice_factored_afresh_moves_as_its_one_degree_of_freedom(struck_lattice, thresholds):
+    """The struck metamaterial (six redundant equations left out) with its saddle factored
+    afresh (SuperLU; the dissection): the refactorization's motion to rounding, and both on
+    the exact one-angle motion within the integrator's error (7.0e-6 at 5 ms; a spring 1 %
+    stiffer is 9.6e-3 away)."""
     refactored = _run(struck_lattice, TIMES, 5e-3, REFACTOR)
-    dissected = _run(struck_lattice, TIMES, 5e-3, DISSECTION)
-    assert dissected.stats.linear_solver == "dissection" and refactored.stats.linear_solver == "refactor"
-    assert len(dissected.stats.redundant_equations) == 6
-    np.testing.assert_allclose(dissected.coordinates, refactored.coordinates, rtol=0, atol=1e-10)
-    assert largest_error(struck_lattice, dissected) < 1e-5
-    np.testing.assert_allclose(dissected.energy.balance, refactored.energy.balance, rtol=0,
-                               atol=1e-10 * dissected.energy.kinetic[0])  # fmt: skip
+    afresh = _run(struck_lattice, TIMES, 5e-3, thresholds)
+    assert afresh.stats.linear_solver == thresholds.mesh_saddle_solver
+    assert refactored.stats.linear_solver == "refactor"
+    assert len(afresh.stats.redundant_equations) == 6
+    np.testing.assert_allclose(afresh.coordinates, refactored.coordinates, rtol=0, atol=1e-10)
+    assert largest_error(struck_lattice, afresh) < 1e-5
+    np.testing.assert_allclose(afresh.energy.balance, refactored.energy.balance, rtol=0,
+                               atol=1e-10 * afresh.energy.kinetic[0])  # fmt: skip
 
 
 def test_a_driven_lattice_with_masses_moves_as_its_kinematics_with_its_forces():
     """A lattice with no degree of freedom (its rows driven), masses and gravity: the dynamics
-    on the dissection is the refactorization's to rounding, its motion the kinematics' (to
+    on the dissection and on SuperLU is the refactorization's to rounding, its motion the kinematics' (to
     the Newton tolerance) and its driver torques those of inverse dynamics (to generalized-α's
     error in the accelerations)."""
     mechanism = massive_lattice(4, 5)
@@ -138,6 +151,8 @@ def test_a_driven_lattice_with_masses_moves_as_its_kinematics_with_its_forces():
     refactored = _run(mechanism, times, 2e-3, REFACTOR, rho_inf=0.9)
     dissected = _run(mechanism, times, 2e-3, DISSECTION, rho_inf=0.9)
     assert dissected.stats.linear_solver == "dissection"
+    np.testing.assert_allclose(_run(mechanism, times, 2e-3, SUPERLU, rho_inf=0.9).coordinates, refactored.coordinates,
+                               rtol=0, atol=1e-10)  # fmt: skip
     np.testing.assert_allclose(dissected.coordinates, refactored.coordinates, rtol=0, atol=1e-10)
     np.testing.assert_allclose(dissected.velocities, refactored.velocities, rtol=0, atol=1e-8)
     kinematics = sk.solve_kinematics(mechanism, times)

@@ -52,7 +52,8 @@ __all__ = [
     "MAX_REFACTOR_FILL",
     "MIN_METIS_COORDINATES",
     "MIN_DISSECTION_COORDINATES",
-    "MIN_SADDLE_DISSECTION_SIZE",
+    "MIN_MESH_SADDLE_SIZE",
+    "MESH_SADDLE_SOLVER",
     "SolverPlan",
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
@@ -88,12 +89,19 @@ MIN_DISSECTION_COORDINATES = 30_000
 #: kept equations) densely up to this size, with `RefactorSolver` above.
 SADDLE_DENSE_MAX_SIZE = 400
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix of a grid model
-#: (grid repeats, the coordinates those of the bodies) from this size on with
-#: `DissectionSolver`: a fresh SuperLU in a geometric nested dissection of the bodies
-#: instead of `RefactorSolver`, whose first factorization and refactorizations of these
-#: matrices were 5–18 times slower at 10^5 bodies (docs/design-notes.md, "Forward dynamics
-#: on lattices").
-MIN_SADDLE_DISSECTION_SIZE = 60_000
+#: (grid repeats, the coordinates those of the bodies) from this size on afresh at every
+#: factorization (`MESH_SADDLE_SOLVER`) instead of refactoring it with `RefactorSolver`: on
+#: the lattice with masses a fresh SuperLU was 1.1–1.3 times faster per step from 3·10^3
+#: bodies (18 018 unknowns) on, and at 10^5 bodies the refactorization's first sample took
+#: 92 s against 14 s, its step (one factorization) 43 s against 15–19 s (docs/design-notes.md,
+#: "Forward dynamics of lattices").
+MIN_MESH_SADDLE_SIZE = 18_000
+#: The solver of a grid model's saddle matrix above `MIN_MESH_SADDLE_SIZE`: ``"superlu"``
+#: (COLAMD, `SuperLUSolver`), measured as fast as or faster than ``"dissection"``
+#: (`DissectionSolver`: the bodies' coordinates and multipliers in the geometric nested
+#: dissection of where they are drawn) on every saddle measured: the dissection's fill was
+#: 0.85–1.4 times COLAMD's, its factorization and solves no faster.
+MESH_SADDLE_SOLVER = "superlu"
 #: ``linear_solver="auto"`` or ``"dense"`` of forward dynamics runs the compiled block
 #: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
 #: equations), when the model's laws are all built in.
@@ -132,8 +140,10 @@ class Thresholds:
         `SADDLE_DENSE_MAX_SIZE`.
     compiled_saddle_max_size : int
         `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop).
-    min_saddle_dissection_size : int
-        `MIN_SADDLE_DISSECTION_SIZE`.
+    min_mesh_saddle_size : int
+        `MIN_MESH_SADDLE_SIZE`.
+    mesh_saddle_solver : {"superlu", "dissection"}
+        `MESH_SADDLE_SOLVER`.
     """
 
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
@@ -145,7 +155,8 @@ class Thresholds:
     min_norm_iterations: int = MIN_NORM_ITERATIONS
     saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
     compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
-    min_saddle_dissection_size: int = MIN_SADDLE_DISSECTION_SIZE
+    min_mesh_saddle_size: int = MIN_MESH_SADDLE_SIZE
+    mesh_saddle_solver: str = MESH_SADDLE_SOLVER
 
 
 @dataclass(frozen=True)
@@ -264,18 +275,22 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
     above, and for a grid model (its `discretization` given: grid repeats, the
     coordinates those of the bodies; redundant equations may be left out) from
-    `Thresholds.min_saddle_dissection_size` on ``"dissection"`` (`DissectionSolver` on the
-    saddle matrix, the bodies' unknowns in a nested dissection of where they are drawn);
-    never reused across steps (the integrator holds its own factorization while Newton
-    contracts).  A dense plan of a `compilable` model (its laws all built in) up to
-    `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
-    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop."""
+    `Thresholds.min_mesh_saddle_size` on `Thresholds.mesh_saddle_solver`, a fresh
+    factorization each time (``"superlu"``; or ``"dissection"``: `DissectionSolver` on the
+    saddle matrix, the bodies' unknowns in a nested dissection of where they are drawn,
+    with SuperLU's own solves); never reused across steps (the integrator holds its own
+    factorization while Newton contracts).  A dense plan of a `compilable` model (its laws
+    all built in) up to `Thresholds.compiled_saddle_max_size` runs the compiled block
+    stepper (loop ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python
+    loop."""
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
-        if (discretization is not None and size >= max(thresholds.min_saddle_dissection_size, 1)
+        if (discretization is not None and size >= max(thresholds.min_mesh_saddle_size, 1)
                 and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
-            return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
-                              points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
+            if thresholds.mesh_saddle_solver == "dissection":
+                return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
+                                  points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
+            return SolverPlan(loop="python", solver=thresholds.mesh_saddle_solver, chord=False, thresholds=thresholds)
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
     compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
