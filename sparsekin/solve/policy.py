@@ -20,7 +20,8 @@ The plan is a value (`SolverPlan`): the facade, the stepper and the benchmark ha
 ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).  Forward
 dynamics solves the saddle matrix [[M + …, Φqᵀ], [Φq, 0]] instead of Φq: its plan is
 `plan_saddle_solver`, dense LU up to `SADDLE_DENSE_MAX_SIZE` unknowns, a refactorization
-above.
+above, and for a grid model from `MIN_MESH_SADDLE_SIZE` unknowns on a fresh factorization
+each time (`MESH_SADDLE_SOLVER`).
 
 >>> from sparsekin.engine.discretization import discretize
 >>> from sparsekin.testset import task5, lattice
