@@ -113,6 +113,9 @@ def test_auto_factors_grid_saddles_afresh_only(build, expected):
     plan = plan_saddle_solver(size, "auto", asked, discretization=discretization)
     assert plan.solver == ("dissection" if expected == "superlu" else "refactor")
     if plan.solver == "dissection":
+        with pytest.raises(ValueError, match="`Thresholds.mesh_saddle_solver` must be"):
+            plan_saddle_solver(size, "auto", dataclasses.replace(thresholds, mesh_saddle_solver="dense"),
+                               discretization=discretization)  # fmt: skip
         solver = plan.make_solver()
         assert isinstance(solver, DissectionSolver) and not solver.take_out_factors
         assert plan.points.shape == (discretization.mechanism.n_bodies, 2)

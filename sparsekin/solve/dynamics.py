@@ -200,8 +200,8 @@ class GeneralizedAlphaStepper:
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
         (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
-        unknowns, `RefactorSolver` above, `DissectionSolver` for grid models from
-        `~sparsekin.solve.policy.MIN_SADDLE_DISSECTION_SIZE`).
+        unknowns, `RefactorSolver` above, a fresh SuperLU factorization each time for grid
+        models from `~sparsekin.solve.policy.MIN_MESH_SADDLE_SIZE`).
     pattern : ConstraintPattern, optional
         With a Mechanism: its pattern, if built already.
     options : SolveOptions, optional

@@ -92,9 +92,10 @@ SADDLE_DENSE_MAX_SIZE = 400
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix of a grid model
 #: (grid repeats, the coordinates those of the bodies) from this size on afresh at every
 #: factorization (`MESH_SADDLE_SOLVER`) instead of refactoring it with `RefactorSolver`: on
-#: the lattice with masses a fresh SuperLU was 1.1–1.3 times faster per step from 3·10^3
-#: bodies (18 018 unknowns) on, and at 10^5 bodies the refactorization's first sample took
-#: 92 s against 14 s, its step (one factorization) 43 s against 15–19 s (docs/design-notes.md,
+#: lattices with masses a fresh SuperLU's first sample took 0.35–0.77 of the
+#: refactorization's from 3·10^3 bodies (18 018 unknowns) to 10^4, its step 0.60–1.04 of
+#: it; at 10^5 bodies first samples of 14–20 s against 92–152 s,
+#: and a step that factors (a moving lattice) 15–19 s against 43 s (docs/design-notes.md,
 #: "Forward dynamics of lattices").
 MIN_MESH_SADDLE_SIZE = 18_000
 #: The solver of a grid model's saddle matrix above `MIN_MESH_SADDLE_SIZE`: ``"superlu"``
@@ -288,6 +289,9 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     if linear_solver == "auto":
         if (discretization is not None and size >= max(thresholds.min_mesh_saddle_size, 1)
                 and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
+            if thresholds.mesh_saddle_solver not in ("superlu", "dissection"):
+                raise ValueError("`Thresholds.mesh_saddle_solver` must be 'superlu' or 'dissection', got "
+                                 f"{thresholds.mesh_saddle_solver!r}.")  # fmt: skip
             if thresholds.mesh_saddle_solver == "dissection":
                 return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
                                   points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
