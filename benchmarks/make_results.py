@@ -25,6 +25,8 @@ from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
 from measure_small_dynamics import SMALL_DYNAMICS
 from measure_small_dynamics import results_section as small_dynamics_section
+from measure_lattice_dynamics import LATTICE_DYNAMICS
+from measure_lattice_dynamics import results_section as lattice_dynamics_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -208,6 +210,9 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():
         lines += ["", *dynamics_chain_section([json.loads(line) for line in DYNAMICS_CHAIN.read_text().splitlines() if line])]
+    if LATTICE_DYNAMICS.exists():
+        lines += ["", *lattice_dynamics_section([json.loads(line) for line in LATTICE_DYNAMICS.read_text().splitlines()
+                                                 if line])]  # fmt: skip
     if document["others"]:
         lines += [
             "",

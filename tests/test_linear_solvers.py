@@ -59,6 +59,7 @@ SOLVERS = {
     "dense": lambda points: DenseSolver(),
     "dissection": DissectionSolver,
     "supernodal": SupernodalSolver,
+    "dissection-superlu-solves": lambda points: DissectionSolver(points, take_out_factors=False),
 }
 
 
