@@ -233,17 +233,19 @@ def _is_mesh(discretization: Discretization) -> bool:
 
 
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
-                       compilable: bool = False) -> SolverPlan:  # fmt: skip
+                       compilable: bool = False, error_controlled: bool = False) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
     kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
     above; never reused across steps (the integrator holds its own factorization while
     Newton contracts).  A dense plan of a `compilable` model (its laws all built in) up to
     `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
-    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop."""
+    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop; so does
+    an `error_controlled` run (``rtol``: the compiled loop takes fixed steps only)."""
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
-    compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
+    compiled = (compilable and not error_controlled and linear_solver == "dense"
+                and size <= thresholds.compiled_saddle_max_size)  # fmt: skip
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
                       thresholds=thresholds)  # fmt: skip
