@@ -6,6 +6,8 @@ prints, per step size, B0's largest position and velocity errors over the 401 ou
 energy, the crank-angle spread and the wall time; ``andrews --steps 4e-5 2e-5 1e-5``
 prints the largest error of the seven angles at t = 0.03 s against the Test Set's values.
 ``--rtol R`` makes the steps error-controlled (``--steps`` are then the largest steps).
+``cost --loops 40 --t-end 2 --steps 3.5e-4 --rtol 1e-10`` compares the cost per step of
+fixed and error-controlled steps on the same (Python) stepper, rounds alternating.
 Run from the repository root (the references live in tests/).
 """
 
@@ -61,16 +63,39 @@ def andrews(steps, rtol: float | None = None) -> None:
         print(f"h = {h:g} s: angles off by {error:.2e} rad, {result.n_steps} steps, {time.perf_counter() - start:.1f} s")
 
 
+def cost(loops: int, t_end: float, step: float, rtol: float, rounds: int) -> None:
+    """Per step, fixed steps of `step` against `rtol` (largest step 1 ms), both on the Python
+    stepper, same process, rounds alternating: Newton corrections, factorizations and solves
+    per step (load-independent) and wall time per step."""
+    times = np.linspace(0.0, t_end, int(round(t_end / 0.05)) + 1)
+    runs = {"fixed": dict(max_step=step), "rtol": dict(max_step=1e-3, rtol=rtol)}
+    walls = {name: [] for name in runs}
+    for _ in range(rounds):
+        for name, keywords in runs.items():
+            start = time.perf_counter()
+            result = sk.solve_dynamics(n_four_bar(loops), times, forces=None, **keywords)
+            walls[name].append((time.perf_counter() - start) / result.n_steps)
+            steps = result.n_steps
+            print(f"{name}: {steps} steps, per step {np.sum(result.newton_iterations) / steps:.2f} Newton, "
+                  f"{result.n_factorizations / steps:.3f} factorizations, {result.n_solves / steps:.1f} solves, "
+                  f"{walls[name][-1] * 1e3:.3f} ms", flush=True)
+    ratio = np.median(walls["rtol"]) / np.median(walls["fixed"])
+    print(f"rtol / fixed, wall per step (medians of {rounds} rounds): {ratio:.2f}")
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("reference", choices=("a02", "andrews"))
+    parser.add_argument("reference", choices=("a02", "andrews", "cost"))
+    parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--loops", type=int, default=40)
     parser.add_argument("--steps", type=float, nargs="+", default=[1e-3])
     parser.add_argument("--rho", type=float, default=0.9)
     parser.add_argument("--t-end", type=float, default=20.0)
     parser.add_argument("--rtol", type=float, default=None, help="error-controlled steps (largest step: --steps)")
     arguments = parser.parse_args()
-    if arguments.reference == "a02":
+    if arguments.reference == "cost":
+        cost(arguments.loops, arguments.t_end, arguments.steps[0], arguments.rtol or 1e-10, arguments.rounds)
+    elif arguments.reference == "a02":
         a02(arguments.loops, arguments.steps, arguments.rho, arguments.t_end, arguments.rtol)
     else:
         andrews(arguments.steps, arguments.rtol)

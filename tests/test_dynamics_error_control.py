@@ -155,3 +155,22 @@ def test_rtol_in_the_model_file_and_on_the_command_line(tmp_path, capsys):
     assert status == 0
     points = np.loadtxt(tmp_path / "c" / "points.csv", delimiter=",", skiprows=1)
     np.testing.assert_allclose(points[:, 1:3], from_file.point("P").position, rtol=0.0, atol=1e-12)
+
+
+def test_a_tolerance_at_the_noise_of_a_flat_crossing_does_not_stop_the_run():
+    """At the N-four-bar's flat crossing (N = 4, t = 0.718 s) the estimate is Newton's error
+    along the vanishing singular values of Φq, which no step brings down: with rtol = 1e-12
+    the steps fell to 2.4e-7 s and the run stopped there.  The estimate shortens a step to
+    no less than 1/16 of the longest step accepted lately; a step that short is accepted."""
+    from sparsekin.solve.options import DynamicsOptions
+
+    times = np.arange(0.05, 0.8, 0.05)
+    stepper = GeneralizedAlphaStepper(n_four_bar(4), dynamics=DynamicsOptions(1e-3, 0.9, 1e-12))
+    stepper.start(0.0)
+    for t in times:
+        stepper.advance(t)
+    position, _ = n_four_bar_b0(np.array([times[-1]]), n_loops=4)
+    x, y, angle = stepper.state.coordinates[:3]  # crank0: frame at its pivot O0, B0 one metre along it
+    b0 = np.array([x + np.cos(angle), y + np.sin(angle)])
+    assert stepper.controller.n_uncontrolled > 0 and stepper.n_steps < 20_000
+    assert np.abs(b0 - position[0]).max() < 1e-6

@@ -496,7 +496,7 @@ class GeneralizedAlphaStepper:
                                                beta, pseudo)  # fmt: skip
         self._project_accelerations(q, v, a, pseudo, lam, coefficients)
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
-            self.controller.check(pseudo, state.pseudo_accelerations, h, last if stalled else 0.0)
+            self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])

@@ -33,7 +33,9 @@ absolute tolerance scaled by the model, the same for every body wherever it is d
 **The controller** (Hairer, Nørsett & Wanner, II.4): a step is accepted when
 ``error <= 1``; the next one is h · min(`GROWTH_LIMIT`, max(`SHRINK_LIMIT`, `SAFETY` ·
 error^(−1/3))), never above the largest step.  A rejected step is taken again from the
-same state with the shorter step.  Output times are met exactly: the last step before a
+same state with the shorter step, not shorter than `StepSizeController.shortest` (1/16
+of the longest step accepted lately: at a singular crossing the estimate is noise that no
+step size brings down).  Output times are met exactly: the last step before a
 sample ends on it, and when the sample is less than two steps away the distance is split
 in two equal steps (no sliver step, which the index-3 form's 1/h² scaling dislikes).
 """
@@ -60,6 +62,11 @@ SAFETY = 0.9
 #: `SHRINK_LIMIT` of it after a rejection.
 GROWTH_LIMIT = 2.0
 SHRINK_LIMIT = 0.2
+#: The estimate shortens a step to no less than this fraction of the longest step accepted
+#: lately, which fades by `MEMORY` per accepted step (a step may fall 16× at once, and then
+#: by half in 35 steps): a step already that short is accepted above the tolerance.
+SHORTEST_FRACTION = 1.0 / 16.0
+MEMORY = 0.98
 #: The order of the local error estimate (h³).
 ORDER = 3
 
@@ -115,10 +122,12 @@ class StepSizeController:
     n_rejected : int
         Steps taken again shorter because their estimate exceeded `rtol`.
     n_uncontrolled : int
-        Steps accepted above `rtol` because a shorter step did not lower the estimate
-        (`_is_noise`: where Φq loses rank for an instant, the accelerations along its
-        vanishing singular value are rounding divided by it, and no step size brings them
-        down).
+        Steps accepted above `rtol` because they were at `shortest` already.  Where Φq
+        loses rank for an instant (the N-four-bar's flat crossings), Newton's error along
+        its vanishing singular values makes the estimate noise that no step size brings
+        down: followed, it shrank the steps of A02 (N = 40) to 1e-6 s at a crossing, where
+        steps that short land at the singular instant and each lose energy (a lasting
+        −2.3e-3 J there, 1e-4 of the initial kinetic energy).
     """
 
     def __init__(self, rtol: float, gamma: float, beta: float, weights: np.ndarray, max_step: float) -> None:
@@ -128,47 +137,46 @@ class StepSizeController:
         self.max_step = max_step
         self.error, self.hold = 0.0, False
         self.n_rejected = self.n_uncontrolled = 0
-        self._rejected: tuple[float, float] | None = None  # (error, h) of the step just rejected
+        self._retry, self._longest = False, 0.0
         self._change = np.empty(weights.size)
 
     def estimate(self, pseudo_new: np.ndarray, pseudo_old: np.ndarray, h: float, newton_error: float = 0.0) -> float:
         """The local error of a step of `h` s from the pseudo-accelerations before and
         after it, weighted, relative to `rtol` plus `newton_error` (1 = at the tolerance).
 
-        `newton_error` (weighted, like the tolerance) is the position error that Newton's
-        stop left: an error δq in q is one of δq / (β h²) in ã, so the estimate cannot see
-        below about (C / β) δq.  Newton goes to the rounding of q (1e-15 of the model
-        size), except where Φq loses rank for an instant (a flat crossing of the
-        N-four-bar), where its corrections stall higher (`sparsekin.solve.dynamics.STALL`):
-        the stepper passes its last correction then, 0 otherwise."""
+        The estimate also sees the error Newton's stop left: an error δq in q is one of
+        δq / (β h²) in ã, (C / β) δq in the estimate.  Newton goes to the rounding of q
+        (1e-15 of the model size), except where Φq loses rank for an instant (a flat
+        crossing of the N-four-bar), where its corrections stall higher (~1e-11); there the
+        stepper passes its last correction as `newton_error` (weighted like the tolerance),
+        at most a fresh matrix's stall level (`sparsekin.solve.dynamics.STALL`: a larger
+        correction accepted on a held matrix is an error the estimate should reject)."""
         change = np.subtract(pseudo_new, pseudo_old, out=self._change)
         return self.constant * h * h * _dynamics_kernels.weighted_norm(change, self.weights) / (self.rtol + newton_error)
 
     def check(self, pseudo_new: np.ndarray, pseudo_old: np.ndarray, h: float, newton_error: float = 0.0) -> None:
         """Record the step's estimate (`estimate`, in `error`); `ErrorTooLarge` if above the
-        tolerance (a non-finite estimate is too large), unless the step is a retry of a
-        rejected one whose estimate did not fall with the step (`_is_noise`): that one is
-        accepted (`n_uncontrolled`).  The step after a retry, or after a step whose
-        tolerance Newton's stall widened, does not grow (`hold`)."""
+        tolerance (a non-finite estimate is too large), unless the step is no longer than
+        `shortest`: that one is accepted (`n_uncontrolled`).  The step after a rejection,
+        or after a step whose tolerance Newton's stall widened, does not grow (`hold`)."""
         error = self.estimate(pseudo_new, pseudo_old, h, newton_error)
-        rejected, self._rejected = self._rejected, None
         self.error = error
-        # no growth from a step that follows a rejection (Hairer & Wanner), nor from one whose
-        # tolerance Newton's stall widened (its estimate says nothing of the next step's error)
-        self.hold = rejected is not None or newton_error > self.rtol
-        if error <= 1.0:
-            return
-        if math.isfinite(error) and rejected is not None and _is_noise(error, h, *rejected):
-            self.n_uncontrolled += 1
-            return
-        self.n_rejected += 1
-        self._rejected = (error, h)
-        raise ErrorTooLarge(f"local error {error:.3g} × rtol")
+        # no growth right after a rejection (Hairer & Wanner), nor after a step whose tolerance
+        # Newton's stall widened (its estimate says little of the next step's error)
+        self.hold = self._retry or newton_error > self.rtol
+        if error > 1.0 and h > self.shortest * (1.0 + 1e-9):
+            self.n_rejected += 1
+            self._retry = True
+            raise ErrorTooLarge(f"local error {error:.3g} × rtol")
+        self.n_uncontrolled += error > 1.0
+        self._retry = False
+        self._longest = max(h, self._longest * MEMORY)
 
-    def forget(self) -> None:
-        """The next step is not a retry of a step rejected for its error (a Newton failure
-        came between)."""
-        self._rejected = None
+    @property
+    def shortest(self) -> float:
+        """The shortest step the estimate may ask for: `SHORTEST_FRACTION` of the longest
+        step accepted lately (0 before the first)."""
+        return SHORTEST_FRACTION * self._longest
 
     def factor(self) -> float:
         """How much longer (or shorter) than the last step the next one may be."""
@@ -186,14 +194,7 @@ class StepSizeController:
             factor = min(factor, 1.0)
         if h < proposed and factor >= 1.0:
             return proposed
-        return min(self.max_step, h * factor)
-
-
-def _is_noise(error: float, h: float, rejected_error: float, rejected_h: float) -> bool:
-    """Whether an estimate `error` at `h`, the retry of a step of `rejected_h` whose estimate
-    was `rejected_error`, fell less than linearly with the step where the local error falls
-    as h³: the estimate is then noise, not a local error the step controls."""
-    return h < rejected_h and error > rejected_error * (h / rejected_h)
+        return min(self.max_step, max(h * factor, self.shortest))
 
 
 def step_to(remaining: float, proposed: float) -> float:
@@ -237,7 +238,6 @@ def advance_controlled(stepper, t: float, max_halvings: int, growth_after: int) 
             stepper._factored = False
         except StepFailed as newton:
             proposed, held, failure = 0.5 * h, growth_after, newton
-            controller.forget()
             stepper.n_subdivisions += 1
             stepper._factored = False
             stepper._floor.failed()
