@@ -21,6 +21,8 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from measure_andrews_work_precision import ANDREWS_WORK_PRECISION
+from measure_andrews_work_precision import results_section as andrews_section
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
 
@@ -204,6 +206,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():
         lines += ["", *dynamics_chain_section([json.loads(line) for line in DYNAMICS_CHAIN.read_text().splitlines() if line])]
+    if ANDREWS_WORK_PRECISION.exists():
+        lines += ["", *andrews_section([json.loads(line) for line in ANDREWS_WORK_PRECISION.read_text().splitlines() if line])]
     if document["others"]:
         lines += [
             "",

@@ -163,15 +163,19 @@ def results_section(rows: list[dict]) -> list[str]:
         "`python3 benchmarks/measure_andrews_work_precision.py run` (commit " + ", ".join(commits) + ", load "
         f"{min(loads):.1f}–{max(loads):.1f} on 2 cores). Error: the largest of the seven angles at t = 0.03 s against",
         "the Test Set's reference; time: the solve's wall time (median of up to 3 runs; Exudyn's `SolveDynamic`",
-        "in a fresh interpreter). The figure is docs/images/andrews_work_precision.png.",
+        "in a fresh interpreter); per step: wall time over steps, the solve's start included (about 0.75 s at this",
+        "load for sparsekin). The figure is docs/images/andrews_work_precision.png; the reading of it is in",
+        "docs/design-notes.md (error-controlled steps).",
         "",
         "| series | step or rtol | steps | error, rad | wall time | time per step |",
         "|---|---|---|---|---|---|",
     ]
     for row in rows:
         setting = f"rtol {row['rtol']:g} (≤ {row['step']:g} s)" if row["rtol"] is not None else f"h = {row['step']:g} s"
+        per_step = row["seconds"] / row["steps"]
+        per_step = f"{per_step * 1e3:.3g} ms" if per_step >= 1e-3 else f"{per_step * 1e6:.3g} µs"
         lines.append(f"| {row['series']} | {setting} | {row['steps']} | {row['error_rad']:.2e} | {row['seconds']:.3g} s "
-                     f"| {row['seconds'] / row['steps'] * 1e6:.3g} µs |")  # fmt: skip
+                     f"| {per_step} |")  # fmt: skip
     return lines
 
 
