@@ -182,19 +182,20 @@ class StepSizeController:
         """How much longer (or shorter) than the last step the next one may be."""
         if self.error <= 0.0:
             return GROWTH_LIMIT
-        return min(GROWTH_LIMIT, max(SHRINK_LIMIT, SAFETY * self.error ** (-1.0 / (ORDER))))
+        return min(GROWTH_LIMIT, max(SHRINK_LIMIT, SAFETY * self.error ** (-1.0 / ORDER)))
 
     def next_step(self, h: float, proposed: float, grow: bool = True) -> float:
         """The step after one of `h` s was taken (accepted or rejected: `error` says),
         `proposed` the step the controller had asked for (`h` shorter when it ended on an
         output time): a short last step before a sample that was well within the
-        tolerance keeps the proposal; `grow` False holds the step (after a Newton failure)."""
+        tolerance keeps the proposal; `grow` False holds the step (after a Newton failure,
+        whose halvings may go below `shortest`: the estimate does not lift it back)."""
         factor = self.factor()
         if not grow or self.hold:
             factor = min(factor, 1.0)
         if h < proposed and factor >= 1.0:
             return proposed
-        return min(self.max_step, max(h * factor, self.shortest))
+        return min(self.max_step, max(h * factor, self.shortest) if grow else h * factor)
 
 
 def step_to(remaining: float, proposed: float) -> float:
@@ -226,7 +227,6 @@ def advance_controlled(stepper, t: float, max_halvings: int, growth_after: int) 
     """
     controller = stepper.controller
     proposed, held = stepper.state.step, 0
-
     shortest = stepper.max_step * 0.5**max_halvings
     while stepper.state.time < t:
         now = stepper.state.time

@@ -240,8 +240,13 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     above; never reused across steps (the integrator holds its own factorization while
     Newton contracts).  A dense plan of a `compilable` model (its laws all built in) up to
     `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
-    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop; so does
-    an `error_controlled` run (``rtol``: the compiled loop takes fixed steps only)."""
+    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop.  An
+    `error_controlled` run (``rtol``) always runs the Python loop: the compiled loop takes
+    fixed steps only (halved on a failure).
+
+    >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=True, error_controlled=True).loop
+    ('compiled', 'python')
+    """
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
