@@ -21,12 +21,14 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from measure_andrews_work_precision import ANDREWS_WORK_PRECISION
+from measure_andrews_work_precision import results_section as andrews_section
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
-from measure_small_dynamics import SMALL_DYNAMICS
-from measure_small_dynamics import results_section as small_dynamics_section
 from measure_lattice_dynamics import LATTICE_DYNAMICS
 from measure_lattice_dynamics import results_section as lattice_dynamics_section
+from measure_small_dynamics import SMALL_DYNAMICS
+from measure_small_dynamics import results_section as small_dynamics_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -213,6 +215,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
     if LATTICE_DYNAMICS.exists():
         lines += ["", *lattice_dynamics_section([json.loads(line) for line in LATTICE_DYNAMICS.read_text().splitlines()
                                                  if line])]  # fmt: skip
+    if ANDREWS_WORK_PRECISION.exists():
+        lines += ["", *andrews_section([json.loads(line) for line in ANDREWS_WORK_PRECISION.read_text().splitlines() if line])]
     if document["others"]:
         lines += [
             "",

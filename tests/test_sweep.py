@@ -538,6 +538,20 @@ def test_a_dynamic_sweeps_variant_is_a_single_solve_dynamics_bit_for_bit(client,
     assert rows[1].split(",")[5] == repr(float(result.energy_error[0]))
 
 
+def test_an_error_controlled_dynamic_sweep_is_its_variants_runs(client, tmp_path):
+    """``rtol`` reaches each variant's `solve_dynamics` (bit for bit) and the store says it."""
+    pendulum = sk.load_model(PENDULUM)
+    result = sk.sweep(pendulum, {"points.P.x": [0.8, 1.2]}, DYNAMIC_TIMES, client, store=tmp_path / "s.zarr",
+                      points=["P"], coordinates=False, max_step=0.02, rtol=1e-7)  # fmt: skip
+    stored = result.to_xarray()
+    assert stored.attrs["rtol"] == 1e-7 and result.status.tolist() == ["complete", "complete"]
+    for k, x in enumerate((0.8, 1.2)):
+        run = sk.solve_dynamics(moved_point(pendulum, "P", x), DYNAMIC_TIMES, 0.02, rtol=1e-7, points=["P"],
+                                coordinates=False)  # fmt: skip
+        np.testing.assert_array_equal(stored.points.values[k], run.point_tracks)
+        assert run.n_steps > DYNAMIC_TIMES[-1] / 0.02  # the error, not the largest step, chose the steps
+
+
 def test_cli_sweep_of_a_dynamics_model(client, capsys, tmp_path):
     """``sparsekin sweep`` on a model of ``type = "dynamics"`` (here with ``--max-step``) runs
     forward dynamics: each variant's motion and energy as its own run's.  The mass drawn on
@@ -567,6 +581,8 @@ def test_cli_sweep_of_a_dynamics_model(client, capsys, tmp_path):
     (TASK5, ["--max-step", "1e-3"], r"--max-step is for forward dynamics: give --dynamics"),
     (PENDULUM, ["--quasi-static"], r"--quasi-static"),
     (PENDULUM, ["--max-step", "inf"], r"--max-step: `max_step` must be a positive number, got inf"),
+    (TASK5, ["--rtol", "1e-8"], r"--rtol is for forward dynamics: give --dynamics"),
+    (PENDULUM, ["--rtol", "0"], r"--rtol must be a number in \[1e-12, 0\.1\], got 0\.0"),
 ])  # fmt: skip
 def test_cli_dynamic_sweep_mistakes_are_one_line(model, arguments, message, capsys, tmp_path, monkeypatch):
     monkeypatch.setattr("sparsekin.studies.sweeps._local_cluster", no_cluster)
@@ -577,7 +593,9 @@ def test_cli_dynamic_sweep_mistakes_are_one_line(model, arguments, message, caps
 
 
 @pytest.mark.parametrize("analysis, keywords, message", [
-    ("kinematics", dict(max_step=1e-3), r"`max_step` and `rho_inf` are for forward dynamics"),
+    ("kinematics", dict(max_step=1e-3), r"`max_step`, `rho_inf` and `rtol` are for forward dynamics"),
+    ("kinematics", dict(rtol=1e-8), r"`max_step`, `rho_inf` and `rtol` are for forward dynamics"),
+    ("dynamics", dict(rtol=1.0), r"`rtol` must be a number in \[1e-12, 0\.1\], got 1\.0"),
     ("dynamics", dict(max_iterations=5), r"`max_iterations` is for kinematic sweeps"),
     ("dynamics", dict(rho_inf=1.5), r"`rho_inf` must be a number in \[0, 1\], got 1\.5"),
     ("statics", {}, r"`analysis` must be one of 'kinematics', 'dynamics', got 'statics'"),

@@ -91,7 +91,7 @@ def animate_command(arguments: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         result = solve_for_command(mechanism, settings, arguments.model, None, dynamics=dynamics,
-                                   max_step=arguments.max_step)  # fmt: skip
+                                   max_step=arguments.max_step, rtol=arguments.rtol)  # fmt: skip
     except AnalysisInterrupted as interrupt:
         solved = count_samples(interrupt.result)
         if solved:

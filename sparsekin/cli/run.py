@@ -88,25 +88,36 @@ def add_run_command(subparsers) -> None:
 
 
 def add_dynamics_arguments(parser, writes: str = "; also writes energy.csv") -> None:
-    """``--dynamics`` and ``--max-step``: integrate the equations of motion (forward dynamics);
-    `writes` ends the help of ``--dynamics`` (what the command writes besides)."""
+    """``--dynamics``, ``--max-step`` and ``--rtol``: integrate the equations of motion
+    (forward dynamics); `writes` ends the help of ``--dynamics`` (what the command writes
+    besides)."""
     parser.add_argument("--dynamics", action="store_true", default=None,
                         help='integrate the equations of motion under the masses, gravity and loads (as [analysis] '
                         f'type = "dynamics"){writes}')
     parser.add_argument("--max-step", type=float, metavar="H",
                         help="largest integration step of --dynamics, s (default: [analysis].max_step, else the "
                         "output interval)")
+    parser.add_argument("--rtol", type=float, metavar="R",
+                        help="error-controlled steps of --dynamics: the local error of one step relative to the model "
+                        "size (angles: rad), in [1e-12, 0.1]; steps never above --max-step (default: [analysis].rtol, "
+                        "else fixed steps of --max-step)")
 
 
 def is_dynamics(arguments: argparse.Namespace, mechanism: Mechanism) -> bool:
     """Whether the command integrates the equations of motion: ``--dynamics`` or the model's
-    ``[analysis] type``; ``--max-step`` alone is a mistake."""
+    ``[analysis] type``; ``--max-step`` or ``--rtol`` alone is a mistake."""
+    from ..solve.options import RTOL_RANGE
+
     dynamics = bool(getattr(arguments, "dynamics", None)) or mechanism.analysis.type == "dynamics"
-    max_step = getattr(arguments, "max_step", None)
-    if max_step is not None and not dynamics:
-        raise CommandError('--max-step is for forward dynamics: give --dynamics (or [analysis] type = "dynamics")')
+    for option in ("max_step", "rtol"):
+        if getattr(arguments, option, None) is not None and not dynamics:
+            raise CommandError(f'--{option.replace("_", "-")} is for forward dynamics: give --dynamics (or [analysis] '
+                               'type = "dynamics")')  # fmt: skip
+    max_step, rtol = getattr(arguments, "max_step", None), getattr(arguments, "rtol", None)
     if max_step is not None and not max_step > 0.0:
         raise CommandError(f"--max-step must be a positive number of seconds, got {max_step!r}")
+    if rtol is not None and not RTOL_RANGE[0] <= rtol <= RTOL_RANGE[1]:
+        raise CommandError(f"--rtol must be a number in [{RTOL_RANGE[0]:g}, {RTOL_RANGE[1]:g}], got {rtol!r}")
     return dynamics
 
 
@@ -139,8 +150,9 @@ def run_command(arguments: argparse.Namespace) -> int:
         stop = None
         try:
             with _Progress(settings, timeline) as progress:
-                result = solve_for_command(mechanism, settings, arguments.model, progress,
-                                           dynamics=dynamics, max_step=getattr(arguments, "max_step", None))  # fmt: skip
+                result = solve_for_command(mechanism, settings, arguments.model, progress, dynamics=dynamics,
+                                           max_step=getattr(arguments, "max_step", None),
+                                           rtol=getattr(arguments, "rtol", None))  # fmt: skip
             timeline.solved = time.perf_counter()
         except ConvergenceError as error:
             result, stop = error.result, error
@@ -292,8 +304,8 @@ class _Progress(ProgressBar):
 
 
 def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: Path, progress, *, dynamics: bool = False,
-                      max_step: float | None = None) -> KinematicsResult | DynamicsResult:  # fmt: skip
-    """`solve_kinematics` (or with `dynamics`, `solve_dynamics` with `max_step`) recording what
+                      max_step: float | None = None, rtol: float | None = None) -> KinematicsResult | DynamicsResult:  # fmt: skip
+    """`solve_kinematics` (or with `dynamics`, `solve_dynamics` with `max_step` and `rtol`) recording what
     `settings` asks for, with its argument and model errors reported against the file.
 
     Warnings (redundant equations left out, limits left) are printed as one line each.  On
@@ -312,7 +324,7 @@ def solve_for_command(mechanism: Mechanism, settings: RunSettings, model_path: P
                         "joints": settings.joint_indices if record else None, "forces": settings.forces,
                         "store": store, "progress": progress}  # fmt: skip
                 if dynamics:
-                    return solve_dynamics(mechanism, settings.times, max_step, **kept)
+                    return solve_dynamics(mechanism, settings.times, max_step, rtol=rtol, **kept)
                 return solve_kinematics(mechanism, settings.times, quasi_static=settings.quasi_static, **kept)
             finally:
                 for warning in caught:

@@ -205,11 +205,12 @@ def _analysis_keywords(arguments: argparse.Namespace, settings, dynamics: bool) 
         if settings.quasi_static:
             raise CommandError("--quasi-static is for kinematic runs: forward dynamics has the accelerations of "
                                "its motion")  # fmt: skip
-        try:
-            DynamicsOptions(arguments.max_step)
-        except ValueError as error:
-            raise CommandError(f"--max-step: {error}") from None
-        return {"analysis": "dynamics", "max_step": arguments.max_step}
+        for option, keywords in (("--max-step", {"max_step": arguments.max_step}), ("--rtol", {"rtol": arguments.rtol})):
+            try:
+                DynamicsOptions(**keywords)
+            except ValueError as error:
+                raise CommandError(f"{option}: {error}") from None
+        return {"analysis": "dynamics", "max_step": arguments.max_step, "rtol": arguments.rtol}
     return {"analysis": "kinematics", "quasi_static": settings.quasi_static}
 
 

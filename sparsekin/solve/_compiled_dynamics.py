@@ -94,7 +94,8 @@ def block_stepper(stepper, options, chunk: int, forces=None):
     models whose laws are all built in), else ``SampleSteps(stepper, stepper.recorded)``."""
     pattern = stepper.discretization.constraints
     plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              supports_compiled_dynamics(stepper.mechanism))  # fmt: skip
+                              supports_compiled_dynamics(stepper.mechanism),
+                              error_controlled=stepper.rtol is not None)  # fmt: skip
     if plan.loop == "compiled":
         return CompiledDynamicsLoop(stepper, chunk, forces)
     return SampleSteps(stepper, stepper.recorded)

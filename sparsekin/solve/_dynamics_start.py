@@ -11,7 +11,8 @@ from ..engine.pattern import ConstraintPattern
 from ..errors import ModelError
 from ..model.mechanism import Mechanism
 
-__all__ = ["REDUNDANCY_CHECK_COORDINATES", "redundant_rows", "assembled", "initial_velocities", "undetermined"]
+__all__ = ["REDUNDANCY_CHECK_COORDINATES", "assembled", "initial_velocities", "redundant_equations", "redundant_rows",
+           "undetermined"]
 
 #: Models up to this many coordinates are always searched for redundant equations at the
 #: start (larger ones when they have at least as many equations as coordinates).
@@ -30,6 +31,23 @@ def redundant_rows(jacobian, preference: np.ndarray) -> np.ndarray:
     if independent_rows(jacobian):
         return np.zeros(0, dtype=np.int64)
     return analyse_jacobian(jacobian, row_preference=preference).redundant_rows
+
+
+def redundant_equations(discretization, t: float) -> np.ndarray:
+    """The equations of `discretization` to leave out as redundant (`redundant_rows` of its
+    Jacobian at the drawing at time `t`, the kinematics' row preference); none searched for
+    in a model above `REDUNDANCY_CHECK_COORDINATES` coordinates with fewer equations."""
+    from ..analysis.describe import row_preference
+    from ..engine.assembly import Assembler
+
+    pattern = discretization.constraints
+    n, m = pattern.n_coordinates, pattern.n_equations
+    if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
+        return np.zeros(0, dtype=np.int64)
+    assembler = Assembler(discretization)
+    assembler.set_time(t)
+    assembler.fill_residual_jacobian(pattern.initial_coordinates)
+    return redundant_rows(assembler.jacobian, row_preference(discretization.mechanism, pattern))
 
 
 def assembled(system, pattern: ConstraintPattern, t: float, tolerance: float, max_corrections: int) -> np.ndarray:

@@ -26,7 +26,7 @@ accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ =
 modified: the factorization of the last step is reused while its corrections contract
 (`CONTRACTION`) fast enough to converge in the corrections left, refactored otherwise.  A step whose
 Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling
-after `GROWTH_AFTER` good steps, up to `max_step`.
+after `GROWTH_AFTER` good steps, up to `max_step`; or chosen by its error (``rtol``, `error_control`).
 
 The initial state: the drawing assembled at t0 by the smallest weighted change;
 velocities, the bodies' `velocity` made consistent by the smallest mass-weighted change
@@ -63,13 +63,9 @@ from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
-from ._dynamics_start import (
-    REDUNDANCY_CHECK_COORDINATES,
-    assembled,
-    initial_velocities,
-    redundant_rows,
-    undetermined,
-)
+from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
+from .error_control import StepFailed as _StepFailed
+from .error_control import StepSizeController, advance_controlled
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -176,10 +172,6 @@ class DynamicState(NamedTuple):
     dissipated: float
 
 
-class _StepFailed(Exception):
-    pass
-
-
 class GeneralizedAlphaStepper:
     """Integrate a mechanism's equations of motion from sample to sample.
 
@@ -205,7 +197,7 @@ class GeneralizedAlphaStepper:
         Instead of `tolerance` and `linear_solver` (checked already); its
         ``max_iterations`` bounds the Newton corrections of a step.
     dynamics : DynamicsOptions, optional
-        Instead of `max_step` (and the ρ∞ of `integrator`).
+        Instead of `max_step` (and the ρ∞ of `integrator`); its ``rtol``: `StepSizeController`.
 
     Attributes
     ----------
@@ -241,7 +233,7 @@ class GeneralizedAlphaStepper:
             dynamics = DynamicsOptions(max_step, rho_inf)
         if dynamics.max_step is None:
             raise ValueError("`max_step` must be a positive number, got None.")
-        self.max_step = dynamics.max_step
+        self.max_step, self.rtol, self.controller = dynamics.max_step, dynamics.rtol, None
         self.integrator = GeneralizedAlpha(dynamics.rho_inf) if integrator is None else integrator
         self.options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver) if options is None else options
         self.tolerance = self.options.tolerance
@@ -294,6 +286,8 @@ class GeneralizedAlphaStepper:
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
+        self.controller = None if self.rtol is None else StepSizeController(
+            self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
@@ -338,6 +332,8 @@ class GeneralizedAlphaStepper:
         if not t > state.time:
             raise ValueError(f"`t` must be after the current time {state.time!r}, got {t!r}.")
         step, good, before = state.step, 0, self.n_newton
+        if self.controller is not None:  # rtol: every step chosen by its error estimate
+            step = advance_controlled(self, t, MAX_HALVINGS, GROWTH_AFTER)
         while self._state.time < t:
             now = self._state.time
             remaining = t - now
@@ -497,6 +493,8 @@ class GeneralizedAlphaStepper:
         _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
                                                beta, pseudo)  # fmt: skip
         self._project_accelerations(q, v, a, pseudo, lam, coefficients)
+        if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
+            self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
@@ -643,24 +641,13 @@ class GeneralizedAlphaStepper:
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
         """All equations but the redundant ones (found at the drawing, as the kinematics does)."""
-        pattern = self.pattern
-        n, m = pattern.n_coordinates, pattern.n_equations
-        everything = np.arange(m, dtype=np.int64)
-        if m == 0 or (n > REDUNDANCY_CHECK_COORDINATES and m < n):
-            return everything
-        from ..analysis.describe import row_preference
-        from ..engine.assembly import Assembler
-
-        assembler = Assembler(self.discretization)
-        assembler.set_time(t)
-        assembler.fill_residual_jacobian(pattern.initial_coordinates)
-        self.redundant_rows = redundant_rows(assembler.jacobian, row_preference(self.mechanism, self.pattern))
+        self.redundant_rows = redundant_equations(self.discretization, t)
         if self.redundant_rows.size:
             labels = self.redundant_labels
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
             warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); the forces "
                         "of a redundant set are not unique: the minimum-norm ones are given", RedundantConstraintWarning)  # fmt: skip
-        return np.setdiff1d(everything, self.redundant_rows)
+        return np.setdiff1d(np.arange(self.pattern.n_equations, dtype=np.int64), self.redundant_rows)
 
     @property
     def redundant_labels(self) -> tuple[str, ...]:
@@ -697,6 +684,7 @@ def solve_dynamics(
     max_step: float | None = None,
     *,
     rho_inf: float = 0.9,
+    rtol: float | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     linear_solver: str = "auto",
     coordinates: bool = True,
@@ -720,6 +708,10 @@ def solve_dynamics(
         ``analysis.max_step`` of the model when given).
     rho_inf : float
         Numerical damping of generalized-α, in [0, 1] (1: none).
+    rtol : float, optional
+        Error-controlled steps (`sparsekin.solve.error_control`), at most `max_step`: the
+        local error of one step relative to the model size (rad for angles), in [1e-12,
+        0.1].  Default: the model's ``analysis.rtol``, else none (steps of `max_step`).
     tolerance : float
         Newton and projection tolerance (`GeneralizedAlphaStepper`).
     linear_solver : {"auto", "dense", "superlu", "refactor"}
@@ -755,7 +747,7 @@ def solve_dynamics(
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"`mechanism` must be a Mechanism, got {type(mechanism).__name__}.")
     times = check_times(times, mechanism)
-    dynamics = DynamicsOptions(max_step, rho_inf).for_run(times, mechanism)
+    dynamics = DynamicsOptions(max_step, rho_inf, rtol).for_run(times, mechanism)
     options = SolveOptions(tolerance, MAX_ITERATIONS, linear_solver)
     check_progress(progress)
     request = Request(coordinates, points, joints, forces, energy=True)

@@ -26,9 +26,10 @@ from ..model.laws import Spline
 from ..model.mechanism import Mechanism
 from ..results.recording import Selection
 from .branch_guard import BranchGuard
+from .error_control import RTOL_RANGE, checked_rtol
 from .policy import LINEAR_SOLVERS, Thresholds
 
-__all__ = ["SolveOptions", "Request", "DynamicsOptions", "BranchGuard", "TOLERANCE_RANGE", "check_times",
+__all__ = ["SolveOptions", "Request", "DynamicsOptions", "BranchGuard", "TOLERANCE_RANGE", "RTOL_RANGE", "check_times",
            "checked_tolerance", "checked_max_iterations", "checked_rho_inf", "check_progress"]
 
 #: Smallest and largest accepted `tolerance`: below about 4 eps the residual cannot be
@@ -135,25 +136,34 @@ class DynamicsOptions:
         Largest integration step, s; None: chosen by `for_run` from the model and times.
     rho_inf : float
         Numerical damping of generalized-α, in [0, 1] (1: none).
+    rtol : float or None
+        Local error of one step relative to the model size (angles: rad), in
+        `RTOL_RANGE`: the steps are chosen by their error estimate
+        (`sparsekin.solve.error_control`), never above `max_step`; None: steps of
+        `max_step`, halved only on a failure (`for_run` takes the model's
+        ``analysis.rtol`` then).
     """
 
     max_step: float | None = None
     rho_inf: float = 0.9
+    rtol: float | None = None
 
     def __post_init__(self) -> None:
         if self.max_step is not None:
             object.__setattr__(self, "max_step", checked_positive(self.max_step, "max_step"))
         object.__setattr__(self, "rho_inf", checked_rho_inf(self.rho_inf))
+        object.__setattr__(self, "rtol", checked_rtol(self.rtol))
 
     def for_run(self, times: np.ndarray, mechanism: Mechanism) -> DynamicsOptions:
         """These options with `max_step` chosen when not given: the model's
-        ``analysis.max_step``, else the shortest interval of `times` (1 s for one sample)."""
-        if self.max_step is not None:
-            return self
-        max_step = mechanism.analysis.max_step
+        ``analysis.max_step``, else the shortest interval of `times` (1 s for one sample);
+        and `rtol`, when not given, the model's ``analysis.rtol``."""
+        analysis = mechanism.analysis
+        rtol = analysis.rtol if self.rtol is None else self.rtol
+        max_step = analysis.max_step if self.max_step is None else self.max_step
         if max_step is None:
             max_step = float(np.min(np.diff(times))) if times.size > 1 else 1.0
-        return DynamicsOptions(max_step, self.rho_inf)
+        return DynamicsOptions(max_step, self.rho_inf, rtol)
 
 
 def checked_positive(value, name: str) -> float:

@@ -212,6 +212,7 @@ def sweep(
     analysis: str | None = None,
     max_step: float | None = None,
     rho_inf: float | None = None,
+    rtol: float | None = None,
 ) -> SweepResult:
     """Solve every variant of `mechanism` that `vary` describes, on Dask.
 
@@ -242,8 +243,8 @@ def sweep(
         point, component), ``joints`` (variant, time, joint, derivative), and per variant
         ``parameters`` (variant, parameter), ``status``, ``t_stop``, ``t_failure``; for
         forward dynamics also ``energy`` (variant, time, energy_term) and ``drift``
-        (variant, time, drift_term), and the attributes ``analysis``, ``max_step`` and
-        ``rho_inf``.  Default: in memory.
+        (variant, time, drift_term), and the attributes ``analysis``, ``max_step``,
+        ``rho_inf`` and ``rtol`` (None for fixed steps).  Default: in memory.
     coordinates, points, joints, forces, quasi_static
         What each variant records, as in `solve_kinematics` (variable ``forces``
         (variant, time, force) in the store).
@@ -256,10 +257,11 @@ def sweep(
         Called as ``progress(variants_done, n_variants)`` as results arrive.
     analysis : {"kinematics", "dynamics"}, optional
         What each variant's run is; default: the model's ``[analysis] type``.
-    max_step, rho_inf : float, optional
+    max_step, rho_inf, rtol : float, optional
         Forward dynamics only: as in `solve_dynamics` (defaults: the model's
-        ``analysis.max_step``, else the shortest interval of `times`; 0.9).  A variant
-        whose step fails after halving is a result (status ``no_convergence``).
+        ``analysis.max_step``, else the shortest interval of `times`; 0.9; the model's
+        ``analysis.rtol``, else fixed steps).  A variant whose step fails after halving is
+        a result (status ``no_convergence``).
 
     Returns
     -------
@@ -305,7 +307,7 @@ def sweep(
         raise ValueError(f"`variants_per_task` must be a whole number >= 1, got {variants_per_task!r}.")
     # every argument a task would refuse is refused here, before a cluster starts
     options, attrs = _run_options(mechanism, times, analysis, tolerance, max_iterations, linear_solver, quasi_static,
-                                  max_step, rho_inf)  # fmt: skip
+                                  max_step, rho_inf, rtol)  # fmt: skip
     dynamic = options["analysis"] == "dynamics"
     selection = Request(coordinates, points, joints, forces, quasi_static, energy=dynamic).selection(discretize(mechanism))
     chosen = selection.forces
@@ -361,7 +363,7 @@ def sweep(
 
 
 def _run_options(mechanism: Mechanism, times: np.ndarray, analysis, tolerance, max_iterations, linear_solver,
-                 quasi_static, max_step, rho_inf) -> tuple[dict, dict]:  # fmt: skip
+                 quasi_static, max_step, rho_inf, rtol=None) -> tuple[dict, dict]:  # fmt: skip
     """``(options, attrs)``: each variant's checked run keywords (with ``analysis``, as
     `solve_variants` takes them) and what the store's attributes say of the analysis; a
     ValueError for an argument that the analysis would refuse or does not take."""
@@ -375,23 +377,24 @@ def _run_options(mechanism: Mechanism, times: np.ndarray, analysis, tolerance, m
     if analysis not in ANALYSES:
         raise ValueError(f"`analysis` must be one of {', '.join(map(repr, ANALYSES))}, got {analysis!r}.")
     if analysis == "kinematics":
-        if max_step is not None or rho_inf is not None:
-            raise ValueError('`max_step` and `rho_inf` are for forward dynamics: give analysis="dynamics" (or a model '
-                             'with [analysis] type = "dynamics").')  # fmt: skip
+        if max_step is not None or rho_inf is not None or rtol is not None:
+            raise ValueError('`max_step`, `rho_inf` and `rtol` are for forward dynamics: give analysis="dynamics" (or a '
+                             'model with [analysis] type = "dynamics").')  # fmt: skip
         checked = SolveOptions(DEFAULT_TOLERANCE if tolerance is None else tolerance,
                                NEWTON_MAXITER if max_iterations is None else max_iterations, linear_solver)  # fmt: skip
         return dict(analysis=analysis, linear_solver=linear_solver, quasi_static=bool(quasi_static),
                     tolerance=checked.tolerance, max_iterations=checked.max_iterations), {"analysis": analysis}  # fmt: skip
     for name, value in (("max_iterations", max_iterations), ("quasi_static", quasi_static or None)):
         if value is not None:
-            raise ValueError(f"`{name}` is for kinematic sweeps; forward dynamics takes `max_step`, `rho_inf` and "
-                             "`tolerance`.")  # fmt: skip
+            raise ValueError(f"`{name}` is for kinematic sweeps; forward dynamics takes `max_step`, `rho_inf`, `rtol` "
+                             "and `tolerance`.")  # fmt: skip
     checked = SolveOptions(DYNAMICS_TOLERANCE if tolerance is None else tolerance, MAX_ITERATIONS, linear_solver)
-    dynamics = DynamicsOptions(max_step, *(() if rho_inf is None else (rho_inf,)))
+    dynamics = DynamicsOptions(max_step, *(() if rho_inf is None else (rho_inf,)), rtol=rtol)
     options = dict(analysis=analysis, linear_solver=linear_solver, tolerance=checked.tolerance,
-                   max_step=dynamics.max_step, rho_inf=dynamics.rho_inf)  # fmt: skip
-    return options, {"analysis": analysis, "max_step": dynamics.for_run(times, mechanism).max_step,
-                     "rho_inf": dynamics.rho_inf}  # fmt: skip
+                   max_step=dynamics.max_step, rho_inf=dynamics.rho_inf, rtol=dynamics.rtol)  # fmt: skip
+    chosen = dynamics.for_run(times, mechanism)
+    return options, {"analysis": analysis, "max_step": chosen.max_step, "rho_inf": dynamics.rho_inf,
+                     "rtol": chosen.rtol}  # fmt: skip
 
 
 def _sweep_motion(selection, times: np.ndarray, arrays: dict, status: np.ndarray, geometry_varies: bool) -> Motion:
