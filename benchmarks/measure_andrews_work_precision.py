@@ -163,8 +163,8 @@ def results_section(rows: list[dict]) -> list[str]:
         "`python3 benchmarks/measure_andrews_work_precision.py run` (commit " + ", ".join(commits) + ", load "
         f"{min(loads):.1f}–{max(loads):.1f} on 2 cores). Error: the largest of the seven angles at t = 0.03 s against",
         "the Test Set's reference; time: the solve's wall time (median of up to 3 runs; Exudyn's `SolveDynamic`",
-        "in a fresh interpreter); per step: wall time over steps, the solve's start included (about 0.75 s at this",
-        "load for sparsekin). The figure is docs/images/andrews_work_precision.png; the reading of it is in",
+        "in a fresh interpreter); per step: wall time over steps, the solve's start and recording included. The",
+        "figure is docs/images/andrews_work_precision.png; the reading of it is in",
         "docs/design-notes.md (error-controlled steps).",
         "",
         "| series | step or rtol | steps | error, rad | wall time | time per step |",
