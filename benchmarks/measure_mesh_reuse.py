@@ -1,0 +1,90 @@
+"""Where a long mesh run's step time goes under factorization reuse, for comparing two checkouts
+in alternating fresh processes (issue 29: `ReusingSolver`'s refactorization rule).
+
+Usage: ``OPENBLAS_NUM_THREADS=1 PYTHONPATH=TREE python3 benchmarks/measure_mesh_reuse.py TREE
+FAMILY BODIES STEPS``, with TREE a checkout (its harness and its sparsekin are used; this file
+may come from another).  Runs `harness.Stepper` on path ``sparsekin`` (``"auto"``'s plan: on a
+mesh `DissectionSolver` held by `ReusingSolver`) for STEPS steps of `families.STEP` from t = 0,
+and prints one JSON object: the mean step and its phases (harness timers), and, counted on the
+factorizing solver inside `ReusingSolver` (so the same for every tree), the factorizations and
+their seconds, the solves with the held factors and their seconds, the GMRES iterations and the
+solves per step, and how many GMRES solves took each iteration count.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+
+class _Counted:
+    """Forwards to `target`; counts and times its ``factor`` and ``solve``."""
+
+    def __init__(self, target) -> None:
+        self._target = target
+        self.factor_calls = self.solve_calls = 0
+        self.factor_s = self.solve_s = 0.0
+
+    def __getattr__(self, name):
+        return getattr(self._target, name)
+
+    def factor(self, *args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return self._target.factor(*args, **kwargs)
+        finally:
+            self.factor_calls += 1
+            self.factor_s += time.perf_counter() - start
+
+    def solve(self, *args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return self._target.solve(*args, **kwargs)
+        finally:
+            self.solve_calls += 1
+            self.solve_s += time.perf_counter() - start
+
+
+def main(tree: str, family: str, bodies: int, steps: int) -> None:
+    sys.path[:0] = [tree + "/benchmarks", tree]  # the tree's harness and sparsekin
+    from families import STEP, build
+    from harness import Stepper
+
+    from sparsekin.engine import krylov
+    from sparsekin.engine.krylov import ReusingSolver
+
+    histogram, gmres = {}, krylov.fgmres
+
+    def counted_fgmres(*args):  # GMRES's iteration counts, -1 when it gave up
+        iterations = gmres(*args)
+        histogram[iterations] = histogram.get(iterations, 0) + 1
+        return iterations
+
+    krylov.fgmres = counted_fgmres
+
+    Stepper(build(family, 100), "sparsekin", STEP).run(1)  # compile outside the timings
+    stepper = Stepper(build(family, bodies), "sparsekin", STEP)
+    reusing = stepper.stepper.linear_solver._target
+    if not isinstance(reusing, ReusingSolver):
+        raise SystemExit(f"path {stepper.path!r}: no ReusingSolver to measure")
+    counted = reusing.inner = _Counted(reusing.inner)
+    iterations, solves = reusing.n_krylov_iterations, reusing.n_solves
+    start = time.perf_counter()
+    stepper.run(steps)
+    seconds = time.perf_counter() - start
+    print(json.dumps({
+        "tree": tree, "family": family, "bodies": bodies, "steps": steps, "path": stepper.path,
+        "mean_step_s": seconds / steps, "split_s": {phase: s / steps for phase, s in stepper.seconds.items()},
+        "factorizations": counted.factor_calls, "factorization_s": counted.factor_s,
+        "held_solves": counted.solve_calls, "held_solve_s": counted.solve_s,
+        "solves_per_step": (reusing.n_solves - solves) / steps,
+        "gmres_iterations": reusing.n_krylov_iterations - iterations,
+        "gmres_solves_by_iterations": dict(sorted(histogram.items())),
+        "load": os.getloadavg()[0],
+    }), flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]))
