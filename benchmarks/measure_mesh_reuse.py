@@ -8,7 +8,8 @@ mesh `DissectionSolver` held by `ReusingSolver`) for STEPS steps of `families.ST
 and prints one JSON object: the mean step and its phases (harness timers), and, counted on the
 factorizing solver inside `ReusingSolver` (so the same for every tree), the factorizations and
 their seconds, the solves with the held factors and their seconds, the GMRES iterations and the
-solves per step, and how many GMRES solves took each iteration count.
+solves per step, how many GMRES solves took each iteration count, and per held factorization
+(the first: t = 0's, made before the run) its solves and their mean time.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ class _Counted:
         self._target = target
         self.factor_calls = self.solve_calls = 0
         self.factor_s = self.solve_s = 0.0
+        self.epochs = [[0, 0.0]]  # per held factorization: its solves and their seconds
 
     def __getattr__(self, name):
         return getattr(self._target, name)
@@ -37,6 +39,7 @@ class _Counted:
         finally:
             self.factor_calls += 1
             self.factor_s += time.perf_counter() - start
+            self.epochs.append([0, 0.0])
 
     def solve(self, *args, **kwargs):
         start = time.perf_counter()
@@ -45,6 +48,8 @@ class _Counted:
         finally:
             self.solve_calls += 1
             self.solve_s += time.perf_counter() - start
+            self.epochs[-1][0] += 1
+            self.epochs[-1][1] += time.perf_counter() - start
 
 
 def main(tree: str, family: str, bodies: int, steps: int) -> None:
@@ -82,6 +87,7 @@ def main(tree: str, family: str, bodies: int, steps: int) -> None:
         "solves_per_step": (reusing.n_solves - solves) / steps,
         "gmres_iterations": reusing.n_krylov_iterations - iterations,
         "gmres_solves_by_iterations": dict(sorted(histogram.items())),
+        "held_solves_by_factorization": [[n, s / max(n, 1)] for n, s in counted.epochs],
         "load": os.getloadavg()[0],
     }), flush=True)  # fmt: skip
 
