@@ -422,6 +422,8 @@ def mesh_reuse_section(records: list[dict]) -> list[str]:
         "the GMRES solves (count × solves; −1 gave up); per factorization held (from t = 0's on): the",
         "solves made with it × their mean time. The trees other than main are main with `ReusingSolver`'s",
         "stale decision replaced (rent or buy, docs/design-notes.md, \"Factorization reuse\"); not kept.",
+        "Runs A–D: the first GMRES solve of each process also loaded GMRES's kernels from numba's cache",
+        "(0.3–0.7 s, both trees alike: a few ms a step at 10^4, under 1 % at 10^5); from run E on, loaded before.",
         "",
         "| run | tree | bodies | mean step | solves (phase) | factorizations | held solves | solves per step | GMRES "
         "| per factorization held |",
