@@ -27,6 +27,8 @@ The paths compared, measured in the same run:
   samples by `ReusingSolver`: on the lattice a first sample 3–3.5 times as fast as
   ``sparsekin``'s, steps within about 15 % either way in runs under load, not shown to be
   no slower (docs/design-notes.md, "Sparse LU on meshes").
+* ``supernodal`` — on meshes (issue 29): `SupernodalSolver`, the multifrontal LU in numba
+  kernels in the same dissection, chord Newton, reused across samples like ``superlu-metis``.
 * `DenseBaseline` — the "homework" method: the Jacobian as a dense array and
   ``numpy.linalg.solve`` for every linear system.
 * `RebuildBaseline` — the straightforward sparse code: the Jacobian rebuilt from (row,
@@ -49,6 +51,7 @@ from sparsekin.engine.assembly import Assembler
 from sparsekin.engine.discretization import discretize
 from sparsekin.engine.krylov import ReusingSolver
 from sparsekin.engine.linalg import SuperLUSolver
+from sparsekin.engine.supernodal import SupernodalSolver
 from sparsekin.model.mechanism import Mechanism
 from sparsekin.solve.policy import Thresholds, plan_linear_solver
 from sparsekin.solve.stepper import KinematicStepper
@@ -133,14 +136,16 @@ LINEAR_SOLVERS = {
     "sparsekin-refactor": lambda model: sparsekin_plan(model, "sparsekin-refactor").make_solver(),
     # meshes (issue 29): SuperLU in METIS's order, reused across samples like "sparsekin"'s
     "superlu-metis": lambda model: SuperLUSolver(ordering="metis"),
+    # meshes (issue 29): the supernodal LU in the dissection's order, reused like "superlu-metis"
+    "supernodal": lambda model: SupernodalSolver(sparsekin_plan(model).points),
     "superlu": lambda model: SuperLUSolver(),
     "dense": lambda model: DenseBaseline(model.constraints),
     "coo_spsolve": lambda model: RebuildBaseline(model.constraints),
 }
 #: The paths whose Newton iteration is chord Newton (the others run plain Newton).
-CHORD = frozenset({"sparsekin", "sparsekin-refactor", "superlu-metis"})
+CHORD = frozenset({"sparsekin", "sparsekin-refactor", "superlu-metis", "supernodal"})
 #: The paths that always reuse their factorization across samples (`ReusingSolver`).
-REUSED = frozenset({"superlu-metis"})
+REUSED = frozenset({"superlu-metis", "supernodal"})
 
 
 class _Timed:

@@ -23,6 +23,10 @@ from pathlib import Path
 import numpy as np
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
+from measure_small_dynamics import SMALL_DYNAMICS
+from measure_small_dynamics import results_section as small_dynamics_section
+from measure_lattice_dynamics import LATTICE_DYNAMICS
+from measure_lattice_dynamics import results_section as lattice_dynamics_section
 
 #: The benchmark run whose JSON this script reads, from the repository root.
 COMMAND = (
@@ -204,10 +208,15 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *mesh_reuse_section([json.loads(line) for line in MESH_REUSE.read_text().splitlines() if line])]
     if MEMORY_ESTIMATES.exists():
         lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
+    if SMALL_DYNAMICS.exists():
+        lines += ["", *small_dynamics_section([json.loads(line) for line in SMALL_DYNAMICS.read_text().splitlines() if line])]
     if document.get("hubs"):
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():
         lines += ["", *dynamics_chain_section([json.loads(line) for line in DYNAMICS_CHAIN.read_text().splitlines() if line])]
+    if LATTICE_DYNAMICS.exists():
+        lines += ["", *lattice_dynamics_section([json.loads(line) for line in LATTICE_DYNAMICS.read_text().splitlines()
+                                                 if line])]  # fmt: skip
     if document["others"]:
         lines += [
             "",
@@ -358,28 +367,35 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
         "`python3 benchmarks/measure_mesh_steps.py lattice BODIES ...`; the column \"run\" says which session",
         "made the line and the load average then (2 cores shared by six engineers: absolute times move",
         "2× from one minute to the next; compare within one run and size only).",
-        "One Jacobian J at t = 0 (the drawing), J x = b solved. `superlu`: SuperLU with COLAMD on A = Jᵀ,",
+        "One Jacobian J at t = 0, J x = b solved; pose: the drawing (a third of the lattice's entries exactly",
+        "zero), or generic (`--generic`: the drawn coordinates moved by 0.05 × standard normal numbers, no",
+        "entry zero, as at a refactorization later in a run). `superlu`: SuperLU with COLAMD on A = Jᵀ,",
         "what `linear_solver=\"superlu\"` does; `dissection`: `DissectionSolver` (what `auto` takes on",
         "meshes), SuperLU on J in a geometric nested dissection of the bodies, numba solves on its",
         "factors; `superlu-metis`: SuperLU on J in METIS's order of the bodies; `refactor-metis`:",
         "`RefactorSolver(ordering=\"metis\")`, what `auto` took on meshes before; `pardiso`: MKL Pardiso",
-        "(pypardiso, one thread, a separate install). First: everything a first `factor` does (in",
+        "(pypardiso, one thread, a separate install); `supernodal`: `SupernodalSolver`, the multifrontal LU",
+        "in numba kernels (BLAS `np.dot` for the fronts' updates, `OPENBLAS_NUM_THREADS=1`) in the same",
+        "dissection, its again the numeric factorization on its held analysis. First: everything a",
+        "first `factor` does (in",
         "brackets the order alone, timed apart); again: a second `factor` with the same values (a fresh",
         "SuperLU in the held order; `refactor-metis`: the numeric refactorization on its fixed pattern);",
-        "solve: median of three; backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞); L + U: entries held",
+        "solve: median of three; two: one call with two right-hand sides (median of three, runs \"s29kernel\"",
+        "on); backward error ‖Jx − b‖∞ / (‖J‖∞‖x‖∞ + ‖b‖∞); L + U: entries held",
         "(SuperLU's count, its supernodes' zeros included; `dissection`: the nonzeros it keeps; the",
-        "refactorization's structural pattern).",
+        "refactorization's structural pattern; `supernodal`: its dense blocks, zeros included).",
         "",
-        "| run | bodies | option | first | again | solve | backward error | L + U |",
-        "|---|---|---|---|---|---|---|---|",
+        "| run | bodies | pose | option | first | again | solve | two | backward error | L + U |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in options:
         again = _seconds(r["refactorization_s"]) if "refactorization_s" in r else "—"
         entries = f"{r['nnz_factors'] / 1e6:.2f} M" if "nnz_factors" in r else "—"
         ordering = f" (order {_seconds(r['ordering_s'])})" if "ordering_s" in r else ""
-        cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", f"`{r['option']}`",
-                 _seconds(r["first_factorization_s"]) + ordering, again, _seconds(r["solve_s"]),
-                 f"{r['backward_error']:.1e}", entries]  # fmt: skip
+        two = _seconds(r["solve_two_s"]) if "solve_two_s" in r else "—"
+        cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", r.get("pose", "drawing"),
+                 f"`{r['option']}`", _seconds(r["first_factorization_s"]) + ordering, again,
+                 _seconds(r["solve_s"]), two, f"{r['backward_error']:.1e}", entries]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     steps = [r for r in records if "path" in r]
     if steps:
@@ -390,18 +406,26 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
             "`DissectionSolver` on meshes), with `auto` before it (`refactor-start`), with",
             "`linear_solver=\"superlu\"` (`superlu-start`); each round ends with issue 29's reference, one",
             "SuperLU (COLAMD) factorization of the Jacobian at t = 0. Path lines: the harness's stepper",
-            "(`sparsekin`: `auto` now; `sparsekin-refactor`: `auto` before; its first sample solves twice",
-            "on the reuse path) and the median of three rounds of four steps.",
+            "(`sparsekin`: `auto` now; `sparsekin-refactor`: `auto` before; `supernodal`: `SupernodalSolver`,",
+            "reused the same way; its first sample solves twice on the reuse path) and the median of three",
+            "rounds of four steps; long run (`--long=N`): one run of N steps from t = 0 on the same path, its",
+            "refactorizations at moved poses included.",
             "",
-            "| run | bodies | what | round | path taken | first sample | per step | solves per step | peak memory |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "| run | bodies | what | round | path taken | first sample | per step | solves per step | long run "
+            "| peak memory |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in steps:
             first = r.get("first_sample_s", r.get("factorization_s"))
             step = _seconds(r["per_step_s"]) if "per_step_s" in r else "—"
             solves = _seconds(r["split_s"]["solves"]) if "split_s" in r else "—"
+            long_run = "—"
+            if "long_steps" in r:
+                long_run = (f"{r['long_steps']} steps: {_seconds(r['long_mean_step_s'])} a step "
+                            f"(solves {_seconds(r['long_split_s']['solves'])}), "
+                            f"{r['long_factorizations']} factorizations")  # fmt: skip
             cells = [r.get("run", "issue 29, first session"), f"{r['bodies']:,}", r["path"], str(r.get("round", "—")),
-                     r.get("taken", "—"), _seconds(first), step, solves,
+                     r.get("taken", "—"), _seconds(first), step, solves, long_run,
                      f"{r['peak_rss_bytes'] / 2**30:.2f} GB"]  # fmt: skip
             lines.append("| " + " | ".join(cells) + " |")
     return lines

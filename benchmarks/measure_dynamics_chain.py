@@ -167,8 +167,17 @@ def _seconds(value: float | None) -> str:
     return f"{value:.3g} s" if value >= 1.0 else f"{value * 1e3:.3g} ms"
 
 
+def latest(rows: list[dict]) -> list[dict]:
+    """The last line of each measurement (analysis, bodies, accuracy run or not), in the
+    order of their last appearance: `DYNAMICS_CHAIN` keeps the earlier runs as history."""
+    last = {(row["analysis"], row["bodies"], bool(row.get("accuracy_run"))): row for row in rows}
+    return sorted(last.values(), key=rows.index)
+
+
 def results_section(rows: list[dict]) -> list[str]:
-    """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`."""
+    """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`
+    (the latest of each measurement)."""
+    rows = latest(rows)
     return [
         "## Forward dynamics: the N-four-bar chain (issue 25; `measure_dynamics_chain.py`)",
         "",

@@ -12,7 +12,9 @@ last round.  The reference of issue 29, one SuperLU factorization (COLAMD, what
 ``linear_solver="superlu"`` does at every Newton iteration) of the Jacobian at the first
 sample, is timed after the first samples and again at the end; ``--rounds=R`` repeats the
 first samples and the reference R times, interleaved (a loaded machine's times move 2×
-from one minute to the next).  Prints one JSON object per line, with the peak resident memory so far.
+from one minute to the next); ``--long=N`` adds to each path's line one run of N steps from
+t = 0 (mean step, split, factorizations: the refactorizations at moved poses included).
+Prints one JSON object per line, with the peak resident memory so far.
 """
 
 from __future__ import annotations
@@ -69,7 +71,7 @@ def reference_factorization(jacobian, family: str, bodies: int, round_: int) -> 
             "factorization_s": time.perf_counter() - start, "peak_rss_bytes": _peak_rss_bytes()}  # fmt: skip
 
 
-def main(family: str, bodies: int, paths: list[str], rounds: int = 1) -> None:
+def main(family: str, bodies: int, paths: list[str], rounds: int = 1, long_steps: int = 0) -> None:
     Stepper(build(family, 100), "sparsekin", STEP).run(1)  # compile outside the timings
     mechanism = build(family, bodies)
     jacobian, _, _ = jacobian_at_drawing(family, bodies)
@@ -90,15 +92,26 @@ def main(family: str, bodies: int, paths: list[str], rounds: int = 1) -> None:
             stepper.run(STEPS_PER_ROUND)
             rounds_s.append((time.perf_counter() - start) / STEPS_PER_ROUND)
         split = {phase: seconds / STEPS_PER_ROUND for phase, seconds in stepper.seconds.items()}
-        print(json.dumps({"family": family, "bodies": mechanism.n_bodies, "path": path, "taken": stepper.path,
-                          "first_sample_s": first, "per_step_s": float(np.median(rounds_s)), "split_s": split,
-                          "step_rounds_s": rounds_s, "peak_rss_bytes": _peak_rss_bytes()}), flush=True)  # fmt: skip
+        row = {"family": family, "bodies": mechanism.n_bodies, "path": path, "taken": stepper.path,
+               "first_sample_s": first, "per_step_s": float(np.median(rounds_s)), "split_s": split,
+               "step_rounds_s": rounds_s}  # fmt: skip
+        if long_steps:  # one run of that many steps from t = 0: the refactorizations at moved poses with it
+            stepper.reset()
+            counted = stepper.stepper
+            factorizations = counted.n_factorizations + counted.n_refactorizations
+            start = time.perf_counter()
+            stepper.run(long_steps)
+            row.update(long_steps=long_steps, long_mean_step_s=(time.perf_counter() - start) / long_steps,
+                       long_split_s={phase: seconds / long_steps for phase, seconds in stepper.seconds.items()},
+                       long_factorizations=counted.n_factorizations + counted.n_refactorizations - factorizations)  # fmt: skip
+        print(json.dumps(dict(row, peak_rss_bytes=_peak_rss_bytes())), flush=True)
         del stepper
     print(json.dumps(reference_factorization(jacobian, family, mechanism.n_bodies, rounds)), flush=True)
 
 
 if __name__ == "__main__":
-    arguments = [argument for argument in sys.argv[3:] if not argument.startswith("--rounds=")]
+    arguments = [argument for argument in sys.argv[3:] if not argument.startswith("--")]
     rounds = [int(argument.split("=")[1]) for argument in sys.argv[3:] if argument.startswith("--rounds=")]
+    long_steps = [int(argument.split("=")[1]) for argument in sys.argv[3:] if argument.startswith("--long=")]
     main(sys.argv[1], int(sys.argv[2]), arguments or ["auto", "refactor-start", "sparsekin", "sparsekin-refactor"],
-         rounds[-1] if rounds else 1)  # fmt: skip
+         rounds[-1] if rounds else 1, long_steps[-1] if long_steps else 0)  # fmt: skip

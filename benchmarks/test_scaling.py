@@ -52,7 +52,7 @@ def _cases(config, solver_names):
                     continue
                 if solver != "sparsekin" and family in MESHES and bodies > MESH_BASELINE_MAX_BODIES:
                     continue
-                if solver in ("superlu-metis", "sparsekin-refactor") and (
+                if solver in ("superlu-metis", "sparsekin-refactor", "supernodal") and (
                     family not in MESHES or bodies < MIN_MESH_COMPARISON_BODIES
                 ):
                     continue  # meshes only, where "sparsekin" takes the mesh solver

@@ -21,8 +21,12 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-#: Options of every `numba.njit` in the package.
-JIT = dict(cache=True, nogil=True, error_model="numpy")
+#: Options of every `numba.njit` in the package.  ``_nrt=True`` (numba's reference counting,
+#: its default) is written out so that no function inherits the one exception: the time
+#: loop of `sparsekin.solve._compiled_dynamics._advance_samples` is compiled without it
+#: (``{**JIT, "_nrt": False}``), and numba would compile a function it calls for the first
+#: time with the caller's flag.
+JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True)
 
 _PACKAGE = Path(__file__).resolve().parent
 _stamp: str | None = None

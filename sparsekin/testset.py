@@ -28,6 +28,7 @@ bodies are a few arrays, not a million objects.
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import math
 from contextlib import contextmanager
@@ -41,7 +42,8 @@ from .model.units import Cycle, OnCopies, Repeat, Unit
 
 __all__ = ["TASK5_POINTS", "task5", "task5_chain", "task5_chain_unit", "four_bar_chain", "n_four_bar", "lattice",
            "lattice_unit", "rotating_squares", "rotating_squares_unit", "rotating_rectangles",
-           "rotating_rectangles_motif", "rotating_lattice_motion", "parallel_bar_chain", "task5_unit_phases"]
+           "rotating_rectangles_motif", "rotating_lattice_motion", "parallel_bar_chain", "task5_unit_phases",
+           "with_masses"]
 
 #: Task 5 points in the drawn configuration, m (docs/task5.md).
 TASK5_POINTS = {
@@ -289,6 +291,27 @@ def lattice(rows: int, cols: int) -> Mechanism:
     repeat = Repeat(cell, count=(int(cols) + 1, int(rows)), prefix=LATTICE_PREFIX,
                     offset=((1.0, 0.0), (0.0, 1.0)), vary=vary, boundary={"below.V": "ground", "below.H": "ground"})  # fmt: skip
     return Mechanism(points={}, bodies=[], repeats=[repeat], name=f"lattice_{rows}x{cols}")
+
+
+def with_masses(mechanism: Mechanism, mass: float, inertia: float, gravity=(0.0, -9.81), velocity=None) -> Mechanism:
+    """`mechanism` for forward dynamics: every body of its repeats' units given `mass` (kg),
+    `inertia` (kg·m² about its centre of mass) and, if given, the initial `velocity` ``(vx, vy, ω)``
+    of its origin, under `gravity` (m/s²); its own bodies unchanged.
+
+    >>> heavy = with_masses(lattice(2, 3), 1.0, 1.0 / 12.0)
+    >>> heavy.gravity, heavy.repeats[0].unit.bodies[0].mass
+    ((0.0, -9.81), 1.0)
+    """
+
+    def heavy(body):
+        return dataclasses.replace(body, mass=mass, inertia=inertia, velocity=velocity)
+
+    repeats = []
+    for repeat in mechanism.repeats:
+        bodies = tuple(dataclasses.replace(b, element=heavy(b.element)) if isinstance(b, OnCopies) else heavy(b)
+                       for b in repeat.unit.bodies)  # fmt: skip
+        repeats.append(dataclasses.replace(repeat, unit=dataclasses.replace(repeat.unit, bodies=bodies)))
+    return dataclasses.replace(mechanism, repeats=tuple(repeats), gravity=tuple(gravity))
 
 
 #: Prefix of the rotating squares' copies: square (i, j) is body ``s{i}_{j}.sq``.

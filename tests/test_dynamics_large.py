@@ -4,7 +4,8 @@ chain cheap, each against an independent computation.
 * `saddle_pattern` (the saddle matrix's CSR pattern in linear time) against ``np.unique`` of
   the (row, column) keys, with the ground's and left-out equations' triplets discarded;
 * `DynamicSystem.product` (S x without assembling S) against the assembled S;
-* `RoundingFloor`'s rules (measured, only downwards from a held matrix, forgotten);
+* `RoundingFloor`'s rules (measured, only downwards from a held matrix, forgotten; the
+  projections' refinement skipped on a measured contraction grown as the age squared);
 * the N-four-bar chain on the refactorization path against its exact answer (every crank
   moves as one four-bar: tests/dynamics_reference.py), with the dense path's motion and no
   drift at any sample, and through five singular (flat) crossings.
@@ -13,6 +14,7 @@ chain cheap, each against an independent computation.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from dynamics_reference import n_four_bar_b0, n_four_bar_motion
 
 from sparsekin.engine import _dynamics_kernels
@@ -21,7 +23,7 @@ from sparsekin.engine.saddle import DynamicSystem
 from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
-from sparsekin.solve.rounding_floor import FLOOR_STEPS, RoundingFloor
+from sparsekin.solve.rounding_floor import FLOOR_STEPS, RATE_STEPS, REFINEMENT_MARGIN, RoundingFloor
 from sparsekin.testset import n_four_bar
 
 
@@ -82,6 +84,34 @@ def test_rounding_floor_rules():
     assert off.level == 0.0 and off.noise(1e-12) == 1e-12  # the dense path never has one
 
 
+def test_refinement_skipped_only_on_a_measured_contraction_grown_with_age():
+    floor, noise = RoundingFloor(True), 1e-7
+    floor.step_begins()
+    assert not floor.skips_refinement("velocity", 1e-9, noise)  # nothing measured
+    floor.refined("velocity", 1e-4)  # at age 1
+    for _ in range(3):  # age 4: the contraction predicted 16 times larger
+        floor.step_begins()
+    limit = REFINEMENT_MARGIN * noise / (1e-4 * 16)
+    assert floor.skips_refinement("velocity", 0.99 * limit, noise)
+    assert not floor.skips_refinement("velocity", 1.01 * limit, noise)
+    assert not floor.skips_refinement("acceleration", 1e-12, noise)  # measured per projection
+    for _ in range(RATE_STEPS - 3):
+        floor.step_begins()
+    assert not floor.skips_refinement("velocity", 1e-12, noise)  # too old: measured again
+    floor.refined("velocity", 1e-4)
+    floor.refactored()
+    assert not floor.skips_refinement("velocity", 1e-12, noise)  # a new factorization
+    floor.refined("velocity", 1e-12)  # at age 0 (the factorization of this step): no growth law from it
+    floor.step_begins()
+    assert not floor.skips_refinement("velocity", 1e-12, noise)
+    dense = RoundingFloor(False)
+    dense.step_begins()
+    dense.refined("velocity", 1e-12)
+    assert dense.projection_noise(1e3) == 0.0 and not dense.skips_refinement("velocity", 1e-12, noise)
+    floor.measured(4e-10, fresh=True)
+    assert floor.projection_noise(2e3) == pytest.approx(0.1 * 2e3 * 4e-10)
+
+
 def test_regularization_only_after_a_failed_step_on_the_large_path():
     large, dense = RoundingFloor(True), RoundingFloor(False)
     assert large.regularization(1e-10) == 0.0 and dense.regularization(1e-10) == 1e-10
@@ -121,3 +151,25 @@ def test_chain_on_the_refactor_path_passes_its_singular_crossings():
     assert np.abs(cranks - n_four_bar_motion(times, 4).angle[:, None]).max() < 1e-3
     assert np.ptp(cranks, axis=1).max() < 1e-9
     assert result.energy.drift_position.max() <= 1e-10 and result.energy.drift_velocity.max() <= 1e-10
+
+
+def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
+    """10^5 bodies, 20 steps of 1 ms: the projections stop after one solve where the held
+    factorization's measured contraction allows it (`RoundingFloor.skips_refinement`),
+    with fewer solves than without the rule, B0 on the exact answer as before, and the
+    drifts at the tolerance at every sample."""
+    from sparsekin.solve import rounding_floor
+
+    loops, times = 50000, np.linspace(0.0, 0.02, 21)
+    exact, _ = n_four_bar_b0(times, n_loops=loops)
+    results = {}
+    for margin in (REFINEMENT_MARGIN, -1.0):  # the rule, and never skipping
+        monkeypatch.setattr(rounding_floor, "REFINEMENT_MARGIN", margin)
+        options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+        results[margin] = run_dynamics(discretize(n_four_bar(loops)), times, options, DynamicsOptions(1e-3),
+                                       Request(coordinates=False, points=["B0"], energy=True))  # fmt: skip
+    skipping, refining = results[REFINEMENT_MARGIN], results[-1.0]
+    assert skipping.stats.n_solves < refining.stats.n_solves
+    errors = [np.abs(result.point("B0").position - exact).max() for result in (skipping, refining)]
+    assert errors[0] < 1e-7 and errors[0] <= 1.01 * errors[1]  # the integrator's own error, ~1e-8 m here
+    assert skipping.energy.drift_position.max() <= 1e-10 and skipping.energy.drift_velocity.max() <= 1e-10

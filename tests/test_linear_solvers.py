@@ -28,6 +28,7 @@ from sparsekin.engine.linalg import (
     SuperLUSolver,
 )
 from sparsekin.engine.dissection import DissectionSolver
+from sparsekin.engine.supernodal import SupernodalSolver
 from sparsekin.engine.pattern import build_pattern
 
 #: Largest accepted normwise backward error of a solve.
@@ -57,6 +58,8 @@ SOLVERS = {
     "refactor": lambda points: RefactorSolver(),
     "dense": lambda points: DenseSolver(),
     "dissection": DissectionSolver,
+    "supernodal": SupernodalSolver,
+    "dissection-superlu-solves": lambda points: DissectionSolver(points, take_out_factors=False),
 }
 
 
@@ -122,6 +125,9 @@ def test_solves_along_the_motion(family, solver_name, rng):
         counts = (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks)
         assert counts == (1, N_CONFIGURATIONS - 1, 0)
         assert solver.pivot_ratio >= MIN_PIVOT_RATIO and solver.growth <= MAX_GROWTH
+    elif solver_name == "supernodal":  # one analysis; the matching's pivots hold along the motion
+        counts = (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks)
+        assert counts == (1, N_CONFIGURATIONS - 1, 0)
     else:
         assert solver.n_factorizations == N_CONFIGURATIONS
     assert solver.n_solves == N_CONFIGURATIONS * 2 * 3  # 2 systems × (1 + 2 right-hand sides)
@@ -170,7 +176,7 @@ def test_non_finite_jacobian_raises(solver_name):
         solver.solve(np.ones(3))
 
 
-@pytest.mark.parametrize("solver_name", ["refactor", "dense", "dissection"])
+@pytest.mark.parametrize("solver_name", ["refactor", "dense", "dissection", "supernodal"])
 def test_input_is_validated(solver_name):
     solver = SOLVERS[solver_name](points_in_a_row(3))
     with pytest.raises(ValueError, match="`jacobian` must be a scipy.sparse CSR array, got ndarray"):

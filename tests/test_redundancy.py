@@ -285,3 +285,27 @@ def test_energy_balance_with_more_than_64_redundant_equations(method):
     assert np.abs(power[2:-2] - rate).max() <= 1e-6 * np.abs(power).max()
     # the bars carry forces: the minimum-norm split, not the left-out rows at zero
     assert np.all(np.isfinite(result.force_tracks))
+
+
+@pytest.mark.parametrize("offset, certified, redundant", [(None, True, 0), (1e-6, True, 0), (1e-12, False, 0),
+                                                       (1e-13, False, 1), (0.0, False, 1)])  # fmt: skip
+def test_the_dense_independence_certificate_never_contradicts_the_analysis(offset, certified, redundant):
+    """`independent_rows` (the start of a small dynamics model skips the iterative analysis
+    with it) certifies rows independent only where `analyse_jacobian` names no redundant
+    row: 12 random sparse rows in 15 coordinates, the last replaced by the sum of two
+    others moved by `offset` in one coordinate (None: left alone).  Moved by 1e-12, the
+    smallest singular value of the scaled Jacobian is 1.3e-13 of the largest: independent
+    to the analysis (its tolerance is 100 ε ≈ 2.2e-14) but within the certificate's margin
+    of 100 times that, so deferred; by 1e-13 (1.3e-14) the analysis names it redundant.
+    A tall Jacobian is always deferred."""
+    from sparsekin.analysis.rank import independent_rows
+
+    rng = np.random.default_rng(7)
+    dense = rng.standard_normal((12, 15)) * (rng.random((12, 15)) < 0.4) + np.eye(12, 15)
+    if offset is not None:
+        dense[-1] = dense[0] + dense[3]
+        dense[-1, 14] += offset
+    jacobian = sparse.csr_array(dense)
+    assert independent_rows(jacobian) is certified
+    assert analyse_jacobian(jacobian).redundant_rows.size == redundant
+    assert not independent_rows(sparse.csr_array(np.vstack([dense, dense[:2]])))

@@ -56,6 +56,17 @@ class DissectionSolver:
     points : array_like, shape (n_bodies, 2)
         Where each body is drawn (its origin): the places the dissection cuts between.
         The Jacobian's columns are the bodies' coordinates, `COORDINATES_PER_BODY` a body.
+        A square matrix with more columns is a saddle matrix of forward dynamics
+        (`sparsekin.engine.saddle`), structurally symmetric: its first unknowns the
+        coordinates, then one multiplier per kept equation, which goes with the body of
+        the first coordinate in its row (`_saddle_groups`); the bodies' unknowns are
+        ordered by the same dissection of the bodies.
+    take_out_factors : bool
+        Solve on L and U taken out of SuperLU by numba kernels (default: worth its cost
+        where a factorization serves many solves, the kinematics' reuse across samples), or
+        with SuperLU's own solves (forward dynamics, which factors its saddle matrix
+        about once a step on a moving lattice: taking the factors out cost a third of
+        the factorization there).
 
     Attributes
     ----------
@@ -75,7 +86,7 @@ class DissectionSolver:
 
     name = "dissection"
 
-    def __init__(self, points) -> None:
+    def __init__(self, points, take_out_factors: bool = True) -> None:
         points = np.asarray(points, dtype=float)
         if points.ndim != 2 or points.shape[1] != 2:
             raise ValueError(f"`points` must have shape (n_bodies, 2), got {points.shape}.")
@@ -84,6 +95,8 @@ class DissectionSolver:
         self._ordered = None  # (indptr, indices, gather): J[:, order] in CSC is (J.data[gather], indices, indptr)
         self._pattern = None
         self._factors = None
+        self._lu = None  # SuperLU's own factorization, when the factors are not taken out
+        self.take_out_factors = bool(take_out_factors)
         self._n = 0
         self.n_factorizations = 0
         self.n_refactorizations = 0
@@ -92,6 +105,8 @@ class DissectionSolver:
     @property
     def nnz_factors(self) -> int:
         """Entries of the last L and U (SuperLU's nonzeros, the diagonals included)."""
+        if self._lu is not None:
+            return int(self._lu.nnz)
         if self._factors is None:
             raise RuntimeError(_NOT_FACTORED)
         _, _, (l_indptr, _, _), (u_indptr, _, _, _) = self._factors
@@ -102,7 +117,7 @@ class DissectionSolver:
         raise `SingularMatrix` if it is exactly singular or not finite."""
         n = _checked_square(jacobian)
         self.n_factorizations += 1
-        self._factors = None
+        self._factors = self._lu = None
         order = self._column_order(jacobian)
         if not np.all(np.isfinite(jacobian.data)):
             raise SingularMatrix("the Jacobian has entries that are not finite")
@@ -121,6 +136,10 @@ class DissectionSolver:
             lu = splu(ordered, permc_spec="NATURAL", relax=RELAXED_SUPERNODE, panel_size=PANEL_SIZE)
         except RuntimeError as error:  # "Factor is exactly singular"
             raise SingularMatrix(str(error)) from error
+        self._n = n
+        if not self.take_out_factors:
+            self._lu = lu
+            return
         # SuperLU: Pr (J Q) Pc = L U with Q = the order; as one column permutation of J,
         # column order[k] of J goes to position perm_c[k].
         perm_c = np.empty(n, dtype=np.int64)
@@ -136,7 +155,6 @@ class DissectionSolver:
             u_inverse = 1.0 / diagonal
         if not np.all(np.isfinite(u_inverse)):
             raise SingularMatrix("a pivot of the factorization is zero or not finite")
-        self._n = n
         self._factors = (perm_r, perm_c, (l_indptr, lower.indices, lower.data),
                          (u_indptr, upper.indices, upper.data, u_inverse))  # fmt: skip
         self._work = np.empty(n)
@@ -148,11 +166,18 @@ class DissectionSolver:
         """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`: one
         right-hand side, or one per column of a 2-D `rhs`, optionally into `out` (which may
         be `rhs`); parameters, returns and errors as `RefactorSolver.solve`'s."""
-        if self._factors is None:
+        if self._factors is None and self._lu is None:
             raise RuntimeError(_NOT_FACTORED)
         rhs, out = _checked_rhs(rhs, self._n, out)
-        kernel = _lu_kernels.solve_lu_transposed if transposed else _lu_kernels.solve_lu
-        finite = solve_factored(kernel, self._factors, rhs, out, self._work, self._probe)
+        if self._lu is not None:  # J Q y = b, x = Q y; Jᵀ x = b is (J Q)ᵀ x = Qᵀ b
+            if transposed:
+                out[...] = self._lu.solve(rhs[self._order], trans="T")
+            else:
+                out[self._order] = self._lu.solve(rhs)
+            finite = bool(np.all(np.isfinite(out)))
+        else:
+            kernel = _lu_kernels.solve_lu_transposed if transposed else _lu_kernels.solve_lu
+            finite = solve_factored(kernel, self._factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if not finite:
             raise SingularMatrix("the solution is not finite")
@@ -164,13 +189,32 @@ class DissectionSolver:
             from .ordering import geometric_column_order
 
             self._order = self._pattern = None  # until the new order is there
-            n = jacobian.shape[1]
-            if n != COORDINATES_PER_BODY * self.points.shape[0]:
+            n, coordinates = jacobian.shape[1], COORDINATES_PER_BODY * self.points.shape[0]
+            if n < coordinates:
                 raise ValueError(
                     f"`jacobian` has {n} columns, expected {COORDINATES_PER_BODY} for each of the "
-                    f"{self.points.shape[0]} bodies."
+                    f"{self.points.shape[0]} bodies (and, for a saddle matrix, one per multiplier after them)."
                 )
-            self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            if n == coordinates:
+                self._order = geometric_column_order(jacobian, self.points, block=COORDINATES_PER_BODY)
+            else:
+                groups = _saddle_groups(jacobian, coordinates)
+                self._order = geometric_column_order(jacobian, self.points, groups=groups)
             self._ordered = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, self._order)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order
+
+
+def _saddle_groups(matrix: csr_array, coordinates: int) -> np.ndarray:
+    """The body of each unknown of a saddle matrix [[A, Bᵀ], [B, C]] (square, CSR, its
+    first `coordinates` unknowns the bodies' coordinates in turn): a coordinate's body, and
+    for a multiplier the body of the first coordinate its equation's row holds (the row
+    of B: a joint's equation goes with the first of its bodies)."""
+    indptr, indices = matrix.indptr, matrix.indices
+    rows = indptr[coordinates:]
+    lengths = np.diff(rows)
+    first = indices[rows[:-1][lengths > 0]] if indices.size else indices[:0]
+    if first.size != lengths.size or np.any(first >= coordinates):
+        raise ValueError("a saddle matrix's multiplier rows must each hold a coordinate of a body (their columns "
+                         "sorted, the coordinates first).")  # fmt: skip
+    return np.concatenate([np.arange(coordinates) // COORDINATES_PER_BODY, first // COORDINATES_PER_BODY])

@@ -299,7 +299,7 @@ def fill_reducing_column_order(matrix, *, method: str = "auto", block: int = 1) 
     return (block * order[:, None] + np.arange(block)).ravel()
 
 
-def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
+def geometric_column_order(matrix, points, *, block: int = 3, groups=None) -> np.ndarray:
     """A fill-reducing column order for the LU of a mesh's Jacobian from where its bodies are drawn.
 
     Nested dissection of the bodies' graph (bodies adjacent when an equation holds both;
@@ -310,6 +310,13 @@ def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
     METIS's fill for a small share of its time, without the ``meshes`` extra
     (docs/design-notes.md, "Sparse LU on meshes").
 
+    With `groups` the matrix is square and structurally symmetric, its unknowns held by
+    the bodies (forward dynamics's saddle matrix: each body's coordinates and the
+    multipliers of the equations placed with it): ``groups[j]`` is the body of unknown j,
+    bodies are adjacent when an entry couples their unknowns (the graph of the matrix,
+    not of its columns' intersections: a symmetric matrix is factored on its diagonal's
+    side), and a body's unknowns are kept together in their own order.
+
     Parameters
     ----------
     matrix : sparse array, shape (m, n), m >= n
@@ -317,7 +324,9 @@ def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
     points : array_like, shape (n // block, 2)
         Each body's place in the plane (its origin at the drawing, say).
     block : int
-        Coordinates per body.
+        Coordinates per body (without `groups`).
+    groups : array_like of int, shape (n,), optional
+        The body of each column, each body holding one at least (instead of `block`).
 
     Returns
     -------
@@ -332,14 +341,21 @@ def geometric_column_order(matrix, points, *, block: int = 3) -> np.ndarray:
     >>> geometric_column_order(chain, [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], block=2).size
     6
     """
-    n = _check_matrix_and_block(matrix, block)
+    n = _check_matrix_and_block(matrix, block if groups is None else 1)
     points = np.ascontiguousarray(points, dtype=float)
-    if points.shape != (n // block, 2) or not np.all(np.isfinite(points)):
-        raise ValueError(f"`points` must be {n // block} finite places (x, y), one a body, got shape {points.shape}.")
+    n_bodies = n // block if groups is None else points.shape[0]
+    if points.shape != (n_bodies, 2) or not np.all(np.isfinite(points)):
+        raise ValueError(f"`points` must be {n_bodies} finite places (x, y), one a body, got shape {points.shape}.")
     from ._ordering_kernels import geometric_dissection
 
-    order = geometric_dissection(*_column_graph(matrix, int(block)), points, DISSECTION_LEAF_SIZE)
-    return (block * order[:, None] + np.arange(block)).ravel()
+    if groups is None:
+        order = geometric_dissection(*_column_graph(matrix, int(block)), points, DISSECTION_LEAF_SIZE)
+        return (block * order[:, None] + np.arange(block)).ravel()
+    groups = _checked_groups(groups, matrix.shape, n_bodies)
+    order = geometric_dissection(*_group_graph(matrix, groups, n_bodies), points, DISSECTION_LEAF_SIZE)
+    place = np.empty(n_bodies, dtype=np.int64)
+    place[order] = np.arange(n_bodies)
+    return np.argsort(place[groups], kind="stable")  # each body's columns in their own order
 
 
 def _check_matrix_and_block(matrix, block) -> int:
@@ -393,10 +409,38 @@ def _column_graph(matrix, block: int = 1) -> tuple[np.ndarray, np.ndarray]:
     csr = matrix if getattr(matrix, "format", None) == "csr" else csr_array(matrix)
     shape = (csr.shape[0], csr.shape[1] // block)
     pattern = csr_array((np.ones(csr.nnz, dtype=np.float32), csr.indices // block, csr.indptr.copy()), shape=shape)
-    graph = (pattern.T @ pattern).tocsr()
+    return _without_loops(pattern.T @ pattern)
+
+
+def _group_graph(matrix, groups: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(xadj, adjacency)``: the graph of a square `matrix` (and its transpose) with row
+    and column j merged into vertex ``groups[j]``, without loops."""
+    from scipy.sparse import coo_array
+
+    coo = coo_array(matrix)
+    ones = np.ones(coo.nnz, dtype=np.float32)
+    merged = coo_array((ones, (groups[coo.row], groups[coo.col])), shape=(n_groups, n_groups)).tocsr()
+    return _without_loops(merged + merged.T)
+
+
+def _without_loops(graph) -> tuple[np.ndarray, np.ndarray]:
+    graph = graph.tocsr()
     graph.setdiag(0.0)
     graph.eliminate_zeros()
     return graph.indptr.astype(np.int64), graph.indices.astype(np.int64)
+
+
+def _checked_groups(groups, shape: tuple, n_groups: int) -> np.ndarray:
+    """`groups` as int64, or a ValueError: one group of ``range(n_groups)`` per unknown of a
+    square matrix, each group holding one at least."""
+    groups = np.asarray(groups)
+    n = shape[1]
+    valid = (shape[0] == n and groups.shape == (n,) and groups.dtype.kind in "iu"
+             and (n == 0 or (groups.min() >= 0 and groups.max() < n_groups)))  # fmt: skip
+    if not valid or np.count_nonzero(np.bincount(groups, minlength=n_groups)) != n_groups:
+        raise ValueError(f"`groups` must give each unknown of the square {shape} matrix one of the {n_groups} bodies, "
+                         "each body holding one at least.")  # fmt: skip
+    return groups.astype(np.int64, copy=False)
 
 
 def _metis_order(xadj: np.ndarray, adjacency: np.ndarray) -> np.ndarray:

@@ -22,9 +22,13 @@ def redundant_rows(jacobian, preference: np.ndarray) -> np.ndarray:
     """Equations to leave out so that the others are independent: those
     `sparsekin.analysis.rank.analyse_jacobian` names (later joints first, drivers last, as
     the kinematics names them; `preference` from `sparsekin.analysis.describe.row_preference`).
-    Its square branch never hands an exactly singular matrix to SuperLU (which crashed on one)."""
-    from ..analysis.rank import analyse_jacobian
+    Its square branch never hands an exactly singular matrix to SuperLU (which crashed on one).
+    A small Jacobian whose rows are clearly independent (`independent_rows`, a dense SVD)
+    has none without the analysis's iterations."""
+    from ..analysis.rank import analyse_jacobian, independent_rows
 
+    if independent_rows(jacobian):
+        return np.zeros(0, dtype=np.int64)
     return analyse_jacobian(jacobian, row_preference=preference).redundant_rows
 
 

@@ -117,9 +117,6 @@ REFINEMENT_CONTRACTION = 0.1
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
 GROWTH_AFTER = 4
-#: The velocity projection stops refining once its increment is below this fraction of
-#: Newton's velocity noise γ′ · floor (and the drift is at the tolerance).
-PROJECTION_NOISE = 0.1
 
 
 @dataclass(frozen=True)
@@ -200,7 +197,8 @@ class GeneralizedAlphaStepper:
     linear_solver : {"auto", "dense", "superlu", "refactor"}
         The saddle matrix's solver, planned by `sparsekin.solve.policy.plan_saddle_solver`
         (``"auto"``: dense LU up to `~sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE`
-        unknowns, `RefactorSolver` above).
+        unknowns, `RefactorSolver` above, a fresh SuperLU factorization each time for grid
+        models from `~sparsekin.solve.policy.MIN_MESH_SADDLE_SIZE`).
     pattern : ConstraintPattern, optional
         With a Mechanism: its pattern, if built already.
     options : SolveOptions, optional
@@ -290,8 +288,10 @@ class GeneralizedAlphaStepper:
         n, m = pattern.n_coordinates, pattern.n_equations
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
-        self.solver = self._make_solver(system.size)
-        self._work = (np.zeros(system.size), np.zeros(n), np.zeros(system.size))  # Newton's rhs, force, correction
+        self.solver = self._make_solver(system)
+        self._work = (np.zeros(system.size), np.zeros(n))  # Newton's rhs (its correction solved in place), force
+        # the projections': solution, residual; drift, drift left (every equation); zeros (q̈)
+        self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
         masses = system.loads.arrays.masses
@@ -408,7 +408,8 @@ class GeneralizedAlphaStepper:
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
         phi = system.fill_constraints(q) if phi is None else phi
-        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v), system.assembler.weights)
+        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]),
+                                                system.assembler.weights)  # fmt: skip
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
         if self._balance0 is None:
@@ -432,8 +433,9 @@ class GeneralizedAlphaStepper:
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
+        self._floor.step_begins()
         weights = self._weights
-        rhs, force, delta = self._work
+        rhs, force = self._work
         all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
@@ -441,30 +443,32 @@ class GeneralizedAlphaStepper:
         # rounding floor of q.
         bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
+        q_size = _dynamics_kernels.weighted_norm(q, weights)  # then from `newton_update`
         for iteration in range(max_iterations + 1):
             phi_norm = system.fill_constraints(q)
-            floor = ROUNDING * (1.0 + _dynamics_kernels.weighted_norm(q, weights))
+            floor = ROUNDING * (1.0 + q_size)
             stall = STALL * math.sqrt(n) * floor
             if settled and self._constraints_met(phi_norm, max(bound, floor, stalled)):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
             system.residual(q, v, a, lam, force)
-            if not (math.isfinite(phi_norm) and math.isfinite(_dynamics_kernels.weighted_norm(force, weights))):
+            finite = _dynamics_kernels.newton_rhs(force, -1.0 / beta_prime, system.assembler.residual, kept, all_kept,
+                                                  rhs)  # fmt: skip
+            if not (math.isfinite(phi_norm) and finite):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
                 self._factor(q, v, a, lam, coefficients)
                 fresh = True
-            _dynamics_kernels.newton_rhs(force, -1.0 / beta_prime, system.assembler.residual, kept, all_kept, rhs)
             try:
-                solver.solve(rhs, out=delta)
+                delta = solver.solve(rhs, out=rhs)
             except SingularMatrix as error:
                 raise _StepFailed(str(error)) from None
             self.n_newton += 1
-            correction = _dynamics_kernels.weighted_norm(delta[:n], weights)
+            correction, q_size = _dynamics_kernels.newton_update(delta, gamma_prime, beta_prime, kept, all_kept, weights,
+                                                               q, v, a, lam)  # fmt: skip
             if not math.isfinite(correction):
-                raise _StepFailed("non-finite correction")
-            _dynamics_kernels.newton_update(delta, gamma_prime, beta_prime, kept, all_kept, q, v, a, lam)
+                raise _StepFailed("non-finite correction")  # (q, v, a, λ are this attempt's: the step is halved)
             if iteration > 0:
                 rate = correction / last
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
@@ -512,6 +516,7 @@ class GeneralizedAlphaStepper:
         self._factor_filled(self.system.fill_matrix(q, v, a, lam, *coefficients, regularization))
 
     def _factor_filled(self, matrix) -> None:
+        self._floor.refactored()
         try:
             self.solver.factor(matrix)
         except SingularMatrix as error:
@@ -526,8 +531,9 @@ class GeneralizedAlphaStepper:
         drift is within the bound."""
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
-        noise = self._projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
-        change = self._project(q, v, lam, coefficients, self.system.velocity_drift(v), bound, "velocity", noise)
+        noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
+        drift = self.system.velocity_drift(v, self._projection_work[2])
+        change = self._project(q, v, lam, coefficients, drift, bound, "velocity", noise)
         if change is not None:
             v -= change[: v.size]
 
@@ -546,19 +552,13 @@ class GeneralizedAlphaStepper:
         assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
-        noise = self._projection_noise(1.0 / coefficients[2])  # β′
-        change = self._project(q, v, lam, coefficients, assembler.jacobian @ a - assembler.acceleration_rhs, bound,
-                               "acceleration", noise)  # fmt: skip
+        noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
+        drift = self.system.jacobian_product(a, assembler.acceleration_rhs, self._projection_work[2])
+        change = self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
         if change is not None:
             a -= change[: a.size]
             pseudo -= change[: a.size]
             lam[self.system.kept_rows] -= change[a.size :]
-
-    def _projection_noise(self, rate: float) -> float:
-        """A tenth (`PROJECTION_NOISE`) of the noise Newton leaves in the velocities
-        (`rate` γ′) or accelerations (`rate` β′): `rate` times the measured rounding floor of
-        its corrections (`RoundingFloor`; large path only, else 0: refine to the bound)."""
-        return PROJECTION_NOISE * rate * self._floor.level if self._floor.enabled else 0.0
 
     def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0):
         """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
@@ -580,42 +580,46 @@ class GeneralizedAlphaStepper:
         that the rounding decides.  An increment below `noise` ends the refinement once the
         drift left is within `bound`.  On the large path the refinement's residual is formed
         without assembling the matrix (`DynamicSystem.product`)."""
-        system, n, kept = self.system, self.system.n, self.system.kept_rows
-        weights = self.assembler.weights[kept]
-        drift = drift[kept]
+        system, n = self.system, self.system.n
+        weights = system.kept(self.assembler.weights)
+        drift = system.kept(drift)
         before = _dynamics_kernels.weighted_norm(drift, weights)
         if before <= bound:
             return None
-        goal = np.zeros(system.size)
-        goal[n:] = drift
-        solution = np.zeros(system.size)
-        residual, product, matrix = goal.copy(), np.empty(system.size), None
-        last, fresh, filled, zeros = math.inf, False, False, np.zeros(n)
+        # in two arrays made at `start` (10^6 bodies: no temporaries), the increments solved in
+        # place of the residual [0; drift] − S · solution
+        solution, residual, zeros = self._projection_work[0], self._projection_work[1], self._projection_work[4]
+        residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
+        matrix, last, fresh, filled = None, math.inf, False, False
         for iteration in range(PROJECTION_ITERATIONS):
-            increment = self.solver.solve(residual)
+            increment = self.solver.solve(residual, out=residual)
             solution += increment
             size = _dynamics_kernels.weighted_norm(increment[:n], self._weights)
             if size <= bound or (size <= noise and self._drift_left(drift, solution, weights) <= bound):
+                if math.isfinite(last):
+                    self._floor.refined(what, size / last)
                 return solution
+            if (iteration == 0 and self._floor.skips_refinement(what, size, noise)
+                    and self._drift_left(drift, solution, weights) <= bound):  # fmt: skip
+                return solution  # the next increment would be far below the noise (`RoundingFloor`)
             if size > REFINEMENT_CONTRACTION * last or not (fresh or _converges_in_time(
                     size, size / last, bound, PROJECTION_ITERATIONS - iteration - 1)):  # fmt: skip
                 if fresh:
                     break
                 self._factor(q, v, zeros, lam, coefficients)
                 matrix, fresh, filled = None, True, False
-                solution[:] = 0.0
-                residual[:] = goal
+                residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
                 last = math.inf
                 continue
             last = size
             if self._floor.enabled:  # the large path: S x without assembling S
-                np.subtract(goal, system.product(q, v, zeros, lam, *coefficients, solution, product, same_state=filled),
-                            out=residual)  # fmt: skip
+                product = system.product(q, v, zeros, lam, *coefficients, solution, residual, same_state=filled)
                 filled = True
-                continue
-            if matrix is None:
-                matrix = self._projection_matrix(q, v, lam, coefficients)
-            residual = goal - matrix @ solution
+            else:
+                matrix = self._projection_matrix(q, v, lam, coefficients) if matrix is None else matrix
+                product = matrix @ solution
+            np.subtract(0.0, product[:n], out=residual[:n])
+            np.subtract(drift, product[n:], out=residual[n:])
         left = self._drift_left(drift, solution, weights)
         if left <= bound:  # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
             return solution
@@ -632,7 +636,8 @@ class GeneralizedAlphaStepper:
         """The weighted drift of the kept equations, `drift` (theirs), after a projection's
         change ``solution[:n]`` (Φq at the converged q)."""
         system = self.system
-        left = drift - system.kept(self.assembler.jacobian @ solution[: system.n])
+        left = system.kept(system.jacobian_product(solution[: system.n], out=self._projection_work[3]))
+        np.subtract(drift, left, out=left)
         return _dynamics_kernels.weighted_norm(left, weights)
 
     # ------------------------------------------------------------------ start
@@ -664,8 +669,9 @@ class GeneralizedAlphaStepper:
 
         return tuple(equation_label(self.mechanism, self.pattern, int(r)) for r in self.redundant_rows)
 
-    def _make_solver(self, size: int):
-        plan = plan_saddle_solver(size, self.options.linear_solver, self.options.thresholds)
+    def _make_solver(self, system: DynamicSystem):
+        plan = plan_saddle_solver(system.size, self.options.linear_solver, self.options.thresholds,
+                                  discretization=self.discretization)  # fmt: skip
         self.path = plan.solver
         return plan.make_solver()
 

@@ -20,7 +20,8 @@ The plan is a value (`SolverPlan`): the facade, the stepper and the benchmark ha
 ask `plan_linear_solver`, with the thresholds as an argument (`Thresholds`).  Forward
 dynamics solves the saddle matrix [[M + …, Φqᵀ], [Φq, 0]] instead of Φq: its plan is
 `plan_saddle_solver`, dense LU up to `SADDLE_DENSE_MAX_SIZE` unknowns, a refactorization
-above.
+above, and for a grid model from `MIN_MESH_SADDLE_SIZE` unknowns on a fresh factorization
+each time (`MESH_SADDLE_SOLVER`).
 
 >>> from sparsekin.engine.discretization import discretize
 >>> from sparsekin.testset import task5, lattice
@@ -52,6 +53,8 @@ __all__ = [
     "MAX_REFACTOR_FILL",
     "MIN_METIS_COORDINATES",
     "MIN_DISSECTION_COORDINATES",
+    "MIN_MESH_SADDLE_SIZE",
+    "MESH_SADDLE_SOLVER",
     "SolverPlan",
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
@@ -86,6 +89,21 @@ MIN_DISSECTION_COORDINATES = 30_000
 #: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix (coordinates plus
 #: kept equations) densely up to this size, with `RefactorSolver` above.
 SADDLE_DENSE_MAX_SIZE = 400
+#: ``linear_solver="auto"`` of forward dynamics factors the saddle matrix of a grid model
+#: (grid repeats, the coordinates those of the bodies) from this size on afresh at every
+#: factorization (`MESH_SADDLE_SOLVER`) instead of refactoring it with `RefactorSolver`: on
+#: lattices with masses a fresh SuperLU's first sample took 0.35–0.77 of the
+#: refactorization's from 3·10^3 bodies (18 018 unknowns) to 10^4, its step 0.60–1.04 of
+#: it; at 10^5 bodies first samples of 14–20 s against 92–152 s,
+#: and a step that factors (a moving lattice) 15–19 s against 43 s (docs/design-notes.md,
+#: "Forward dynamics of lattices").
+MIN_MESH_SADDLE_SIZE = 18_000
+#: The solver of a grid model's saddle matrix above `MIN_MESH_SADDLE_SIZE`: ``"superlu"``
+#: (COLAMD, `SuperLUSolver`), measured as fast as or faster than ``"dissection"``
+#: (`DissectionSolver`: the bodies' coordinates and multipliers in the geometric nested
+#: dissection of where they are drawn) on every saddle measured: the dissection's fill was
+#: 0.85–1.4 times COLAMD's, its factorization and solves no faster.
+MESH_SADDLE_SOLVER = "superlu"
 #: ``linear_solver="auto"`` or ``"dense"`` of forward dynamics runs the compiled block
 #: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
 #: equations), when the model's laws are all built in.
@@ -124,6 +142,10 @@ class Thresholds:
         `SADDLE_DENSE_MAX_SIZE`.
     compiled_saddle_max_size : int
         `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop).
+    min_mesh_saddle_size : int
+        `MIN_MESH_SADDLE_SIZE`.
+    mesh_saddle_solver : {"superlu", "dissection"}
+        `MESH_SADDLE_SOLVER`.
     """
 
     compiled_max_coordinates: int = COMPILED_MAX_COORDINATES
@@ -135,6 +157,8 @@ class Thresholds:
     min_norm_iterations: int = MIN_NORM_ITERATIONS
     saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
     compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
+    min_mesh_saddle_size: int = MIN_MESH_SADDLE_SIZE
+    mesh_saddle_solver: str = MESH_SADDLE_SOLVER
 
 
 @dataclass(frozen=True)
@@ -160,6 +184,9 @@ class SolverPlan:
     points : ndarray or None
         Where the bodies are drawn, shape (n_bodies, 2): the places `DissectionSolver` cuts
         between (``"dissection"`` only).
+    take_out_factors : bool
+        `DissectionSolver`'s: solves on its factors taken out of SuperLU (the kinematics),
+        or SuperLU's own (forward dynamics's saddle matrix, factored about once a step).
     """
 
     loop: str
@@ -169,11 +196,12 @@ class SolverPlan:
     reuse_fill: float | None = None
     thresholds: Thresholds = field(default_factory=Thresholds)
     points: np.ndarray | None = field(default=None, compare=False, repr=False)
+    take_out_factors: bool = True
 
     def make_solver(self):
         """A fresh linear solver of the plan."""
         if self.solver == "dissection":
-            return DissectionSolver(self.points)
+            return DissectionSolver(self.points, self.take_out_factors)
         if self.solver == "refactor":
             return RefactorSolver(ordering=self.ordering)
         return _SOLVER_CLASSES[self.solver]()
@@ -210,9 +238,8 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
     )
     metis = auto and n >= thresholds.min_metis_coordinates and metis_installed()
     if auto and solver == "refactor" and n >= thresholds.min_dissection_coordinates and _is_mesh(discretization):
-        points = pattern.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
         return SolverPlan(loop="python", solver="dissection", reuse_fill=thresholds.max_refactor_fill,
-                          thresholds=thresholds, points=points)  # fmt: skip
+                          thresholds=thresholds, points=_drawn_places(discretization))  # fmt: skip
     return SolverPlan(
         loop="compiled" if compiled else "python",
         solver=solver,
@@ -224,25 +251,51 @@ def plan_linear_solver(discretization: Discretization, linear_solver: str = "aut
 
 
 def _is_mesh(discretization: Discretization) -> bool:
-    """Whether the model is a mesh `DissectionSolver` takes: grid repeats, as many equations
-    as coordinates (an overconstrained grid keeps the refactorization of its reduced
-    system), the coordinates those of the bodies."""
+    """Whether the model is a mesh `DissectionSolver` takes: a grid model (`_is_grid`) with as
+    many equations as coordinates (an overconstrained grid keeps the refactorization of its
+    reduced system)."""
+    pattern = discretization.constraints
+    return _is_grid(discretization) and pattern.n_equations == pattern.n_coordinates
+
+
+def _is_grid(discretization: Discretization) -> bool:
+    """Whether the model has grid repeats and its coordinates are those of the bodies."""
     pattern, mechanism = discretization.constraints, discretization.mechanism
-    return (any(copies.is_grid for copies in mechanism.copies) and pattern.n_equations == pattern.n_coordinates
+    return (any(copies.is_grid for copies in mechanism.copies)
             and pattern.n_coordinates == COORDINATES_PER_BODY * mechanism.n_bodies)  # fmt: skip
 
 
+def _drawn_places(discretization: Discretization) -> np.ndarray:
+    """Where the bodies are drawn, shape (n_bodies, 2): their origins."""
+    return discretization.constraints.initial_coordinates.reshape(-1, COORDINATES_PER_BODY)[:, :2].copy()
+
+
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
-                       compilable: bool = False) -> SolverPlan:  # fmt: skip
+                       compilable: bool = False, discretization: Discretization | None = None) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
     kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
-    above; never reused across steps (the integrator holds its own factorization while
-    Newton contracts).  A dense plan of a `compilable` model (its laws all built in) up to
-    `Thresholds.compiled_saddle_max_size` runs the compiled block stepper (loop
-    ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python loop."""
+    above, and for a grid model (its `discretization` given: grid repeats, the
+    coordinates those of the bodies; redundant equations may be left out) from
+    `Thresholds.min_mesh_saddle_size` on `Thresholds.mesh_saddle_solver`, a fresh
+    factorization each time (``"superlu"``; or ``"dissection"``: `DissectionSolver` on the
+    saddle matrix, the bodies' unknowns in a nested dissection of where they are drawn,
+    with SuperLU's own solves); never reused across steps (the integrator holds its own
+    factorization while Newton contracts).  A dense plan of a `compilable` model (its laws
+    all built in) up to `Thresholds.compiled_saddle_max_size` runs the compiled block
+    stepper (loop ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python
+    loop."""
     thresholds = Thresholds() if thresholds is None else thresholds
     if linear_solver == "auto":
+        if (discretization is not None and size >= max(thresholds.min_mesh_saddle_size, 1)
+                and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
+            if thresholds.mesh_saddle_solver not in ("superlu", "dissection"):
+                raise ValueError("`Thresholds.mesh_saddle_solver` must be 'superlu' or 'dissection', got "
+                                 f"{thresholds.mesh_saddle_solver!r}.")  # fmt: skip
+            if thresholds.mesh_saddle_solver == "dissection":
+                return SolverPlan(loop="python", solver="dissection", chord=False, thresholds=thresholds,
+                                  points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
+            return SolverPlan(loop="python", solver=thresholds.mesh_saddle_solver, chord=False, thresholds=thresholds)
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
     compiled = compilable and linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
