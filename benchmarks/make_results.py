@@ -38,6 +38,8 @@ COMMAND = (
 _HERE = Path(__file__).resolve().parent
 #: Lines printed by `measure_mesh_lu.py` and `measure_mesh_steps.py` (issue 29), kept by hand.
 MESH_LU = _HERE / "mesh_lu.jsonl"
+#: Lines printed by `measure_mesh_reuse.py` (issue 29: long lattice runs under `ReusingSolver`), kept by hand.
+MESH_REUSE = _HERE / "mesh_reuse.jsonl"
 #: The table printed by `memory_estimates.py` (issue 28) with its command and load, kept by hand.
 MEMORY_ESTIMATES = _HERE / "memory_estimates.md"
 #: Sizes over which the scaling exponents are fitted, bodies.
@@ -204,6 +206,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *_overconstrained(document["overconstrained"])]
     if MESH_LU.exists():
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
+    if MESH_REUSE.exists():
+        lines += ["", *mesh_reuse_section([json.loads(line) for line in MESH_REUSE.read_text().splitlines() if line])]
     if MEMORY_ESTIMATES.exists():
         lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
     if SMALL_DYNAMICS.exists():
@@ -428,6 +432,40 @@ def mesh_lu_section(records: list[dict]) -> list[str]:
                      r.get("taken", "—"), _seconds(first), step, solves, long_run,
                      f"{r['peak_rss_bytes'] / 2**30:.2f} GB"]  # fmt: skip
             lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def mesh_reuse_section(records: list[dict]) -> list[str]:
+    """`MESH_REUSE`: where a long lattice run's step goes under factorization reuse."""
+    lines = [
+        "### Long lattice runs under factorization reuse (issue 29; `measure_mesh_reuse.py`)",
+        "",
+        "`benchmarks/mesh_reuse.jsonl` holds the lines printed by `OPENBLAS_NUM_THREADS=1 PYTHONPATH=TREE",
+        "python3 benchmarks/measure_mesh_reuse.py TREE lattice BODIES 150`, the trees alternating in fresh",
+        "processes (\"tree\": which checkout's `ReusingSolver`; \"run\": the session, then the load average",
+        "at the line's end). 150 steps of `families.STEP` from t = 0 on `auto`'s path (`DissectionSolver`",
+        "held by `ReusingSolver`). Factorizations: the inner solver's, at moved poses after the first,",
+        "with their mean time; held solves: every solve with the held factors (GMRES's",
+        "preconditioner and the direct ones), with their mean time; GMRES: the iteration counts of",
+        "the GMRES solves (count × solves; −1 gave up); per factorization held (from t = 0's on): the",
+        "solves made with it × their mean time. The trees other than main are main with `ReusingSolver`'s",
+        "stale decision replaced (rent or buy, docs/design-notes.md, \"Factorization reuse\"); not kept.",
+        "Runs A–D: the first GMRES solve of each process also loaded GMRES's kernels from numba's cache",
+        "(0.3–0.7 s, both trees alike: a few ms a step at 10^4, under 1 % at 10^5); from run E on, loaded before.",
+        "",
+        "| run | tree | bodies | mean step | solves (phase) | factorizations | held solves | solves per step | GMRES "
+        "| per factorization held |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in records:
+        mean = r["factorization_s"] / max(r["factorizations"], 1)
+        held = f"{r['held_solves']} × {_seconds(r['held_solve_s'] / max(r['held_solves'], 1))}"
+        gmres = ", ".join(f"{k}×{v}" for k, v in r["gmres_solves_by_iterations"].items())
+        epochs = ", ".join(f"{n} × {_seconds(s)}" for n, s in r.get("held_solves_by_factorization", [])) or "—"
+        cells = [f"{r['run']}, load {r['load']:.1f}", r["tree_label"], f"{r['bodies']:,}", _seconds(r["mean_step_s"]),
+                 _seconds(r["split_s"]["solves"]), f"{r['factorizations']} × {_seconds(mean)}", held,
+                 f"{r['solves_per_step']:.2f}", gmres, epochs]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
