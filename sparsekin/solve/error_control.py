@@ -42,7 +42,6 @@ in two equal steps (no sliver step, which the index-3 form's 1/h² scaling disli
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
@@ -51,7 +50,7 @@ from ..errors import ConvergenceError
 from ..model.mechanism import Analysis
 
 __all__ = ["RTOL_RANGE", "SAFETY", "GROWTH_LIMIT", "SHRINK_LIMIT", "StepSizeController", "StepFailed",
-           "ErrorTooLarge", "advance_controlled", "checked_rtol", "local_error_constant", "step_to"]
+           "ErrorTooLarge", "advance_controlled", "local_error_constant", "step_to"]
 
 #: Smallest and largest accepted `rtol` (`sparsekin.model.mechanism.Analysis.rtol_range`).
 RTOL_RANGE = Analysis.rtol_range
@@ -69,18 +68,6 @@ SHORTEST_FRACTION = 1.0 / 16.0
 MEMORY = 0.98
 #: The order of the local error estimate (h³).
 ORDER = 3
-
-
-def checked_rtol(value) -> float | None:
-    """`value` as a float within `RTOL_RANGE` (None stays None), else a ValueError."""
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"`rtol` must be None or a positive number, got {value!r}.")
-    low, high = RTOL_RANGE
-    if not (math.isfinite(value) and low <= value <= high):
-        raise ValueError(f"`rtol` must be a number in [{low:g}, {high:g}], got {value!r}.")
-    return float(value)
 
 
 def local_error_constant(gamma: float, beta: float) -> float:

@@ -26,23 +26,33 @@ from ..model.laws import Spline
 from ..model.mechanism import Mechanism
 from ..results.recording import Selection
 from .branch_guard import BranchGuard
-from .error_control import RTOL_RANGE, checked_rtol
+from .error_control import RTOL_RANGE
 from .policy import LINEAR_SOLVERS, Thresholds
 
 __all__ = ["SolveOptions", "Request", "DynamicsOptions", "BranchGuard", "TOLERANCE_RANGE", "RTOL_RANGE", "check_times",
-           "checked_tolerance", "checked_max_iterations", "checked_rho_inf", "check_progress"]
+           "checked_tolerance", "checked_rtol", "checked_max_iterations", "checked_rho_inf", "check_progress"]
 
 #: Smallest and largest accepted `tolerance`: below about 4 eps the residual cannot be
 #: reached in floating point; above 1 % of the model size a "solution" is not one.
 TOLERANCE_RANGE = (4 * np.finfo(float).eps, 1e-2)
+def _checked_number(name: str, value, bounds: tuple[float, float], expected: str = "a positive number") -> float:
+    """`value` as a float within `bounds`, else a ValueError naming `name`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ValueError(f"`{name}` must be {expected}, got {value!r}.")
+    low, high = bounds
+    if not (math.isfinite(value) and low <= value <= high):
+        raise ValueError(f"`{name}` must be a number in [{low:.3g}, {high:g}], got {value!r}.")
+    return float(value)
+
+
 def checked_tolerance(value) -> float:
     """`value` as a float within `TOLERANCE_RANGE`, else a ValueError."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"`tolerance` must be a positive number, got {value!r}.")
-    low, high = TOLERANCE_RANGE
-    if not (math.isfinite(value) and low <= value <= high):
-        raise ValueError(f"`tolerance` must be a number in [{low:.3g}, {high:g}], got {value!r}.")
-    return float(value)
+    return _checked_number("tolerance", value, TOLERANCE_RANGE)
+
+
+def checked_rtol(value) -> float | None:
+    """`value` as a float within `RTOL_RANGE` (None stays None), else a ValueError."""
+    return None if value is None else _checked_number("rtol", value, RTOL_RANGE, "None or a positive number")
 
 
 def checked_max_iterations(value) -> int:
