@@ -40,6 +40,7 @@ from numba import njit
 from .._jit import JIT
 from ..engine._dynamics_kernels import (
     add_transposed_product,
+    fill_rounding_probe,
     fill_row_products,
     kinetic_potential_elastic,
     scatter_add,
@@ -233,6 +234,17 @@ def _solve(state, rhs, out):
     return True
 
 
+@njit(inline="always", **JIT)
+def _rounding_response(model, work, state, n, floor):
+    """`sparsekin.solve.rounding_floor.rounding_response` on the held factorization (in the
+    work arrays of Newton's right-hand side and correction, free after a correction)."""
+    rhs, delta = work[_RHS], work[_DELTA]
+    fill_rounding_probe(model[_KEPT_WEIGHTS], floor, n, rhs)
+    if not _solve(state, rhs, delta):
+        return 0.0
+    return weighted_norm(delta[:n], model[_COORDINATE_WEIGHTS])
+
+
 # ---------------------------------------------------------------------- one step
 @njit(inline="always", **JIT)
 def _converges_in_time(correction, rate, target, corrections_left):
@@ -415,6 +427,10 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
         if not settled and rate > contraction and iteration > 0:
             if correction <= (stall if fresh else noise * stall / stall_factor):
                 settled = True
+                counts[_STALLS] += 1
+                stalled = stall
+            elif fresh and correction <= _rounding_response(model, work, state, n, floor):
+                settled = True  # an ill-conditioned matrix's rounding (a flat crossing)
                 counts[_STALLS] += 1
                 stalled = stall
             elif fresh:

@@ -70,7 +70,7 @@ from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
-from .rounding_floor import RoundingFloor
+from .rounding_floor import RoundingFloor, rounding_response
 from .run import run
 from .steppers import SampleBlock, StepperStats
 
@@ -285,6 +285,7 @@ class GeneralizedAlphaStepper:
         # the projections': solution, residual; drift, drift left (every equation); zeros (q̈)
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
+        self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
@@ -477,6 +478,9 @@ class GeneralizedAlphaStepper:
                     self.n_stalls += 1
                     stalled = stall
                     self._floor.measured(correction, fresh)
+                elif fresh and correction <= rounding_response(solver, rhs, n, self._row_weights, weights, floor):
+                    settled, stalled = True, stall  # an ill-conditioned S's rounding (a flat crossing): not a floor
+                    self.n_stalls += 1
                 elif fresh:
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
