@@ -180,10 +180,11 @@ def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
 def _n_four_bar_at(loops: int, x0: float) -> Mechanism:
     """`n_four_bar(loops)` drawn `x0` m along x from the origin (the same motion, shifted)."""
     points = {f"{name}{i}": (x0 + i, y) for i in range(loops + 1) for name, y in (("A", 0.0), ("B", 1.0))}
+    bar = {"mass": 1.0, "inertia": 1 / 12}
     bodies = [Body(f"crank{i}", origin=f"A{i}", angle=np.pi / 2, points=(f"A{i}", f"B{i}"), com=(x0 + i, 0.5),
-                   mass=1.0, inertia=1 / 12, velocity=(0.0, 0.0, -1.0)) for i in range(loops + 1)]  # fmt: skip
+                   velocity=(0.0, 0.0, -1.0), **bar) for i in range(loops + 1)]  # fmt: skip
     bodies += [Body(f"coupler{i}", origin=f"B{i - 1}", points=(f"B{i - 1}", f"B{i}"), com=(x0 + i - 0.5, 1.0),
-                    mass=1.0, inertia=1 / 12, velocity=(1.0, 0.0, 0.0)) for i in range(1, loops + 1)]  # fmt: skip
+                    velocity=(1.0, 0.0, 0.0), **bar) for i in range(1, loops + 1)]  # fmt: skip
     joints = [Revolute((f"crank{i}", "ground"), at=f"A{i}") for i in range(loops + 1)]
     for i in range(1, loops + 1):
         joints += [Revolute((f"crank{i}", f"coupler{i}"), at=f"B{i}"),
@@ -204,7 +205,8 @@ def test_chain_far_from_the_origin_passes_its_flat_crossing(path):
     loops, x0 = 4, 1e4
     times = np.linspace(0.0, 1.0, 1001)
     size, compiled = {"refactor": (0, 0), "dense": (10**6, 0), "compiled": (10**6, 10**6)}[path]
-    options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=size, compiled_saddle_max_size=compiled))
+    thresholds = Thresholds(saddle_dense_max_size=size, compiled_saddle_max_size=compiled)
+    options = SolveOptions(1e-10, thresholds=thresholds)
     tracks = {}
     for shift in (0.0, x0):
         result = run_dynamics(discretize(_n_four_bar_at(loops, shift)), times, options, DynamicsOptions(1e-3),

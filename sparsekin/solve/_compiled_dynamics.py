@@ -429,7 +429,8 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
                 settled = True
                 counts[_STALLS] += 1
                 stalled = stall
-            elif fresh and phi_norm <= floor and correction <= _rounding_response(model, work, state, n, floor):
+            elif fresh and phi_norm <= floor and correction <= _rounding_response(
+                    model, work, state, n, floor):  # fmt: skip
                 settled = True  # an ill-conditioned matrix's rounding (a flat crossing)
                 counts[_STALLS] += 1
                 stalled = stall

@@ -480,7 +480,7 @@ class GeneralizedAlphaStepper:
                     self._floor.measured(correction, fresh)
                 elif fresh and phi_norm <= floor and correction <= rounding_response(
                         solver, rhs, n, self._row_weights, weights, floor):  # fmt: skip
-                    settled, stalled = True, stall  # Φ at the rounding of q, S ill-conditioned (a flat crossing)
+                    settled, stalled = True, stall  # Φ at q's rounding, S ill-conditioned (a flat crossing)
                     self.n_stalls += 1
                 elif fresh:
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")

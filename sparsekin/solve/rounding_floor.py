@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from ..engine._dynamics_kernels import fill_rounding_probe, weighted_norm
 
-__all__ = ["FLOOR_MARGIN", "FLOOR_STEPS", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor",
-           "rounding_response"]
+__all__ = ["FLOOR_MARGIN", "FLOOR_STEPS", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN",
+           "RoundingFloor", "rounding_response"]
 
 #: A floor measured by a stalled Newton is trusted for this many steps, then measured again.
 FLOOR_STEPS = 100
