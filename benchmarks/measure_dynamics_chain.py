@@ -8,7 +8,7 @@ measurement, one after the other (their peak memory is their own):
 * ``dynamic`` — `GeneralizedAlphaStepper` on `n_four_bar(N)` (gravity, released with B0 at
   1 m/s), fixed step 1 ms, one output sample per step; B0's largest position error against
   the exact answer (every crank moves as one four-bar: tests/dynamics_reference.py) over the
-  steps taken;
+  steps taken (a run that stops reports where, ``stopped``, and the error up to there);
 * ``exudyn`` — Exudyn 1.13.6 on the same chain (benchmarks/peers/exudyn_models.py
   ``timing chain``: generalized-α, modified Newton, its sparse LU, fixed 1 ms steps), the
   largest B0 error over its steps.
@@ -75,14 +75,22 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
             q = stepper.state.coordinates
             tips.append((k * STEP, q[0] + np.cos(q[2]), q[1] + np.sin(q[2])))
 
+    from sparsekin.errors import ConvergenceError
+
     for k in (1, 2):
         advance(k)
-    clock = time.perf_counter()
+    clock, stopped, done = time.perf_counter(), None, steps
     for k in range(3, steps + 3):
-        advance(k)
-    per_step = (time.perf_counter() - clock) / steps
-    result = {"analysis": analysis, "bodies": bodies, "steps": steps, "seconds_per_step": per_step,
+        try:
+            advance(k)
+        except ConvergenceError as error:  # a long run's failure: reported with the error up to there
+            stopped, done = str(error), k - 3
+            break
+    per_step = (time.perf_counter() - clock) / max(done, 1)
+    result = {"analysis": analysis, "bodies": bodies, "steps": done, "seconds_per_step": per_step,
               "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
+    if stopped is not None:
+        result |= {"stopped": stopped, "stopped_at_s": stepper.time}
     if analysis == "dynamic":
         sys.path.insert(0, str(ROOT / "tests"))
         from dynamics_reference import n_four_bar_b0
@@ -91,7 +99,8 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
         exact, _ = n_four_bar_b0(tips[:, 0], n_loops=loops)
         result["b0_error_m"] = float(np.abs(tips[:, 1:] - exact).max())
         result |= {"newton_per_step": stepper.n_newton / stepper.n_steps, "path": stepper.path,
-                   "factorizations": stepper.n_factorizations, "stalls": stepper.n_stalls}  # fmt: skip
+                   "factorizations": stepper.n_factorizations, "stalls": stepper.n_stalls,
+                   "steps_taken": stepper.n_steps, "halvings": stepper.n_subdivisions}  # fmt: skip
     return result
 
 

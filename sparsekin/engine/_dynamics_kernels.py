@@ -490,6 +490,19 @@ def newton_rhs(force, scale, residual, kept_rows, all_kept, rhs):
 
 
 @njit(**JIT)
+def fill_rounding_probe(row_weights, rounding, n, out):
+    """A residual of the constraints' rounding for Newton's matrix (`rounding_response`):
+    zero forces, and on kept row k ``± rounding / row_weights[k]`` (`rounding`, relative to
+    the coordinates' weighted size, in the row's own unit), the signs from a fixed hash of k
+    (no pattern a chain's modes could be orthogonal to; the same on every path and run)."""
+    for c in range(n):
+        out[c] = 0.0
+    for k in range(row_weights.size):
+        sign = 1.0 if ((k * 2654435761) >> 16) & 1 else -1.0
+        out[n + k] = sign * rounding / row_weights[k]
+
+
+@njit(**JIT)
 def newton_update(delta, gamma_prime, beta_prime, kept_rows, all_kept, weights, q, v, a, multipliers):
     """``q += δq``, ``v += γ′ δq``, ``a += β′ δq``, ``λ_kept += β′ δλ``; returns the weighted
     norms (`weighted_norm`) of δq and of the new q, in the same pass."""

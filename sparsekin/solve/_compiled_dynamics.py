@@ -40,6 +40,7 @@ from numba import njit
 from .._jit import JIT
 from ..engine._dynamics_kernels import (
     add_transposed_product,
+    fill_rounding_probe,
     fill_row_products,
     kinetic_potential_elastic,
     scatter_add,
@@ -73,7 +74,7 @@ _OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
  _DELTA, _V_CONSTRAINTS, _ACCELERATION_RHS) = range(32)  # fmt: skip
 #: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
 _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
-_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0 = range(7)
+_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD = range(8)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
 #: Positions in the rules (`compiled_start`).
 (_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS,
@@ -231,6 +232,17 @@ def _solve(state, rhs, out):
         if not math.isfinite(value):
             return False
     return True
+
+
+@njit(inline="always", **JIT)
+def _rounding_response(model, work, state, n, floor):
+    """`sparsekin.solve.rounding_floor.rounding_response` on the held factorization (in the
+    work arrays of Newton's right-hand side and correction, free after a correction)."""
+    rhs, delta = work[_RHS], work[_DELTA]
+    fill_rounding_probe(model[_KEPT_WEIGHTS], floor, n, rhs)
+    if not _solve(state, rhs, delta):
+        return 0.0
+    return weighted_norm(delta[:n], model[_COORDINATE_WEIGHTS])
 
 
 # ---------------------------------------------------------------------- one step
@@ -417,6 +429,11 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
                 settled = True
                 counts[_STALLS] += 1
                 stalled = stall
+            elif fresh and phi_norm <= floor and correction <= _rounding_response(
+                    model, work, state, n, floor):  # fmt: skip
+                settled = True  # an ill-conditioned matrix's rounding (a flat crossing)
+                counts[_STALLS] += 1
+                stalled = stall
             elif fresh:
                 return _STEP_FAILED
             else:
@@ -524,7 +541,7 @@ def _advance_samples(model, state, work, spare, settings, rules_, times, out, fo
         _copy_state(state, saved)
         for j in range(scalars.size):
             saved_scalars[j] = scalars[j]
-        step, good, before = scalars[_STEP], 0, counts[_NEWTON]
+        step, good, before = scalars[_STEP], int(scalars[_GOOD]), counts[_NEWTON]  # good steps across samples
         while scalars[_TIME] < t:
             now = scalars[_TIME]
             remaining = t - now
@@ -546,7 +563,7 @@ def _advance_samples(model, state, work, spare, settings, rules_, times, out, fo
                 for j in range(scalars.size):
                     scalars[j] = saved_scalars[j]
                 return k
-        scalars[_STEP] = step
+        scalars[_STEP], scalars[_GOOD] = step, good
         iterations[k] = counts[_NEWTON] - before
         _publish(model, work, state, k, out, forces)
     return times.size
@@ -609,6 +626,7 @@ class CompiledDynamicsLoop:
             q, v, a, pseudo, lam, scalars = (array.copy() for array in self._state[:6])
             resume(python, q, v, a, pseudo, lam, scalars[_TIME], scalars[_STEP], scalars[_WORK], scalars[_DISSIPATED],
                    (scalars[_POWER], scalars[_DAMPING]))  # fmt: skip
+            python._good = int(scalars[_GOOD])
             if solved == 0:
                 return self._steps.advance_block(times)
         recorded = {ENERGY: out[4][:solved], DRIFT: out[5][:solved]}
@@ -651,7 +669,8 @@ class CompiledDynamicsLoop:
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
         start = python.state
-        scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0])
+        scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0,
+                            python._good])  # fmt: skip
         counts = np.zeros(8, dtype=np.int64)
         self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
                        tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip

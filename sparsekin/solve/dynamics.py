@@ -70,7 +70,7 @@ from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
-from .rounding_floor import RoundingFloor
+from .rounding_floor import RoundingFloor, rounding_response
 from .run import run
 from .steppers import SampleBlock, StepperStats
 
@@ -243,7 +243,7 @@ class GeneralizedAlphaStepper:
         self._floor = RoundingFloor(False)
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
-        self._factored = False
+        self._factored, self._good = False, 0  # good steps in a row at a reduced step
         self._balance0: float | None = None
         self._recorded: dict = {}
 
@@ -285,6 +285,7 @@ class GeneralizedAlphaStepper:
         # the projections': solution, residual; drift, drift left (every equation); zeros (q̈)
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
+        self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
@@ -331,7 +332,7 @@ class GeneralizedAlphaStepper:
         t = float(t)
         if not t > state.time:
             raise ValueError(f"`t` must be after the current time {state.time!r}, got {t!r}.")
-        step, good, before = state.step, 0, self.n_newton
+        step, good, before = state.step, self._good, self.n_newton  # good steps counted across samples
         if self.controller is not None:  # rtol: every step chosen by its error estimate
             step = advance_controlled(self, t, MAX_HALVINGS, GROWTH_AFTER)
         while self._state.time < t:
@@ -355,7 +356,7 @@ class GeneralizedAlphaStepper:
                 step, good = min(2.0 * step, self.max_step), 0
             if step == self.max_step:
                 self._floor.recovered()
-        self._state = self._state._replace(step=step)
+        self._state, self._good = self._state._replace(step=step), good
         self._publish(self._constraint_norm)
         return self.n_newton - before
 
@@ -477,6 +478,10 @@ class GeneralizedAlphaStepper:
                     self.n_stalls += 1
                     stalled = stall
                     self._floor.measured(correction, fresh)
+                elif fresh and phi_norm <= floor and correction <= rounding_response(
+                        solver, rhs, n, self._row_weights, weights, floor):  # fmt: skip
+                    settled, stalled = True, stall  # Φ at q's rounding, S ill-conditioned (a flat crossing)
+                    self.n_stalls += 1
                 elif fresh:
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
