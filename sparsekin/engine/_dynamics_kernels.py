@@ -418,6 +418,25 @@ def fill_row_products(indptr, indices, values, x, out):
 
 
 @njit(**JIT)
+def drift_left_norm(indptr, indices, values, kept_row, x, drift, weights):
+    """The weighted norm (`weighted_norm`) of ``drift − J x`` on the kept rows of a CSR J
+    (``kept_row[r]``: the row's index among them in `drift`, −1 if left out; `weights` of
+    every row), in one pass without storing it: the drift a projection's change leaves."""
+    norm, probe = 0.0, 0.0
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        total = 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            total += values[s] * x[indices[s]]
+        left = abs(drift[kept] - total) * weights[r]
+        probe += 0.0 * left
+        norm = max(norm, left)
+    return norm if probe == 0.0 else math.nan
+
+
+@njit(**JIT)
 def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, cols, vals, start):
     """Φq and Φqᵀ of the kept rows (``kept_row[r]``: the row's index among them, −1 if
     left out) at rows/columns ``first + kept_row[r]``; 2 entries per Jacobian entry."""
