@@ -238,6 +238,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
         self._floor = RoundingFloor(False)
+        self._previous: tuple | None = None  # q̈ at the start of the last step and its size
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored = False
@@ -283,6 +284,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
+        self._previous, self._all_rows = None, np.arange(m, dtype=np.int64)
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
@@ -401,8 +403,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
         phi = system.fill_constraints(q) if phi is None else phi
-        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]),
-                                                system.assembler.weights)  # fmt: skip
+        p, assembler = self.pattern, system.assembler  # ‖Φq q̇ + Φt‖ of every equation, in one pass
+        drift = _dynamics_kernels.drift_left_norm(p.indptr, p.indices, assembler.values, self._all_rows, v,
+                                                  assembler.velocity_rhs, assembler.weights)  # fmt: skip
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
         if self._balance0 is None:
@@ -420,10 +423,13 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
         gamma_prime = gamma / (h * beta)
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
-        # predictor: the accelerations of the last step (new arrays: the state keeps them)
+        # predictor: the accelerations of the last step, extrapolated from the one before where
+        # that paid (`RoundingFloor.extrapolates`) (new arrays: the state keeps them)
         q, v, a = np.empty(n), np.empty(n), np.empty(n)
+        extrapolate = self._previous is not None and self._floor.extrapolates()
+        previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (state.accelerations, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
-                                  alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
+                                  alpha_m, alpha_f, gamma, beta, h, q, v, a, previous, ratio)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
         self._floor.step_begins()
@@ -464,6 +470,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                 raise _StepFailed("non-finite correction")  # (q, v, a, λ are this attempt's: the step is halved)
             if iteration > 0:
                 rate = correction / last
+            else:
+                self._floor.predicted(extrapolate, correction)
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
@@ -498,6 +506,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
+        self._previous = (state.accelerations, h)  # the step's start: the next one extrapolates from it
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
