@@ -284,7 +284,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
-        self._previous, self._all_rows = None, np.arange(m, dtype=np.int64)
+        self._previous = None
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
@@ -403,9 +403,12 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
         phi = system.fill_constraints(q) if phi is None else phi
-        p, assembler = self.pattern, system.assembler  # ‖Φq q̇ + Φt‖ of every equation, in one pass
-        drift = _dynamics_kernels.drift_left_norm(p.indptr, p.indices, assembler.values, self._all_rows, v,
-                                                  assembler.velocity_rhs, assembler.weights)  # fmt: skip
+        p, assembler = self.pattern, system.assembler  # ‖Φq q̇ + Φt‖ of every equation (one pass if all are kept)
+        if system.kept_rows.size == p.n_equations:  # kept_row is then every row's own index
+            drift = _dynamics_kernels.drift_left_norm(p.indptr, p.indices, assembler.values, system.kept_row, v,
+                                                      assembler.velocity_rhs, assembler.weights)  # fmt: skip
+        else:
+            drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]), assembler.weights)
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
         if self._balance0 is None:
