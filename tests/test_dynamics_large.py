@@ -5,7 +5,8 @@ chain cheap, each against an independent computation.
   the (row, column) keys, with the ground's and left-out equations' triplets discarded;
 * `DynamicSystem.product` (S x without assembling S) against the assembled S;
 * `RoundingFloor`'s rules (measured, only downwards from a held matrix, forgotten; the
-  projections' refinement skipped on a measured contraction grown as the age squared);
+  projections' refinement skipped on a measured contraction grown as the age squared; the
+  predictor's extrapolation used while it pays);
 * the N-four-bar chain on the refactorization path against its exact answer (every crank
   moves as one four-bar: tests/dynamics_reference.py), with the dense path's motion and no
   drift at any sample, and through five singular (flat) crossings.
@@ -24,7 +25,8 @@ from sparsekin.engine.saddle import DynamicSystem
 from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
-from sparsekin.solve.rounding_floor import FLOOR_STEPS, RATE_STEPS, REFINEMENT_MARGIN, RoundingFloor
+from sparsekin.solve.rounding_floor import (EXTRAPOLATION_GAIN, FLOOR_STEPS, RATE_STEPS, REFINEMENT_MARGIN,
+                                            RoundingFloor)
 from sparsekin.testset import n_four_bar
 
 
@@ -111,6 +113,55 @@ def test_refinement_skipped_only_on_a_measured_contraction_grown_with_age():
     assert dense.projection_noise(1e3) == 0.0 and not dense.skips_refinement("velocity", 1e-12, noise)
     floor.measured(4e-10, fresh=True)
     assert floor.projection_noise(2e3) == pytest.approx(0.1 * 2e3 * 4e-10)
+
+
+def test_predictor_extrapolates_while_it_pays():
+    floor = RoundingFloor(True)
+    floor.refactored()  # the first step's factorization
+    for _ in range(RATE_STEPS - 1):
+        floor.predicted(False, 3e-9)
+        floor.step()
+    assert not floor.extrapolates()  # a factorization RATE_STEPS - 1 steps ago
+    floor.predicted(False, 3e-9)
+    floor.step()
+    assert floor.extrapolates()  # tried once no factorization was made for RATE_STEPS steps
+    floor.predicted(True, 0.99 * EXTRAPOLATION_GAIN * 3e-9)
+    assert floor.extrapolates()  # it paid: kept
+    floor.predicted(True, 1.01 * EXTRAPOLATION_GAIN * 3e-9)
+    assert not floor.extrapolates()  # it did not: off until tried again
+    for _ in range(RATE_STEPS - 1):
+        floor.predicted(False, 3e-9)
+        floor.step()
+    assert not floor.extrapolates()
+    floor.predicted(False, 3e-9)
+    floor.refactored()
+    floor.step()
+    assert not floor.extrapolates()  # RATE_STEPS since the trial, but a factorization just now
+    floor.failed()
+    floor._paid = True
+    assert not floor.extrapolates()  # never while regularized (after a failed step) ...
+    assert not RoundingFloor(False).extrapolates()  # ... nor on the dense path
+
+
+def test_long_chain_extrapolating_predictor_saves_a_correction(monkeypatch):
+    """10^4 bodies, 40 steps of 1 ms: the extrapolating predictor (`RoundingFloor.extrapolates`)
+    takes fewer Newton corrections than the last accelerations alone, B0 on the exact
+    answer as well, the drifts at the tolerance at every sample."""
+    from sparsekin.solve import rounding_floor
+
+    loops, times = 5000, np.linspace(0.0, 0.04, 41)
+    exact, _ = n_four_bar_b0(times, n_loops=loops)
+    results = {}
+    for gain in (EXTRAPOLATION_GAIN, -1.0):  # the rule, and an extrapolation that never pays
+        monkeypatch.setattr(rounding_floor, "EXTRAPOLATION_GAIN", gain)
+        options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+        results[gain] = run_dynamics(discretize(n_four_bar(loops)), times, options, DynamicsOptions(1e-3),
+                                     Request(coordinates=False, points=["B0"], energy=True))  # fmt: skip
+    extrapolating, constant = results[EXTRAPOLATION_GAIN], results[-1.0]
+    assert extrapolating.stats.n_solves < constant.stats.n_solves
+    errors = [np.abs(result.point("B0").position - exact).max() for result in (extrapolating, constant)]
+    assert errors[0] < 1e-7 and errors[0] <= 1.01 * errors[1]
+    assert extrapolating.energy.drift_position.max() <= 1e-10 and extrapolating.energy.drift_velocity.max() <= 1e-10
 
 
 def test_regularization_only_after_a_failed_step_on_the_large_path():

@@ -418,6 +418,25 @@ def fill_row_products(indptr, indices, values, x, out):
 
 
 @njit(**JIT)
+def drift_left_norm(indptr, indices, values, kept_row, x, drift, weights):
+    """The weighted norm (`weighted_norm`) of ``drift − J x`` on the kept rows of a CSR J
+    (``kept_row[r]``: the row's index among them in `drift`, −1 if left out; `weights` of
+    every row), in one pass without storing it: the drift a projection's change leaves."""
+    norm, probe = 0.0, 0.0
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        total = 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            total += values[s] * x[indices[s]]
+        left = abs(drift[kept] - total) * weights[r]
+        probe += 0.0 * left
+        norm = max(norm, left)
+    return norm if probe == 0.0 else math.nan
+
+
+@njit(**JIT)
 def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, cols, vals, start):
     """Φq and Φqᵀ of the kept rows (``kept_row[r]``: the row's index among them, −1 if
     left out) at rows/columns ``first + kept_row[r]``; 2 entries per Jacobian entry."""
@@ -465,12 +484,15 @@ def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
 # ---------------------------------------------------------------------- generalized-α's vector updates
 # (sparsekin.solve.dynamics: the same expressions, in the same order, as NumPy's, fused)
 @njit(**JIT)
-def predict(coordinates, velocities, accelerations, pseudo, alpha_m, alpha_f, gamma, beta, h, q, v, a):
-    """The predictor of a step of size h: ``a`` = the last accelerations, ã from them, and
-    q, v by the generalized-α formulas."""
+def predict(coordinates, velocities, accelerations, pseudo, alpha_m, alpha_f, gamma, beta, h, q, v, a, previous,
+            ratio):  # fmt: skip
+    """The predictor of a step of size h: ``a`` = the last accelerations, extrapolated
+    ``q̈_n + ratio (q̈_n − previous)`` (`previous` those of the step before, `ratio` this
+    step's size over that one's) unless `ratio` is 0, ã from them, and q, v by the
+    generalized-α formulas."""
     hh = h * h
     for k in range(q.size):
-        a[k] = accelerations[k]
+        a[k] = accelerations[k] + ratio * (accelerations[k] - previous[k]) if ratio != 0.0 else accelerations[k]
         predicted = ((1.0 - alpha_f) * a[k] + alpha_f * accelerations[k] - alpha_m * pseudo[k]) / (1.0 - alpha_m)
         q[k] = coordinates[k] + h * velocities[k] + hh * ((0.5 - beta) * pseudo[k] + beta * predicted)
         v[k] = velocities[k] + h * ((1.0 - gamma) * pseudo[k] + gamma * predicted)

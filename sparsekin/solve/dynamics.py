@@ -70,12 +70,13 @@ from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
+from .projections import PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, ConstraintProjections, _converges_in_time
 from .rounding_floor import RoundingFloor, rounding_response
 from .run import run
 from .steppers import SampleBlock, StepperStats
 
 __all__ = ["GeneralizedAlpha", "DynamicState", "GeneralizedAlphaStepper", "solve_dynamics", "run_dynamics",
-           "LINEAR_SOLVERS"]
+           "LINEAR_SOLVERS", "PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION"]
 
 #: Default Newton and projection tolerance: the velocity error that the steps of one second
 #: of motion may leave in all (lengths relative to the model size per second, rad/s).  A
@@ -105,10 +106,6 @@ CONTRACTION = 0.3
 #: The iteration matrix's (2, 2) block is −REGULARIZATION · (largest mass) · I: Newton's
 #: multiplier updates stay bounded where Φq loses rank for an instant (sparsekin.engine.saddle).
 REGULARIZATION = 1e-10
-#: Most solves of one velocity projection, and the contraction its iterative refinement
-#: must keep on the held factorization.
-PROJECTION_ITERATIONS = 8
-REFINEMENT_CONTRACTION = 0.1
 #: A failing step is halved at most this many times.
 MAX_HALVINGS = 12
 #: After this many good steps in a row at a reduced step, the step doubles.
@@ -172,7 +169,7 @@ class DynamicState(NamedTuple):
     dissipated: float
 
 
-class GeneralizedAlphaStepper:
+class GeneralizedAlphaStepper(ConstraintProjections):
     """Integrate a mechanism's equations of motion from sample to sample.
 
     Parameters
@@ -241,6 +238,7 @@ class GeneralizedAlphaStepper:
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
         self._floor = RoundingFloor(False)
+        self._previous: tuple | None = None  # q̈ at the start of the last step and its size
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored, self._good = False, 0  # good steps in a row at a reduced step
@@ -287,6 +285,7 @@ class GeneralizedAlphaStepper:
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
+        self._previous = None
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
@@ -405,8 +404,12 @@ class GeneralizedAlphaStepper:
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
         phi = system.fill_constraints(q) if phi is None else phi
-        drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]),
-                                                system.assembler.weights)  # fmt: skip
+        p, assembler = self.pattern, system.assembler  # ‖Φq q̇ + Φt‖ of every equation (one pass if all are kept)
+        if system.kept_rows.size == p.n_equations:  # kept_row is then every row's own index
+            drift = _dynamics_kernels.drift_left_norm(p.indptr, p.indices, assembler.values, system.kept_row, v,
+                                                      assembler.velocity_rhs, assembler.weights)  # fmt: skip
+        else:
+            drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]), assembler.weights)
         kinetic, potential, elastic = system.energies(q, v)
         balance = kinetic + potential + elastic + state.dissipated - state.work
         if self._balance0 is None:
@@ -424,10 +427,13 @@ class GeneralizedAlphaStepper:
         beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
         gamma_prime = gamma / (h * beta)
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
-        # predictor: the accelerations of the last step (new arrays: the state keeps them)
+        # predictor: the accelerations of the last step, extrapolated from the one before where
+        # that paid (`RoundingFloor.extrapolates`) (new arrays: the state keeps them)
         q, v, a = np.empty(n), np.empty(n), np.empty(n)
+        extrapolate = self._previous is not None and self._floor.extrapolates()
+        previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (state.accelerations, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
-                                  alpha_m, alpha_f, gamma, beta, h, q, v, a)  # fmt: skip
+                                  alpha_m, alpha_f, gamma, beta, h, q, v, a, previous, ratio)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
         self._floor.step_begins()
@@ -468,6 +474,8 @@ class GeneralizedAlphaStepper:
                 raise _StepFailed("non-finite correction")  # (q, v, a, λ are this attempt's: the step is halved)
             if iteration > 0:
                 rate = correction / last
+            else:
+                self._floor.predicted(extrapolate, correction)
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
             settled = left <= bound or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
@@ -506,6 +514,7 @@ class GeneralizedAlphaStepper:
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
+        self._previous = (state.accelerations, h)  # the step's start: the next one extrapolates from it
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
@@ -563,86 +572,6 @@ class GeneralizedAlphaStepper:
             pseudo -= change[: a.size]
             lam[self.system.kept_rows] -= change[a.size :]
 
-    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0):
-        """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
-        velocities or accelerations minus their target, every equation) and its
-        multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
-
-            [[A, Φqᵀ], [Φq, 0]] [Δ; μ] = [0; drift],
-
-        A the iteration matrix's leading block and Φq at the converged q.  The held
-        factorization (of an earlier state) preconditions iterative refinement on the
-        matrix at q, refactored when the refinement stops contracting, or contracts too
-        slowly to reach `bound` in the solves left (`_converges_in_time`): a correction along
-        stale normals would turn part of it along the motion, an energy error that adds
-        up step after step.  Where Φq has lost rank for an instant the refinement stalls
-        even on a fresh factorization (its (2, 2) block −r I makes it a penalty projection
-        there, ALI3-P's): what it removed is kept if it left less drift than there was —
-        the rest lies along Φq's vanishing singular values σ, where the drift is σ times
-        the velocity error and removing it would take a change drift / σ along a direction
-        that the rounding decides.  An increment below `noise` ends the refinement once the
-        drift left is within `bound`.  On the large path the refinement's residual is formed
-        without assembling the matrix (`DynamicSystem.product`)."""
-        system, n = self.system, self.system.n
-        weights = system.kept(self.assembler.weights)
-        drift = system.kept(drift)
-        before = _dynamics_kernels.weighted_norm(drift, weights)
-        if before <= bound:
-            return None
-        # in two arrays made at `start` (10^6 bodies: no temporaries), the increments solved in
-        # place of the residual [0; drift] − S · solution
-        solution, residual, zeros = self._projection_work[0], self._projection_work[1], self._projection_work[4]
-        residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
-        matrix, last, fresh, filled = None, math.inf, False, False
-        for iteration in range(PROJECTION_ITERATIONS):
-            increment = self.solver.solve(residual, out=residual)
-            solution += increment
-            size = _dynamics_kernels.weighted_norm(increment[:n], self._weights)
-            if size <= bound or (size <= noise and self._drift_left(drift, solution, weights) <= bound):
-                if math.isfinite(last):
-                    self._floor.refined(what, size / last)
-                return solution
-            if (iteration == 0 and self._floor.skips_refinement(what, size, noise)
-                    and self._drift_left(drift, solution, weights) <= bound):  # fmt: skip
-                return solution  # the next increment would be far below the noise (`RoundingFloor`)
-            if size > REFINEMENT_CONTRACTION * last or not (fresh or _converges_in_time(
-                    size, size / last, bound, PROJECTION_ITERATIONS - iteration - 1)):  # fmt: skip
-                if fresh:
-                    break
-                self._factor(q, v, zeros, lam, coefficients)
-                matrix, fresh, filled = None, True, False
-                residual[:n], residual[n:], solution[:] = 0.0, drift, 0.0
-                last = math.inf
-                continue
-            last = size
-            if self._floor.enabled:  # the large path: S x without assembling S
-                product = system.product(q, v, zeros, lam, *coefficients, solution, residual, same_state=filled)
-                filled = True
-            else:
-                matrix = self._projection_matrix(q, v, lam, coefficients) if matrix is None else matrix
-                product = matrix @ solution
-            np.subtract(0.0, product[:n], out=residual[:n])
-            np.subtract(drift, product[n:], out=residual[n:])
-        left = self._drift_left(drift, solution, weights)
-        if left <= bound:  # Φq near a loss of rank: the normal direction is ill-determined, the drift is not
-            return solution
-        if fresh and left <= before:
-            self.n_singular_projections += 1
-            return solution
-        raise _StepFailed(f"the {what} projection does not converge (increment {size:.3g})")
-
-    def _projection_matrix(self, q, v, lam, coefficients):
-        """The matrix the projections solve with, at the converged state (`_project`)."""
-        return self.system.fill_matrix(q, v, np.zeros(self.system.n), lam, *coefficients)
-
-    def _drift_left(self, drift, solution, weights) -> float:
-        """The weighted drift of the kept equations, `drift` (theirs), after a projection's
-        change ``solution[:n]`` (Φq at the converged q)."""
-        system = self.system
-        left = system.kept(system.jacobian_product(solution[: system.n], out=self._projection_work[3]))
-        np.subtract(drift, left, out=left)
-        return _dynamics_kernels.weighted_norm(left, weights)
-
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
         """All equations but the redundant ones (found at the drawing, as the kinematics does)."""
@@ -667,13 +596,6 @@ class GeneralizedAlphaStepper:
         self.path = plan.solver
         return plan.make_solver()
 
-
-
-def _converges_in_time(correction: float, rate: float, target: float, corrections_left: int) -> bool:
-    """Whether corrections shrinking by `rate` each reach `target` within `corrections_left`
-    more (modified Newton: a held matrix that contracts slowly is refactored before the
-    step runs out of corrections, as in Hairer & Wanner's simplified Newton)."""
-    return correction * rate ** max(corrections_left, 0) <= target
 
 
 def step_velocity_bound(tolerance: float, h: float) -> float:
