@@ -54,8 +54,8 @@ def test_banded_lu_is_lapacks_partial_pivoting(n, lower, upper, diagonal, rng):
     matrix = random_band(rng, n, lower, upper, diagonal)
     lower, upper = min(lower, n - 1), min(upper, n - 1)
     band = to_band(matrix, lower, upper)
-    pivots = np.empty(n, dtype=np.int64)
-    assert banded_lu(band, lower, upper, pivots)
+    pivots, extent = np.empty(n, dtype=np.int64), np.empty((2, n), dtype=np.int64)
+    assert banded_lu(band, lower, upper, pivots, extent)
     factors, expected_pivots = scipy.linalg.lu_factor(matrix)
     np.testing.assert_array_equal(pivots, expected_pivots)
     u = np.zeros((n, n))
@@ -67,21 +67,21 @@ def test_banded_lu_is_lapacks_partial_pivoting(n, lower, upper, diagonal, rng):
         assert (pivots != np.arange(n)).any()
     b = rng.standard_normal(n)
     x = b.copy()
-    banded_lu_solve(band, lower, upper, pivots, x)
+    banded_lu_solve(band, lower, upper, pivots, extent, x)
     assert backward_error(matrix, x, b) <= BACKWARD_ERROR
     np.testing.assert_allclose(x, scipy.linalg.lu_solve((factors, expected_pivots), b), rtol=1e-9,
                                atol=1e-9 * np.abs(x).max())  # fmt: skip
 
 
 def test_banded_lu_reports_a_failed_pivot():
-    pivots = np.empty(3, dtype=np.int64)
+    pivots, extent = np.empty(3, dtype=np.int64), np.empty((2, 3), dtype=np.int64)
     singular = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 0.0, 1.0]])  # an exact zero pivot at step 1
-    assert not banded_lu(to_band(singular, 1, 1), 1, 1, pivots)
+    assert not banded_lu(to_band(singular, 1, 1), 1, 1, pivots, extent)
     zero_column = np.array([[1.0, 0.0, 0.0], [3.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
-    assert not banded_lu(to_band(zero_column, 1, 1), 1, 1, pivots)
-    assert not banded_lu(to_band(np.array([[1.0, 2.0], [np.nan, 1.0]]), 1, 1), 1, 1, pivots[:2])
-    assert not banded_lu(to_band(np.array([[np.inf, 0.0], [0.0, 1.0]]), 1, 1), 1, 1, pivots[:2])
-    assert banded_lu(to_band(np.array([[0.0, 1.0], [1.0, 0.0]]), 1, 1), 1, 1, pivots[:2])  # needs its swap
+    assert not banded_lu(to_band(zero_column, 1, 1), 1, 1, pivots, extent)
+    assert not banded_lu(to_band(np.array([[1.0, 2.0], [np.nan, 1.0]]), 1, 1), 1, 1, pivots[:2], extent[:, :2])
+    assert not banded_lu(to_band(np.array([[np.inf, 0.0], [0.0, 1.0]]), 1, 1), 1, 1, pivots[:2], extent[:, :2])
+    assert banded_lu(to_band(np.array([[0.0, 1.0], [1.0, 0.0]]), 1, 1), 1, 1, pivots[:2], extent[:, :2])  # needs its swap
     np.testing.assert_array_equal(pivots[:2], [1, 1])
 
 
@@ -109,19 +109,19 @@ def test_factor_band_refills_and_solves_the_saddle_matrix_in_its_order(rng):
     assert lower == upper <= 8 and np.array_equal(np.sort(order), np.arange(size))
     slots = band_slots(matrix.indptr, matrix.indices, order, lower, upper)
     band = np.zeros((2 * lower + upper + 1, size), order="F")
-    pivots, scratch = np.empty(size, dtype=np.int64), np.empty(size)
+    pivots, scratch, extent = np.empty(size, dtype=np.int64), np.empty(size), np.empty((2, size), dtype=np.int64)
     for _ in range(2):  # the second factorization on the same band: its fill refilled from zeros
         matrix.data[:] = saddle_like(rng, 30).data
         values = np.append(matrix.data, 7.0)  # the discard slot of the loop's values is not read
-        assert factor_band(values, slots, band, lower, upper, pivots)
+        assert factor_band(values, slots, band, lower, upper, pivots, extent)
         assert (pivots != np.arange(size)).any()  # the multiplier block's zero diagonal
         b = rng.standard_normal(size)
         x = b.copy()
-        solve_band(band, lower, upper, pivots, order, scratch, x)
+        solve_band(band, lower, upper, pivots, extent, order, scratch, x)
         assert backward_error(matrix.toarray(), x, b) <= BACKWARD_ERROR
         np.testing.assert_allclose(x, spsolve(matrix.tocsc(), b), rtol=1e-9, atol=1e-9 * np.abs(x).max())
     matrix.data[:] = 0.0  # singular: reported, not solved
-    assert not factor_band(np.append(matrix.data, 0.0), slots, band, lower, upper, pivots)
+    assert not factor_band(np.append(matrix.data, 0.0), slots, band, lower, upper, pivots, extent)
 
 
 def test_band_slots_refuse_a_pattern_outside_the_band():

@@ -60,9 +60,15 @@ def band_slots(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray, lower
 
 
 @njit(**_JIT)
-def banded_lu(band, lower, upper, pivots):
+def banded_lu(band, lower, upper, pivots, extent):
     """LU with partial pivoting of a banded matrix in place (LAPACK's ``gbtf2``); True
     unless a pivot fails.
+
+    Exact zeros are skipped, as `sparsekin.engine._lu_kernels.dense_lu_factor` skips them:
+    the updates of column j run over its multipliers down to the last nonzero one only,
+    and a zero entry of the pivot row updates nothing.  A saddle matrix's band is mostly
+    zeros even after the factorization (A02: a quarter of L's and U's band holds
+    nonzeros), so `extent` records, per column, how far L and U reach for the solves.
 
     Parameters
     ----------
@@ -73,12 +79,17 @@ def banded_lu(band, lower, upper, pivots):
         The bandwidths below and above the diagonal.
     pivots : ndarray, shape (n,), int64
         Filled with the row interchanges (module docstring).
+    extent : ndarray, shape (2, n), int64
+        Filled with, for column j, the storage row of U's first nonzero above the diagonal
+        (``lower + upper`` if none) and the count of L's multipliers down to its last
+        nonzero one: what `banded_lu_solve` runs over.
 
     Returns
     -------
     bool
         False if a pivot is exactly zero or not finite (the matrix is singular, or holds an
-        inf or NaN in a pivot's column); `band` and `pivots` are then only partly factored.
+        inf or NaN in a pivot's column); `band`, `pivots` and `extent` are then only partly
+        filled.
     """
     n = band.shape[1]
     kv = lower + upper
@@ -101,21 +112,33 @@ def banded_lu(band, lower, upper, pivots):
                 r = kv + j - c
                 band[r + best, c], band[r, c] = band[r, c], band[r + best, c]
         inverse = 1.0 / band[kv, j]
+        reach = 0
         for i in range(1, below + 1):
             band[kv + i, j] *= inverse
+            if band[kv + i, j] != 0.0:
+                reach = i
+        extent[1, j] = reach
         for c in range(j + 1, last + 1):
             r = kv + j - c
             pivot_row = band[r, c]
             if pivot_row != 0.0:
-                for i in range(1, below + 1):
+                for i in range(1, reach + 1):
                     band[r + i, c] -= band[kv + i, j] * pivot_row
+    for j in range(n):
+        top = kv
+        for r in range(max(0, kv - j), kv):
+            if band[r, j] != 0.0:
+                top = r
+                break
+        extent[0, j] = top
     return True
 
 
 @njit(**_JIT)
-def banded_lu_solve(band, lower, upper, pivots, b):
+def banded_lu_solve(band, lower, upper, pivots, extent, b):
     """Solve ``matrix @ x = b`` in place in `b` (shape (n,)) from `banded_lu`'s output
-    (LAPACK's ``gbtrs``): the interchanges and L column by column, then U."""
+    (LAPACK's ``gbtrs``, over the `extent` of L's and U's columns): the interchanges and L
+    column by column, then U."""
     n = band.shape[1]
     kv = lower + upper
     for j in range(n):
@@ -124,18 +147,18 @@ def banded_lu_solve(band, lower, upper, pivots, b):
             b[j], b[swap] = b[swap], b[j]
         x_j = b[j]
         if x_j != 0.0:
-            for i in range(1, min(lower, n - 1 - j) + 1):
+            for i in range(1, extent[1, j] + 1):
                 b[j + i] -= band[kv + i, j] * x_j
     for j in range(n - 1, -1, -1):
         x_j = b[j] / band[kv, j]
         b[j] = x_j
         if x_j != 0.0:
-            for i in range(max(0, j - kv), j):
-                b[i] -= band[kv + i - j, j] * x_j
+            for r in range(extent[0, j], kv):
+                b[j - kv + r] -= band[r, j] * x_j
 
 
 @njit(**_JIT)
-def factor_band(values, band_slot, band, lower, upper, pivots):
+def factor_band(values, band_slot, band, lower, upper, pivots, extent):
     """Refill `band` from the CSR `values` of the saddle matrix (through `band_slot`) and
     factor it (`banded_lu`); True unless a pivot fails."""
     for c in range(band.shape[1]):
@@ -143,16 +166,16 @@ def factor_band(values, band_slot, band, lower, upper, pivots):
             band[r, c] = 0.0
     for s in range(band_slot.shape[1]):
         band[band_slot[0, s], band_slot[1, s]] += values[s]
-    return banded_lu(band, lower, upper, pivots)
+    return banded_lu(band, lower, upper, pivots, extent)
 
 
 @njit(**_JIT)
-def solve_band(band, lower, upper, pivots, order, scratch, b):
+def solve_band(band, lower, upper, pivots, extent, order, scratch, b):
     """Solve the saddle matrix's system in place in `b` from `factor_band`'s factors: `b`
     into the banded order (through `scratch`, shape (n,)), `banded_lu_solve`, and back."""
     n = order.size
     for i in range(n):
         scratch[i] = b[order[i]]
-    banded_lu_solve(band, lower, upper, pivots, scratch)
+    banded_lu_solve(band, lower, upper, pivots, extent, scratch)
     for i in range(n):
         b[order[i]] = scratch[i]
