@@ -13,7 +13,16 @@ import scipy.linalg
 from scipy.sparse import csr_array
 from scipy.sparse.linalg import spsolve
 
-from sparsekin.engine._banded_kernels import band_slots, banded_lu, banded_lu_solve, bandwidths, factor_band, solve_band
+from sparsekin.engine._banded_kernels import (
+    band_slots,
+    banded_lu,
+    banded_lu_solve,
+    bandwidths,
+    compress_factors,
+    compressed_lu_solve,
+    factor_band,
+    solve_band,
+)
 from sparsekin.solve._saddle_factorization import saddle_band_order
 
 #: ‖A x − b‖ / (‖A‖ ‖x‖ + ‖b‖) of a stable LU solve, with room for growth at these sizes.
@@ -71,6 +80,18 @@ def test_banded_lu_is_lapacks_partial_pivoting(n, lower, upper, diagonal, rng):
     assert backward_error(matrix, x, b) <= BACKWARD_ERROR
     np.testing.assert_allclose(x, scipy.linalg.lu_solve((factors, expected_pivots), b), rtol=1e-9,
                                atol=1e-9 * np.abs(x).max())  # fmt: skip
+    compressed = compressed_factors(band, lower, upper, extent)
+    y = b.copy()  # the compressed solve: the same operations on the nonzeros, the same result
+    compressed_lu_solve(band, lower, upper, pivots, compressed, y)
+    np.testing.assert_array_equal(y, x)
+
+
+def compressed_factors(band, lower, upper, extent):
+    n = band.shape[1]
+    factors = (np.empty((2, n + 1), dtype=np.int64), np.empty((2, n * max(lower + upper, 1)), dtype=np.int64),
+               np.empty((2, n * max(lower + upper, 1))))  # fmt: skip
+    compress_factors(band, lower, upper, extent, factors)
+    return factors
 
 
 def test_banded_lu_reports_a_failed_pivot():
@@ -110,18 +131,23 @@ def test_factor_band_refills_and_solves_the_saddle_matrix_in_its_order(rng):
     slots = band_slots(matrix.indptr, matrix.indices, order, lower, upper)
     band = np.zeros((2 * lower + upper + 1, size), order="F")
     pivots, scratch, extent = np.empty(size, dtype=np.int64), np.empty(size), np.empty((2, size), dtype=np.int64)
+    capacity = size * (lower + upper)
+    factors = (np.empty((2, size + 1), dtype=np.int64), np.empty((2, capacity), dtype=np.int64),
+               np.empty((2, capacity)))  # fmt: skip
     for _ in range(2):  # the second factorization on the same band: its fill refilled from zeros
         matrix.data[:] = saddle_like(rng, 30).data
         values = np.append(matrix.data, 7.0)  # the discard slot of the loop's values is not read
-        assert factor_band(values, slots, band, lower, upper, pivots, extent)
+        assert factor_band(values, slots, band, lower, upper, pivots, extent, factors)
         assert (pivots != np.arange(size)).any()  # the multiplier block's zero diagonal
+        kv = lower + upper  # the compressed factors: every nonzero of L and of U off the diagonal
+        np.testing.assert_array_equal(factors[0][:, -1], [np.count_nonzero(band[kv + 1 :]), np.count_nonzero(band[:kv])])
         b = rng.standard_normal(size)
         x = b.copy()
-        solve_band(band, lower, upper, pivots, extent, order, scratch, x)
+        solve_band(band, lower, upper, pivots, factors, order, scratch, x)
         assert backward_error(matrix.toarray(), x, b) <= BACKWARD_ERROR
         np.testing.assert_allclose(x, spsolve(matrix.tocsc(), b), rtol=1e-9, atol=1e-9 * np.abs(x).max())
     matrix.data[:] = 0.0  # singular: reported, not solved
-    assert not factor_band(np.append(matrix.data, 0.0), slots, band, lower, upper, pivots, extent)
+    assert not factor_band(np.append(matrix.data, 0.0), slots, band, lower, upper, pivots, extent, factors)
 
 
 def test_band_slots_refuse_a_pattern_outside_the_band():

@@ -13,11 +13,12 @@ fixed once per run by `compiled_factorization`, from the plan
   factorization (chain-like models: the IFToMM N-four-bar at N = 40, 485 unknowns,
   bandwidths 9 and 9; its factorization 10 times faster than the dense one).
 
-The factorization is a tuple ``(matrix, order, band_slot, bandwidths, scratch, extent)``:
-``matrix`` the dense (size, size) or band (2 kl + ku + 1, size) storage, both
+The factorization is a tuple ``(matrix, order, band_slot, bandwidths, scratch, extent,
+factors)``: ``matrix`` the dense (size, size) or band (2 kl + ku + 1, size) storage, both
 Fortran-ordered; ``order`` the banded order (empty: dense); ``band_slot`` where each CSR
 entry goes in the band; ``bandwidths`` ``[kl, ku]``; ``scratch`` a vector of the size;
-``extent`` the reach of L's and U's columns (`sparsekin.engine._banded_kernels.banded_lu`).
+``extent`` the reach of L's and U's columns and ``factors`` their nonzero entries
+compressed, which the solves run over (`sparsekin.engine._banded_kernels`).
 """
 
 from __future__ import annotations
@@ -61,29 +62,32 @@ def compiled_factorization(indptr: np.ndarray, indices: np.ndarray, thresholds: 
     if kind is None:
         return None
     if kind == "dense":
-        no_order = np.zeros(0, dtype=np.int64)
-        return (np.zeros((size, size), order="F"), no_order, np.zeros((2, 0), dtype=np.int64),
-                np.zeros(2, dtype=np.int64), np.zeros(size), np.zeros((2, 0), dtype=np.int64))  # fmt: skip
+        no_order, none = np.zeros(0, dtype=np.int64), np.zeros((2, 0), dtype=np.int64)
+        return (np.zeros((size, size), order="F"), no_order, none, np.zeros(2, dtype=np.int64), np.zeros(size), none,
+                (none, none, np.zeros((2, 0))))  # fmt: skip
+    capacity = size * (lower + upper)
+    factors = (np.zeros((2, size + 1), dtype=np.int64), np.zeros((2, capacity), dtype=np.int64),
+               np.zeros((2, capacity)))  # fmt: skip
     return (np.zeros((2 * lower + upper + 1, size), order="F"), order,
             band_slots(indptr, indices, order, lower, upper), np.array([lower, upper], dtype=np.int64),
-            np.zeros(size), np.zeros((2, size), dtype=np.int64))  # fmt: skip
+            np.zeros(size), np.zeros((2, size), dtype=np.int64), factors)  # fmt: skip
 
 
 @njit(**JIT)
 def factor_saddle(indptr, indices, values, factorization, pivots):
     """Refill the held `factorization` from the saddle matrix's CSR values and factor it;
     False if a pivot fails (singular, or not finite)."""
-    matrix, order, band_slot, widths, _, extent = factorization
+    matrix, order, band_slot, widths, _, extent, factors = factorization
     if order.size:
-        return factor_band(values, band_slot, matrix, widths[0], widths[1], pivots, extent)
+        return factor_band(values, band_slot, matrix, widths[0], widths[1], pivots, extent, factors)
     return _factor(indptr, indices, values, matrix, pivots)
 
 
 @njit(inline="always", **JIT)
 def solve_saddle(factorization, pivots, b):
     """Solve the saddle matrix's system in place in `b` with the held `factorization`."""
-    matrix, order, _, widths, scratch, extent = factorization
+    matrix, order, _, widths, scratch, _, factors = factorization
     if order.size:
-        solve_band(matrix, widths[0], widths[1], pivots, extent, order, scratch, b)
+        solve_band(matrix, widths[0], widths[1], pivots, factors, order, scratch, b)
     else:
         dense_lu_solve(matrix, pivots, b)
