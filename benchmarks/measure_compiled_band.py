@@ -42,7 +42,7 @@ def thresholds(path: str):
     if path == "dense":
         return Thresholds(compiled_saddle_max_size=10**6, saddle_dense_max_size=10**6, min_banded_saddle_size=10**9)
     if path == "banded":
-        return Thresholds(min_banded_saddle_size=1, max_band_fraction=1.0, max_compiled_bandwidth=10**9,
+        return Thresholds(min_banded_saddle_size=1, max_band_fraction=1.0, max_banded_work=10**12,
                           compiled_banded_max_size=10**9)  # fmt: skip
     return Thresholds(compiled_saddle_max_size=0)
 

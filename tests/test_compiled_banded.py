@@ -91,7 +91,9 @@ def test_a02s_saddle_is_a_narrow_band_and_takes_the_banded_lu():
     assert plan_saddle_solver(saddle.size, "refactor", compilable=True).loop == "python"
     assert plan_saddle_solver(saddle.size, "auto", PYTHON, compilable=True).loop == "python"
     assert plan_compiled_factorization(saddle.size, 300, 300) is None  # not a band: the Python stepper
-    assert plan_compiled_factorization(saddle.size, 9, 9, Thresholds(max_compiled_bandwidth=10)) is None
+    assert plan_compiled_factorization(saddle.size, 9, 9, Thresholds(max_banded_work=485 * 17)) is None
+    assert plan_compiled_factorization(41, 9, 9) == "dense"  # A03: small, and its band 0.44 of its size
+    assert plan_compiled_factorization(101, 30, 30) == "dense"  # a band wider than half the size
 
 
 def test_n_four_bar_through_a_singular_crossing_on_the_banded_lu(compiled_loops):

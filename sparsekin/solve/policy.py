@@ -61,7 +61,7 @@ __all__ = [
     "COMPILED_SADDLE_MAX_SIZE",
     "COMPILED_BANDED_MAX_SIZE",
     "MAX_BAND_FRACTION",
-    "MAX_COMPILED_BANDWIDTH",
+    "MAX_BANDED_WORK",
     "MIN_BANDED_SADDLE_SIZE",
     "plan_compiled_factorization",
     "plan_linear_solver",
@@ -115,17 +115,23 @@ MESH_SADDLE_SOLVER = "superlu"
 COMPILED_SADDLE_MAX_SIZE = 400
 #: The compiled block stepper factors the saddle matrix in a band (the unknowns in reverse
 #: Cuthill–McKee order, `sparsekin.solve._saddle_factorization`) from this size on, when
-#: the band is narrow enough (`MAX_BAND_FRACTION`); a dense LU below.
-MIN_BANDED_SADDLE_SIZE = 100
+#: the band is narrow enough (`MAX_BAND_FRACTION`, `MAX_BANDED_WORK`); a dense LU below.
+#: Measured (benchmarks/RESULTS.md, "Compiled loop: dense or banded LU"): the banded loop
+#: as fast as the dense one at 29 unknowns, 1.1x at 41–60 (A03, Task 5), 1.2x at 53, 1.7x
+#: at 101 (N-four-bars), 5.8x at 485 (A02); the small models keep the dense LU.
+MIN_BANDED_SADDLE_SIZE = 50
 #: … when its bandwidths below and above the diagonal add up to at most this fraction of
-#: the size.
-MAX_BAND_FRACTION = 0.25
-#: … and to at most this many (a wide band costs ``kl (kl + ku)`` per unknown and
-#: factorization: a mesh's band grows with its width, and SuperLU's fill does not).
-MAX_COMPILED_BANDWIDTH = 80
-#: ``linear_solver="auto"`` of forward dynamics runs the compiled block stepper on a banded
-#: saddle matrix up to this size (above: the Python stepper's refactorization).
-COMPILED_BANDED_MAX_SIZE = 100_000
+#: the size (measured: banded at least as fast as dense up to 0.6, Task 5).
+MAX_BAND_FRACTION = 0.5
+#: … and ``size · (kl + ku)`` is at most this (a step of the banded loop costs about that;
+#: the Python stepper's sparse refactorization, its Python overhead spread over more
+#: unknowns, overtakes it on large saddles): measured 1.2–1.4x faster than the Python
+#: stepper at 43 000–53 000 (N-four-bar N = 200, lattices 8x8 and 4x32), 0.64x at 216 000
+#: (N = 1000).
+MAX_BANDED_WORK = 60_000
+#: ``linear_solver="auto"`` of forward dynamics tries the compiled block stepper on a
+#: banded saddle matrix up to this size (above: the Python stepper, no band computed).
+COMPILED_BANDED_MAX_SIZE = 6_000
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
 
@@ -164,8 +170,8 @@ class Thresholds:
         `MIN_BANDED_SADDLE_SIZE`.
     max_band_fraction : float
         `MAX_BAND_FRACTION`.
-    max_compiled_bandwidth : int
-        `MAX_COMPILED_BANDWIDTH`.
+    max_banded_work : int
+        `MAX_BANDED_WORK`.
     compiled_banded_max_size : int
         `COMPILED_BANDED_MAX_SIZE` (0: never the compiled dynamics loop on a banded LU).
     min_mesh_saddle_size : int
@@ -185,7 +191,7 @@ class Thresholds:
     compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
     min_banded_saddle_size: int = MIN_BANDED_SADDLE_SIZE
     max_band_fraction: float = MAX_BAND_FRACTION
-    max_compiled_bandwidth: int = MAX_COMPILED_BANDWIDTH
+    max_banded_work: int = MAX_BANDED_WORK
     compiled_banded_max_size: int = COMPILED_BANDED_MAX_SIZE
     min_mesh_saddle_size: int = MIN_MESH_SADDLE_SIZE
     mesh_saddle_solver: str = MESH_SADDLE_SOLVER
@@ -364,7 +370,8 @@ def plan_compiled_factorization(size: int, lower: int | None, upper: int | None,
     thresholds = Thresholds() if thresholds is None else thresholds
     if (lower is not None and upper is not None
             and thresholds.min_banded_saddle_size <= size <= thresholds.compiled_banded_max_size
-            and lower + upper <= min(thresholds.max_band_fraction * size, thresholds.max_compiled_bandwidth)):  # fmt: skip
+            and lower + upper <= thresholds.max_band_fraction * size
+            and size * (lower + upper) <= thresholds.max_banded_work):  # fmt: skip
         return "banded"
     if size <= thresholds.compiled_saddle_max_size:
         return "dense"
