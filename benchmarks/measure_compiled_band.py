@@ -33,6 +33,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 DENSE_LIMIT = 1500
+#: The lines `--out` appends, for RESULTS.md (`results_section`, `make_results.py`).
+COMPILED_BAND = Path(__file__).resolve().with_name("compiled_band.jsonl")
 PATHS = ("dense", "banded", "python")
 
 
@@ -123,6 +125,46 @@ def main(argv=None) -> None:
                 "load_average": [before, os.getloadavg()[0]], "rounds": arguments.rounds, "rows": rows}  # fmt: skip
         with arguments.out.open("a") as file:
             file.write(json.dumps(line) + "\n")
+
+
+def _micro(seconds: float | None) -> str:
+    if seconds is None:
+        return "—"
+    return f"{seconds * 1e3:.3g} ms" if seconds >= 1e-3 else f"{seconds * 1e6:.3g} µs"
+
+
+def results_section(runs: list[dict]) -> list[str]:
+    """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `COMPILED_BAND`."""
+    lines = [
+        "## Compiled dynamics loop: dense or banded LU, and the Python stepper (`measure_compiled_band.py`)",
+        "",
+        "`benchmarks/compiled_band.jsonl` holds the runs of",
+        "`python3 benchmarks/measure_compiled_band.py [--loops …] [--lattices …] --out benchmarks/compiled_band.jsonl`",
+        "(issue 25, A02 in under 5 s). Per model and step, in one process, rounds alternating, medians:",
+        "the compiled loop on its dense LU, on its banded LU (the saddle's unknowns in reverse",
+        "Cuthill–McKee order, its bandwidths below/above given), and the Python stepper on the \"auto\"",
+        "solver (dense LAPACK up to 400 unknowns, the sparse refactorization above), each the",
+        "difference of a run to 3000 steps and one to 1000 over the 2000 between (the Python stepper:",
+        "a fifth), so the common start drops out. The machine was loaded (2 cores, load given): the",
+        "ratios are what to read. `sparsekin.solve.policy.plan_compiled_factorization`'s thresholds",
+        "(`MIN_BANDED_SADDLE_SIZE`, `MAX_BAND_FRACTION`, `MAX_BANDED_WORK`) come from these.",
+        "The banded kernels changed between runs: at 0254ef7 the solves ran over the whole band, at",
+        "49ce1e6 over each column's reach, from 94baf90 on over the factors' nonzeros (each 1.6–1.8×",
+        "faster a solve than the one before; a step of A02 is mostly solves).",
+    ]
+    for run in runs:
+        before, after = run["load_average"]
+        lines += ["", f"Run at commit {run['commit']}, {run['utc']} UTC, {run['rounds']} rounds, load average "
+                      f"{before:.1f} → {after:.1f}:", "",
+                  "| model | unknowns | kl/ku | dense | banded | Python stepper | dense / banded | Python / banded |",
+                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for name, row in run["rows"].items():
+            dense, banded, python = (row.get(f"{path}_per_step") for path in PATHS)
+            cells = [name, str(row["size"]), f"{row['lower']}/{row['upper']}", _micro(dense), _micro(banded),
+                     _micro(python), f"{dense / banded:.2f}×" if dense else "—",
+                     f"{python / banded:.2f}×" if python else "—"]  # fmt: skip
+            lines.append("| " + " | ".join(cells) + " |")
+    return lines
 
 
 if __name__ == "__main__":

@@ -143,3 +143,13 @@ def test_the_dense_solver_asked_for_keeps_the_dense_lu(compiled_loops):
     run_dynamics(discretize(n_four_bar(4)), times, solve, DynamicsOptions(1e-3), Request(energy=True))
     (loop,) = compiled_loops
     assert not banded(loop) and loop.n_compiled == 2
+
+
+def test_a_model_with_redundant_equations_stays_on_the_python_stepper(compiled_loops):
+    # the struck lattice leaves six redundant equations out: their minimum-norm forces are
+    # the Python stepper's to publish, banded or not
+    lattice = sk.load_model(EXAMPLES / "dynamics" / "struck_lattice.toml")
+    with pytest.warns(sk.RedundantConstraintWarning):
+        result = run(lattice, np.linspace(0.0, 0.01, 3), 1e-3, BANDED)
+    (loop,) = compiled_loops
+    assert result.complete and loop.fell_back and loop.n_compiled == 0 and loop._state is None

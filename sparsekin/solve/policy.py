@@ -116,12 +116,13 @@ COMPILED_SADDLE_MAX_SIZE = 400
 #: The compiled block stepper factors the saddle matrix in a band (the unknowns in reverse
 #: Cuthill–McKee order, `sparsekin.solve._saddle_factorization`) from this size on, when
 #: the band is narrow enough (`MAX_BAND_FRACTION`, `MAX_BANDED_WORK`); a dense LU below.
-#: Measured (benchmarks/RESULTS.md, "Compiled loop: dense or banded LU"): the banded loop
-#: as fast as the dense one at 29 unknowns, 1.1x at 41–60 (A03, Task 5), 1.2x at 53, 1.7x
-#: at 101 (N-four-bars), 5.8x at 485 (A02); the small models keep the dense LU.
+#: Measured (benchmarks/RESULTS.md, "Compiled dynamics loop: dense or banded LU"): the
+#: banded loop as fast as the dense one at 29 unknowns, 0.9–1.1x at 41–60 (A03, Task 5),
+#: 1.1–1.2x at 53, 1.4–1.7x at 101 (N-four-bars), 6x at 485 (A02); the small models keep
+#: the dense LU.
 MIN_BANDED_SADDLE_SIZE = 50
 #: … when its bandwidths below and above the diagonal add up to at most this fraction of
-#: the size (measured: banded at least as fast as dense up to 0.6, Task 5).
+#: the size (measured: banded within 10 % of dense at 0.44–0.6, A03 and Task 5).
 MAX_BAND_FRACTION = 0.5
 #: … and ``size · (kl + ku)`` is at most this (a step of the banded loop costs about that;
 #: the Python stepper's sparse refactorization, its Python overhead spread over more
