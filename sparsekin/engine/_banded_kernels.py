@@ -2,7 +2,7 @@
 
 A chain-like model's saddle matrix, its unknowns put in reverse Cuthill–McKee order once,
 has all its entries within a narrow band about the diagonal: ``kl`` below, ``ku`` above
-(the IFToMM N-four-bar at N = 40: 483 unknowns, ``kl = ku = 9``).  Its LU with partial
+(the IFToMM N-four-bar at N = 40: 485 unknowns, ``kl = ku = 9``).  Its LU with partial
 pivoting stays in a band: L keeps ``kl`` entries below the diagonal, and the row
 interchanges widen U to ``kl + ku`` above.  The storage is LAPACK's ``gbtrf`` layout,
 column-major, with ``ldab = 2 kl + ku + 1`` rows: entry ``A[i, j]`` of the band at
@@ -16,7 +16,6 @@ Symbols (for these kernels only):
   ``band[band_slot[0, s], band_slot[1, s]]``; `band_slots` computes it.
 * ``pivots`` — as LAPACK's ``gbtrf`` but 0-based: at step j, rows j and ``pivots[j] >= j``
   of the banded matrix were swapped.
-
 * ``factors`` — ``(pointers, rows, values)``: the nonzero entries of L (below the
   diagonal, row 0 of each array) and of U (above it, row 1) by columns, as CSC: column j's
   entries of L are ``rows[0, pointers[0, j]:pointers[0, j + 1]]`` (rows of the banded
@@ -24,7 +23,7 @@ Symbols (for these kernels only):
 
 `factor_band` refills the band from the CSR values, factors it in place on the fixed band
 and compresses its factors; `solve_band` solves with them.  Neither allocates (the time
-loop that inlines them is compiled without reference counting).  The compressed solve
+loop that calls them is compiled without reference counting).  The compressed solve
 skips the exact zeros of the band, which are most of it on a saddle matrix (A02: 2 595
 nonzeros in L and U against 13 095 places in their band), and rounds as the banded solve
 does (`banded_lu_solve`, kept as the reference).
@@ -46,10 +45,7 @@ __all__ = ["band_slots", "bandwidths", "banded_lu", "banded_lu_solve", "compress
 def bandwidths(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[int, int]:
     """``(kl, ku)``: the largest distance below and above the diagonal of any entry of the
     CSR pattern ``(indptr, indices)`` with its rows and columns in `order`."""
-    position = np.empty(order.size, dtype=np.int64)
-    position[order] = np.arange(order.size)
-    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
-    columns = position[np.asarray(indices, dtype=np.int64)]
+    rows, columns = _ordered_entries(indptr, indices, order)
     if rows.size == 0:
         return 0, 0
     return int(max(0, (rows - columns).max())), int(max(0, (columns - rows).max()))
@@ -59,13 +55,18 @@ def band_slots(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray, lower
     """Where each CSR entry of the pattern ``(indptr, indices)``, rows and columns in `order`,
     goes in the band storage of `lower` and `upper` bandwidths: shape (2, nnz), its row
     and column there."""
-    position = np.empty(order.size, dtype=np.int64)
-    position[order] = np.arange(order.size)
-    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
-    columns = position[np.asarray(indices, dtype=np.int64)]
+    rows, columns = _ordered_entries(indptr, indices, order)
     if rows.size and ((rows - columns).max() > lower or (columns - rows).max() > upper):
         raise ValueError(f"the pattern does not fit a band of {lower} below and {upper} above the diagonal")
     return np.stack((lower + upper + rows - columns, columns))
+
+
+def _ordered_entries(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column of each CSR entry once the rows and columns are put in `order`."""
+    position = np.empty(order.size, dtype=np.int64)
+    position[order] = np.arange(order.size)
+    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
+    return rows, position[np.asarray(indices, dtype=np.int64)]
 
 
 @njit(**_JIT)
