@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 from measure_andrews_work_precision import ANDREWS_WORK_PRECISION
 from measure_andrews_work_precision import results_section as andrews_section
+from measure_compiled_band import COMPILED_BAND
+from measure_compiled_band import results_section as compiled_band_section
 from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
 from measure_lattice_dynamics import LATTICE_DYNAMICS
@@ -212,6 +214,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
     if SMALL_DYNAMICS.exists():
         lines += ["", *small_dynamics_section([json.loads(line) for line in SMALL_DYNAMICS.read_text().splitlines() if line])]
+    if COMPILED_BAND.exists():
+        lines += ["", *compiled_band_section([json.loads(line) for line in COMPILED_BAND.read_text().splitlines() if line])]
     if document.get("hubs"):
         lines += ["", *_hubs(document["hubs"])]
     if DYNAMICS_CHAIN.exists():

@@ -1,4 +1,4 @@
-"""Forward dynamics of a small model: a block of output samples in one numba call, dense LU.
+"""Forward dynamics of a small or chain-like model: a block of output samples in one numba call.
 
 For a model of a few dozen coordinates the generalized-α step of
 `sparsekin.solve.dynamics.GeneralizedAlphaStepper` spends its time in Python call overhead,
@@ -6,13 +6,16 @@ not in arithmetic.  `CompiledDynamicsLoop` runs the same step — predictor, mod
 on the scaled index-3 saddle system, velocity and acceleration projections, step halving
 and growth, the
 work and dissipated energy — for a whole block of samples inside one compiled function,
-on a dense LU (`sparsekin.engine._lu_kernels`) of the saddle matrix.  It calls what the
+on a dense or banded LU of the saddle matrix (`sparsekin.solve._saddle_factorization`:
+dense for small models, banded in reverse Cuthill–McKee order for chains such as the
+IFToMM N-four-bar, as `sparsekin.solve.policy.plan_compiled_factorization` plans once the
+start has fixed the saddle pattern).  It calls what the
 Python path calls: the constraint wiring of `sparsekin.engine._kernels`, the laws of
 `sparsekin.model.laws`, the cores of `sparsekin.engine._motion_kernels` (the same
 functions `sparsekin.engine.saddle.DynamicSystem` calls) and the force columns of
 `sparsekin.engine._force_kernels`, with the rules and constants of
-`sparsekin.solve.dynamics`; only the linear algebra is its own (LAPACK there, this LU
-here: the two paths agree to rounding, not bit for bit).
+`sparsekin.solve.dynamics`; only the linear algebra is its own (LAPACK or the sparse
+refactorization there, these LUs here: the two paths agree to rounding, not bit for bit).
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
@@ -48,13 +51,13 @@ from ..engine._dynamics_kernels import (
 )
 from ..engine._force_kernels import fill_force_outputs
 from ..engine._kernels import acceleration_rhs, fill_body_turns, residual_jacobian
-from ..engine._lu_kernels import dense_lu_solve
 from ..engine.actuators import actuator_kernel_arrays
 from ..engine.force_columns import ForceOutputs
 from ..engine._motion_kernels import fill_motion_forces, fill_saddle_triplets, motion_powers
 from ..model.laws import fill_laws
 from ..results.schema import DRIFT, ENERGY, FORCES
-from ._compiled import _factor, _unsupported_law
+from ._compiled import _unsupported_law
+from ._saddle_factorization import compiled_factorization, factor_saddle, solve_saddle
 from .policy import plan_saddle_solver
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
@@ -98,7 +101,7 @@ def block_stepper(stepper, options, chunk: int, forces=None):
                               supports_compiled_dynamics(stepper.mechanism),
                               error_controlled=stepper.rtol is not None)  # fmt: skip
     if plan.loop == "compiled":
-        return CompiledDynamicsLoop(stepper, chunk, forces)
+        return CompiledDynamicsLoop(stepper, chunk, forces, options.thresholds, options.linear_solver == "auto")
     return SampleSteps(stepper, stepper.recorded)
 
 
@@ -215,7 +218,7 @@ def _refactor(model, work, state, settings, q, v, a, lam, coefficients):
     counts = state[_COUNTS]
     _fill_matrix(model, work, q, v, a, lam, coefficients, settings[7])
     counts[_FACTORIZATIONS] += 1
-    if not _factor(model[_SADDLE_INDPTR], model[_SADDLE_INDICES], work[_DATA], state[_LU], state[_PIVOTS]):
+    if not factor_saddle(model[_SADDLE_INDPTR], model[_SADDLE_INDICES], work[_DATA], state[_LU], state[_PIVOTS]):
         return False
     counts[_FACTORED] = 1
     return True
@@ -227,7 +230,7 @@ def _solve(state, rhs, out):
     for k in range(rhs.size):
         out[k] = rhs[k]
     state[_COUNTS][_SOLVES] += 1
-    dense_lu_solve(state[_LU], state[_PIVOTS], out)
+    solve_saddle(state[_LU], state[_PIVOTS], out)
     for value in out:
         if not math.isfinite(value):
             return False
@@ -593,10 +596,16 @@ class CompiledDynamicsLoop:
         Most samples per block (at most `MAX_BLOCK`).
     forces : ForceOutputs, optional
         The force columns to record (`sparsekin.engine.force_columns`).
+    thresholds : Thresholds, optional
+        The run's (`sparsekin.solve.policy.plan_compiled_factorization` plans the LU of the
+        saddle matrix from them once the start has fixed its pattern).
+    banded : bool
+        Whether a banded LU may be planned (``linear_solver="auto"``), or the dense one only.
     """
 
-    def __init__(self, stepper, chunk: int, forces=None) -> None:
+    def __init__(self, stepper, chunk: int, forces=None, thresholds=None, banded: bool = True) -> None:
         self.stepper, self.forces = stepper, forces
+        self._thresholds, self._banded = thresholds, banded
         self._steps = SampleSteps(stepper, stepper.recorded)
         self._chunk = max(1, min(int(chunk), MAX_BLOCK))
         self._state = None
@@ -608,10 +617,14 @@ class CompiledDynamicsLoop:
         if python.time is None or self.fell_back:
             return self._steps.advance_block(times)
         if self._state is None:
-            if python.redundant_rows.size:  # the forces of a redundant set: the Python stepper's
+            factorization = None
+            if not python.redundant_rows.size:  # the forces of a redundant set: the Python stepper's
+                saddle = python.system.saddle
+                factorization = compiled_factorization(saddle.indptr, saddle.indices, self._thresholds, self._banded)
+            if factorization is None:  # (or a saddle too large for the dense LU and not banded)
                 self.fell_back = True
                 return self._steps.advance_block(times)
-            self._prepare()
+            self._prepare(factorization)
         count = min(len(times), self._chunk)
         times = np.ascontiguousarray(times[:count], dtype=float)
         out = tuple(array[:count] for array in self._out)
@@ -653,8 +666,9 @@ class CompiledDynamicsLoop:
         self._factorizations += int(counts[_FACTORIZATIONS])
         self._solves += int(counts[_SOLVES])
 
-    def _prepare(self) -> None:
-        """The model's arrays and the state after the Python stepper's start."""
+    def _prepare(self, factorization: tuple) -> None:
+        """The model's arrays and the state after the Python stepper's start, holding
+        `factorization` (`sparsekin.solve._saddle_factorization.compiled_factorization`)."""
         python = self.stepper
         system, pattern = python.system, python.pattern
         assembler, loads, kept = system.assembler, system.loads, system.kept_rows
@@ -679,7 +693,7 @@ class CompiledDynamicsLoop:
         # solve against 2.4 row-major; the factorization the same within 5 %)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
                        start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
-                       np.zeros((system.size, system.size), order="F"), np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
+                       factorization, np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
         rows = self._chunk
         self._out = (np.zeros((rows, n)), np.zeros((rows, n)), np.zeros((rows, n)), np.zeros(rows, dtype=np.int64),
                      np.zeros((rows, 6)), np.zeros((rows, 2)))  # fmt: skip

@@ -59,6 +59,11 @@ __all__ = [
     "Thresholds",
     "SADDLE_DENSE_MAX_SIZE",
     "COMPILED_SADDLE_MAX_SIZE",
+    "COMPILED_BANDED_MAX_SIZE",
+    "MAX_BAND_FRACTION",
+    "MAX_BANDED_WORK",
+    "MIN_BANDED_SADDLE_SIZE",
+    "plan_compiled_factorization",
     "plan_linear_solver",
     "plan_saddle_solver",
 ]
@@ -108,6 +113,26 @@ MESH_SADDLE_SOLVER = "superlu"
 #: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
 #: equations), when the model's laws are all built in.
 COMPILED_SADDLE_MAX_SIZE = 400
+#: The compiled block stepper factors the saddle matrix in a band (the unknowns in reverse
+#: Cuthill–McKee order, `sparsekin.solve._saddle_factorization`) from this size on, when
+#: the band is narrow enough (`MAX_BAND_FRACTION`, `MAX_BANDED_WORK`); a dense LU below.
+#: Measured (benchmarks/RESULTS.md, "Compiled dynamics loop: dense or banded LU"): the
+#: banded loop as fast as the dense one at 29 unknowns, 0.9–1.1x at 41–60 (A03, Task 5),
+#: 1.1–1.2x at 53, 1.4–1.7x at 101 (N-four-bars), 6x at 485 (A02); the small models keep
+#: the dense LU.
+MIN_BANDED_SADDLE_SIZE = 50
+#: … when its bandwidths below and above the diagonal add up to at most this fraction of
+#: the size (measured: banded within 10 % of dense at 0.44–0.6, A03 and Task 5).
+MAX_BAND_FRACTION = 0.5
+#: … and ``size · (kl + ku)`` is at most this (a step of the banded loop costs about that;
+#: the Python stepper's sparse refactorization, its Python overhead spread over more
+#: unknowns, overtakes it on large saddles): measured 1.2–1.4x faster than the Python
+#: stepper at 43 000–53 000 (N-four-bar N = 200, lattices 8x8 and 4x32), 0.64x at 216 000
+#: (N = 1000).
+MAX_BANDED_WORK = 60_000
+#: ``linear_solver="auto"`` of forward dynamics tries the compiled block stepper on a
+#: banded saddle matrix up to this size (above: the Python stepper, no band computed).
+COMPILED_BANDED_MAX_SIZE = 6_000
 
 _SOLVER_CLASSES = {"superlu": SuperLUSolver, "refactor": RefactorSolver, "dense": DenseSolver}
 
@@ -141,7 +166,15 @@ class Thresholds:
     saddle_dense_max_size : int
         `SADDLE_DENSE_MAX_SIZE`.
     compiled_saddle_max_size : int
-        `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop).
+        `COMPILED_SADDLE_MAX_SIZE` (0: never the compiled dynamics loop, dense or banded).
+    min_banded_saddle_size : int
+        `MIN_BANDED_SADDLE_SIZE`.
+    max_band_fraction : float
+        `MAX_BAND_FRACTION`.
+    max_banded_work : int
+        `MAX_BANDED_WORK`.
+    compiled_banded_max_size : int
+        `COMPILED_BANDED_MAX_SIZE` (0: never the compiled dynamics loop on a banded LU).
     min_mesh_saddle_size : int
         `MIN_MESH_SADDLE_SIZE`.
     mesh_saddle_solver : {"superlu", "dissection"}
@@ -157,6 +190,10 @@ class Thresholds:
     min_norm_iterations: int = MIN_NORM_ITERATIONS
     saddle_dense_max_size: int = SADDLE_DENSE_MAX_SIZE
     compiled_saddle_max_size: int = COMPILED_SADDLE_MAX_SIZE
+    min_banded_saddle_size: int = MIN_BANDED_SADDLE_SIZE
+    max_band_fraction: float = MAX_BAND_FRACTION
+    max_banded_work: int = MAX_BANDED_WORK
+    compiled_banded_max_size: int = COMPILED_BANDED_MAX_SIZE
     min_mesh_saddle_size: int = MIN_MESH_SADDLE_SIZE
     mesh_saddle_solver: str = MESH_SADDLE_SOLVER
 
@@ -283,16 +320,23 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     saddle matrix, the bodies' unknowns in a nested dissection of where they are drawn,
     with SuperLU's own solves); never reused across steps (the integrator holds its own
     factorization while Newton contracts).  A dense plan of a `compilable` model (its laws
-    all built in) up to `Thresholds.compiled_saddle_max_size` runs the compiled block
-    stepper (loop ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python
-    loop.  An `error_controlled` run (``rtol``) always runs the Python loop: the compiled
-    loop takes fixed steps only (halved on a failure).
+    all built in) up to `Thresholds.compiled_saddle_max_size`, or an ``"auto"`` one up to
+    `Thresholds.compiled_banded_max_size`, runs the compiled block stepper (loop
+    ``"compiled"``, `sparsekin.solve._compiled_dynamics`; its own LU, dense or banded, is
+    planned after the start, when the saddle pattern is known:
+    `plan_compiled_factorization`), else the Python loop.  An `error_controlled` run
+    (``rtol``) always runs the Python loop: the compiled loop takes fixed steps only
+    (halved on a failure).
 
     >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=True, error_controlled=True).loop
     ('compiled', 'python')
+    >>> plan = plan_saddle_solver(485, compilable=True)
+    >>> plan.loop, plan.solver
+    ('compiled', 'refactor')
     """
     thresholds = Thresholds() if thresholds is None else thresholds
-    if linear_solver == "auto":
+    auto = linear_solver == "auto"
+    if auto:
         if (discretization is not None and size >= max(thresholds.min_mesh_saddle_size, 1)
                 and size > thresholds.saddle_dense_max_size and _is_grid(discretization)):  # fmt: skip
             if thresholds.mesh_saddle_solver not in ("superlu", "dissection"):
@@ -303,7 +347,33 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
                                   points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
             return SolverPlan(loop="python", solver=thresholds.mesh_saddle_solver, chord=False, thresholds=thresholds)
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
-    compiled = (compilable and not error_controlled and linear_solver == "dense"
-                and size <= thresholds.compiled_saddle_max_size)  # fmt: skip
+    compiled = compilable and not error_controlled and thresholds.compiled_saddle_max_size > 0 and (
+        (linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size)
+        or (auto and thresholds.min_banded_saddle_size <= size <= thresholds.compiled_banded_max_size))  # fmt: skip
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
                       thresholds=thresholds)  # fmt: skip
+
+
+def plan_compiled_factorization(size: int, lower: int | None, upper: int | None,
+                                thresholds: Thresholds | None = None) -> str | None:  # fmt: skip
+    """How the compiled block stepper factors a saddle matrix of `size` unknowns whose
+    bandwidths below and above the diagonal are `lower` and `upper` in reverse
+    Cuthill–McKee order (None: not computed): ``"banded"`` from
+    `Thresholds.min_banded_saddle_size` to `Thresholds.compiled_banded_max_size` when
+    ``lower + upper`` is at most `Thresholds.max_band_fraction` of the size, else
+    ``"dense"`` up to `Thresholds.compiled_saddle_max_size`, else None (the Python stepper).
+
+    >>> plan_compiled_factorization(485, 9, 9), plan_compiled_factorization(41, None, None)
+    ('banded', 'dense')
+    >>> print(plan_compiled_factorization(5000, 2000, 2000))
+    None
+    """
+    thresholds = Thresholds() if thresholds is None else thresholds
+    if (lower is not None and upper is not None
+            and thresholds.min_banded_saddle_size <= size <= thresholds.compiled_banded_max_size
+            and lower + upper <= thresholds.max_band_fraction * size
+            and size * (lower + upper) <= thresholds.max_banded_work):  # fmt: skip
+        return "banded"
+    if size <= thresholds.compiled_saddle_max_size:
+        return "dense"
+    return None

@@ -1,0 +1,245 @@
+"""numba kernels of a banded LU with partial pivoting, for the compiled dynamics loop.
+
+A chain-like model's saddle matrix, its unknowns put in reverse Cuthill–McKee order once,
+has all its entries within a narrow band about the diagonal: ``kl`` below, ``ku`` above
+(the IFToMM N-four-bar at N = 40: 485 unknowns, ``kl = ku = 9``).  Its LU with partial
+pivoting stays in a band: L keeps ``kl`` entries below the diagonal, and the row
+interchanges widen U to ``kl + ku`` above.  The storage is LAPACK's ``gbtrf`` layout,
+column-major, with ``ldab = 2 kl + ku + 1`` rows: entry ``A[i, j]`` of the band at
+``band[kl + ku + i - j, j]``, the top ``kl`` rows left for the fill of the interchanges.
+
+Symbols (for these kernels only):
+
+* ``order`` — the unknowns' order: unknown ``order[i]`` of the saddle matrix is unknown
+  ``i`` of the banded one (rows and columns alike).
+* ``band_slot`` — shape (2, nnz): entry ``s`` of the saddle matrix's CSR values goes to
+  ``band[band_slot[0, s], band_slot[1, s]]``; `band_slots` computes it.
+* ``pivots`` — as LAPACK's ``gbtrf`` but 0-based: at step j, rows j and ``pivots[j] >= j``
+  of the banded matrix were swapped.
+* ``factors`` — ``(pointers, rows, values)``: the nonzero entries of L (below the
+  diagonal, row 0 of each array) and of U (above it, row 1) by columns, as CSC: column j's
+  entries of L are ``rows[0, pointers[0, j]:pointers[0, j + 1]]`` (rows of the banded
+  matrix) with their ``values[0, …]``.  `compress_factors` fills them from the band.
+
+`factor_band` refills the band from the CSR values, factors it in place on the fixed band
+and compresses its factors; `solve_band` solves with them.  Neither allocates (the time
+loop that calls them is compiled without reference counting).  The compressed solve
+skips the exact zeros of the band, which are most of it on a saddle matrix (A02: 2 595
+nonzeros in L and U against 13 095 places in their band), and rounds as the banded solve
+does (`banded_lu_solve`, kept as the reference).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .._jit import JIT as _JIT
+
+__all__ = ["band_slots", "bandwidths", "banded_lu", "banded_lu_solve", "compress_factors", "compressed_lu_solve",
+           "factor_band", "solve_band"]
+
+
+def bandwidths(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[int, int]:
+    """``(kl, ku)``: the largest distance below and above the diagonal of any entry of the
+    CSR pattern ``(indptr, indices)`` with its rows and columns in `order`."""
+    rows, columns = _ordered_entries(indptr, indices, order)
+    if rows.size == 0:
+        return 0, 0
+    return int(max(0, (rows - columns).max())), int(max(0, (columns - rows).max()))
+
+
+def band_slots(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray, lower: int, upper: int) -> np.ndarray:
+    """Where each CSR entry of the pattern ``(indptr, indices)``, rows and columns in `order`,
+    goes in the band storage of `lower` and `upper` bandwidths: shape (2, nnz), its row
+    and column there."""
+    rows, columns = _ordered_entries(indptr, indices, order)
+    if rows.size and ((rows - columns).max() > lower or (columns - rows).max() > upper):
+        raise ValueError(f"the pattern does not fit a band of {lower} below and {upper} above the diagonal")
+    return np.stack((lower + upper + rows - columns, columns))
+
+
+def _ordered_entries(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column of each CSR entry once the rows and columns are put in `order`."""
+    position = np.empty(order.size, dtype=np.int64)
+    position[order] = np.arange(order.size)
+    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
+    return rows, position[np.asarray(indices, dtype=np.int64)]
+
+
+@njit(**_JIT)
+def banded_lu(band, lower, upper, pivots, extent):
+    """LU with partial pivoting of a banded matrix in place (LAPACK's ``gbtf2``); True
+    unless a pivot fails.
+
+    Exact zeros are skipped, as `sparsekin.engine._lu_kernels.dense_lu_factor` skips them:
+    the updates of column j run over its multipliers down to the last nonzero one only,
+    and a zero entry of the pivot row updates nothing.  A saddle matrix's band is mostly
+    zeros even after the factorization (A02: a quarter of L's and U's band holds
+    nonzeros), so `extent` records, per column, how far L and U reach for the solves.
+
+    Parameters
+    ----------
+    band : ndarray, shape (2 lower + upper + 1, n), float64, Fortran order
+        The matrix in rows ``lower`` … (its top `lower` rows zero); overwritten by U (rows
+        0 … ``lower + upper``) and L's multipliers (the rows below).
+    lower, upper : int
+        The bandwidths below and above the diagonal.
+    pivots : ndarray, shape (n,), int64
+        Filled with the row interchanges (module docstring).
+    extent : ndarray, shape (2, n), int64
+        Filled with, for column j, the storage row of U's first nonzero above the diagonal
+        (``lower + upper`` if none) and the count of L's multipliers down to its last
+        nonzero one: what `banded_lu_solve` runs over.
+
+    Returns
+    -------
+    bool
+        False if a pivot is exactly zero or not finite (the matrix is singular, or holds an
+        inf or NaN in a pivot's column); `band`, `pivots` and `extent` are then only partly
+        filled.
+    """
+    n = band.shape[1]
+    kv = lower + upper
+    last = 0  # the last column the interchanges and updates so far reach
+    for j in range(n):
+        below = min(lower, n - 1 - j)
+        best = 0
+        largest = abs(band[kv, j])
+        for i in range(1, below + 1):
+            magnitude = abs(band[kv + i, j])
+            if magnitude > largest:
+                largest = magnitude
+                best = i
+        pivots[j] = j + best
+        if not (largest > 0.0 and largest < math.inf):  # NaN fails both tests
+            return False
+        last = max(last, min(j + upper + best, n - 1))
+        if best != 0:
+            for c in range(j, last + 1):
+                r = kv + j - c
+                band[r + best, c], band[r, c] = band[r, c], band[r + best, c]
+        inverse = 1.0 / band[kv, j]
+        reach = 0
+        for i in range(1, below + 1):
+            band[kv + i, j] *= inverse
+            if band[kv + i, j] != 0.0:
+                reach = i
+        extent[1, j] = reach
+        for c in range(j + 1, last + 1):
+            r = kv + j - c
+            pivot_row = band[r, c]
+            if pivot_row != 0.0:
+                for i in range(1, reach + 1):
+                    band[r + i, c] -= band[kv + i, j] * pivot_row
+    for j in range(n):
+        top = kv
+        for r in range(max(0, kv - j), kv):
+            if band[r, j] != 0.0:
+                top = r
+                break
+        extent[0, j] = top
+    return True
+
+
+@njit(**_JIT)
+def banded_lu_solve(band, lower, upper, pivots, extent, b):
+    """Solve ``matrix @ x = b`` in place in `b` (shape (n,)) from `banded_lu`'s output
+    (LAPACK's ``gbtrs``, over the `extent` of L's and U's columns): the interchanges and L
+    column by column, then U."""
+    n = band.shape[1]
+    kv = lower + upper
+    for j in range(n):
+        swap = pivots[j]
+        if swap != j:
+            b[j], b[swap] = b[swap], b[j]
+        x_j = b[j]
+        if x_j != 0.0:
+            for i in range(1, extent[1, j] + 1):
+                b[j + i] -= band[kv + i, j] * x_j
+    for j in range(n - 1, -1, -1):
+        x_j = b[j] / band[kv, j]
+        b[j] = x_j
+        if x_j != 0.0:
+            for r in range(extent[0, j], kv):
+                b[j - kv + r] -= band[r, j] * x_j
+
+
+@njit(**_JIT)
+def compress_factors(band, lower, upper, extent, factors):
+    """The nonzero entries of `banded_lu`'s L and U (off the diagonal) into `factors`
+    (module docstring; capacity ``n (lower + upper)`` each)."""
+    pointers, rows, values = factors
+    n = band.shape[1]
+    kv = lower + upper
+    lower_count = upper_count = 0
+    for j in range(n):
+        pointers[0, j] = lower_count
+        for i in range(1, extent[1, j] + 1):
+            value = band[kv + i, j]
+            if value != 0.0:
+                rows[0, lower_count] = j + i
+                values[0, lower_count] = value
+                lower_count += 1
+        pointers[1, j] = upper_count
+        for r in range(extent[0, j], kv):
+            value = band[r, j]
+            if value != 0.0:
+                rows[1, upper_count] = j - kv + r
+                values[1, upper_count] = value
+                upper_count += 1
+    pointers[0, n] = lower_count
+    pointers[1, n] = upper_count
+
+
+@njit(**_JIT)
+def compressed_lu_solve(band, lower, upper, pivots, factors, b):
+    """`banded_lu_solve` on the compressed `factors` (`compress_factors`): the same
+    operations on the nonzero entries only, so the same result."""
+    pointers, rows, values = factors
+    n = band.shape[1]
+    kv = lower + upper
+    for j in range(n):
+        swap = pivots[j]
+        if swap != j:
+            b[j], b[swap] = b[swap], b[j]
+        x_j = b[j]
+        if x_j != 0.0:
+            for p in range(pointers[0, j], pointers[0, j + 1]):
+                b[rows[0, p]] -= values[0, p] * x_j
+    for j in range(n - 1, -1, -1):
+        x_j = b[j] / band[kv, j]
+        b[j] = x_j
+        if x_j != 0.0:
+            for p in range(pointers[1, j], pointers[1, j + 1]):
+                b[rows[1, p]] -= values[1, p] * x_j
+
+
+@njit(**_JIT)
+def factor_band(values, band_slot, band, lower, upper, pivots, extent, factors):
+    """Refill `band` from the CSR `values` of the saddle matrix (through `band_slot`),
+    factor it (`banded_lu`) and compress its factors into `factors`; True unless a pivot
+    fails."""
+    for c in range(band.shape[1]):
+        for r in range(band.shape[0]):
+            band[r, c] = 0.0
+    for s in range(band_slot.shape[1]):
+        band[band_slot[0, s], band_slot[1, s]] += values[s]
+    if not banded_lu(band, lower, upper, pivots, extent):
+        return False
+    compress_factors(band, lower, upper, extent, factors)
+    return True
+
+
+@njit(**_JIT)
+def solve_band(band, lower, upper, pivots, factors, order, scratch, b):
+    """Solve the saddle matrix's system in place in `b` from `factor_band`'s factors: `b`
+    into the banded order (through `scratch`, shape (n,)), `compressed_lu_solve`, and back."""
+    n = order.size
+    for i in range(n):
+        scratch[i] = b[order[i]]
+    compressed_lu_solve(band, lower, upper, pivots, factors, scratch)
+    for i in range(n):
+        b[order[i]] = scratch[i]
