@@ -271,8 +271,7 @@ def _drawn_places(discretization: Discretization) -> np.ndarray:
 
 
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
-                       compilable: bool = False, discretization: Discretization | None = None,
-                       error_controlled: bool = False) -> SolverPlan:  # fmt: skip
+                       compilable: bool = False, discretization: Discretization | None = None) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
     kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
@@ -285,10 +284,10 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     factorization while Newton contracts).  A dense plan of a `compilable` model (its laws
     all built in) up to `Thresholds.compiled_saddle_max_size` runs the compiled block
     stepper (loop ``"compiled"``, `sparsekin.solve._compiled_dynamics`), else the Python
-    loop.  An `error_controlled` run (``rtol``) always runs the Python loop: the compiled
-    loop takes fixed steps only (halved on a failure).
+    loop; error-controlled steps (``rtol``) as well as fixed ones (the compiled loop runs
+    `sparsekin.solve.error_control`'s controller, `sparsekin.solve._error_control_kernels`).
 
-    >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=True, error_controlled=True).loop
+    >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=False).loop
     ('compiled', 'python')
     """
     thresholds = Thresholds() if thresholds is None else thresholds
@@ -303,7 +302,7 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
                                   points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
             return SolverPlan(loop="python", solver=thresholds.mesh_saddle_solver, chord=False, thresholds=thresholds)
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
-    compiled = (compilable and not error_controlled and linear_solver == "dense"
+    compiled = (compilable and linear_solver == "dense"
                 and size <= thresholds.compiled_saddle_max_size)  # fmt: skip
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
                       thresholds=thresholds)  # fmt: skip
