@@ -439,7 +439,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     if outcome != _OK:
         return outcome
     control_rules_ = control[0]
-    if control_rules_[0] > 0.0 and not accept_step(control[1], control_rules_, pseudo, p0, coordinate_weights, h,
+    if control_rules_[0] > 0.0 and not accept_step(control[1], control_rules_, pseudo, p0, control[4], h,
                                                    min(last, stall) if stalled else 0.0, control[3]):  # fmt: skip
         return _REJECTED  # rtol: taken again shorter (`StepSizeController.check`)
     _load(work, q, v, a)
@@ -559,7 +559,7 @@ def _advance_samples(model, state, work, spare, settings, rules_, control, times
     solve it stops with the state of the sample before (see the module docstring).
     `work` is `_work_arrays`; `spare` is ``(after, saved, saved_scalars)``: the state after
     a step and at the sample before (q, q̇, q̈, ã, λ each), and that sample's scalars.
-    `control` is ``(rules, values, saved_values, scratch)`` of the step-size controller
+    `control` is ``(rules, values, saved_values, scratch, weights)`` of the step-size controller
     (`sparsekin.solve._error_control_kernels`): with an rtol in its rules, the steps are
     error-controlled (`_advance_controlled`), else of the largest size, halved on a failure.
 
@@ -714,7 +714,9 @@ class CompiledDynamicsLoop:
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
         values = control_state(python.controller)
-        self._control = (control_rules(python.controller), values, values.copy(), np.zeros(n))
+        weights = pattern.coordinate_weights if python.controller is None else python.controller.weights
+        self._control = (control_rules(python.controller), values, values.copy(), np.zeros(n),
+                         np.ascontiguousarray(weights, dtype=float))  # fmt: skip
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0])
         counts = np.zeros(8, dtype=np.int64)
