@@ -11,7 +11,7 @@ fixed and error-controlled steps on the same (Python) stepper, rounds alternatin
 ``profile --loops 30 --steps 1e-3 --rtol 1e-10`` follows one run output by output: the
 steps taken in each 0.05 s interval, and how much of the crank's phase error (signed,
 against the exact angle) and of the energy error is made in the intervals with a flat
-crossing against the others.  ``--dense-up-to S`` lets the compiled dense loop take saddle
+crossing against the others (``--rad-angles``: the estimate's weights before c25rtolc).  ``--dense-up-to S`` lets the compiled dense loop take saddle
 systems of up to S unknowns (default: the library's limit, 400; A02 has 483): a
 measurement of what A02 costs on the compiled loop, not a setting of the library.
 ``steptime --sizes 4 8 16 33 --t-end 1 --rtol 1e-10`` times error-controlled runs of
@@ -129,12 +129,12 @@ def steptime(sizes, t_end: float, rtol: float, rounds: int) -> None:
 
 
 def profile(loops: int, step: float, rho: float, t_end: float, rtol: float | None, dense_up_to: int | None,
-            angle_length: float | None = None, quiet: bool = False) -> None:  # fmt: skip
+            rad_angles: bool = False, quiet: bool = False) -> None:  # fmt: skip
     """One run followed output by output (`__doc__`): where the steps go and where the
     errors are made, flat crossings (every bar horizontal: the crank angle a multiple of π)
-    against the rest of the motion.  `angle_length` (m): the estimate weighs an angle
-    error as the displacement it makes `angle_length` from the frame (over the model size,
-    like x and y) instead of in rad (a study of the estimate's weights, not a setting)."""
+    against the rest of the motion.  `rad_angles`: the estimate weighs the angles in rad,
+    as before branch c25rtolc, instead of as the displacement at each body's reach over the
+    model size (`sparsekin.solve.error_control.error_weights`; a study, not a setting)."""
     from sparsekin.solve._compiled_dynamics import block_stepper
     from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
@@ -150,9 +150,9 @@ def profile(loops: int, step: float, rho: float, t_end: float, rtol: float | Non
     start = time.perf_counter()
     for k in range(times.size):
         block = blocks.advance_block(times[k : k + 1])
-        if k == 0 and angle_length is not None:  # before the compiled loop's first block reads them
+        if k == 0 and rad_angles:  # before the compiled loop's first block reads them
             weights = stepper.controller.weights.copy()
-            weights[2::3] = angle_length * weights[0]
+            weights[2::3] = 1.0
             stepper.controller.weights = weights
         angle.append(block.coordinates[0, 2])
         q, v = block.coordinates[0, :3], block.velocities[0, :3]  # crank 0: frame at O0, B0 1 m along it
@@ -202,7 +202,7 @@ if __name__ == "__main__":
     parser.add_argument("--t-end", type=float, default=20.0)
     parser.add_argument("--rtol", type=float, default=None, help="error-controlled steps (largest step: --steps)")
     parser.add_argument("--dense-up-to", type=int, default=None, help="compiled dense loop up to this saddle size")
-    parser.add_argument("--angle-length", type=float, default=None, help="profile: angles weighed as this length, m")
+    parser.add_argument("--rad-angles", action="store_true", help="profile: the estimate's angles in rad (before c25rtolc)")
     parser.add_argument("--quiet", action="store_true", help="profile: the summary only")
     arguments = parser.parse_args()
     if arguments.reference == "cost":
@@ -214,6 +214,6 @@ if __name__ == "__main__":
     elif arguments.reference == "profile":
         for step in arguments.steps:
             profile(arguments.loops, step, arguments.rho, arguments.t_end, arguments.rtol, arguments.dense_up_to,
-                    arguments.angle_length, arguments.quiet)  # fmt: skip
+                    arguments.rad_angles, arguments.quiet)  # fmt: skip
     else:
         andrews(arguments.steps, arguments.rtol)
