@@ -11,7 +11,7 @@ fixed and error-controlled steps on the same (Python) stepper, rounds alternatin
 ``profile --loops 30 --steps 1e-3 --rtol 1e-10`` follows one run output by output: the
 steps taken in each 0.05 s interval, and how much of the crank's phase error (signed,
 against the exact angle) and of the energy error is made in the intervals with a flat
-crossing against the others (``--rad-angles``: the estimate's weights before c25rtolc).  ``--dense-up-to S`` lets the compiled dense loop take saddle
+crossing against the others (``--angle-length 1``: the estimate's angles weighed as 1 m).  ``--dense-up-to S`` lets the compiled dense loop take saddle
 systems of up to S unknowns (default: the library's limit, 400; A02 has 483): a
 measurement of what A02 costs on the compiled loop, not a setting of the library.
 ``steptime --sizes 4 8 16 33 --t-end 1 --rtol 1e-10`` times error-controlled runs of
@@ -107,13 +107,16 @@ def cost(loops: int, t_end: float, step: float, rtol: float, rounds: int) -> Non
 
 
 def steptime(sizes, t_end: float, rtol: float, rounds: int) -> None:
-    """Wall time per step of error-controlled runs (largest step 1 ms), compiled loop against
-    the Python stepper, for N-four-bars of `sizes` loops (the compiled loop's dense LU takes
-    12 N + 3 ≤ 400 unknowns: N ≤ 33)."""
+    """Wall time per step of error-controlled runs (largest step 1 ms; start and recording
+    included, after a warm-up run of each path), compiled loop against the Python stepper, for N-four-bars of `sizes` loops (the compiled loop's dense LU takes
+    12 N + 5 ≤ 400 unknowns: N ≤ 32)."""
     times = np.linspace(0.0, t_end, int(round(t_end / 0.05)) + 1)
     paths = {"compiled": Thresholds(), "python": Thresholds(compiled_saddle_max_size=0)}
     for loops in sizes:
         walls = {name: [] for name in paths}
+        for limits in paths.values():  # warm-up: the kernels loaded from numba's cache
+            run_dynamics(discretize(n_four_bar(loops)), times[:3], SolveOptions(DEFAULT_TOLERANCE, thresholds=limits),
+                         DynamicsOptions(1e-3, 0.9, rtol), Request(forces=None, energy=True))  # fmt: skip
         for _ in range(rounds):
             for name, limits in paths.items():
                 start = time.perf_counter()
@@ -121,7 +124,8 @@ def steptime(sizes, t_end: float, rtol: float, rounds: int) -> None:
                                       DynamicsOptions(1e-3, 0.9, rtol), Request(forces=None, energy=True))  # fmt: skip
                 walls[name].append((time.perf_counter() - start) / result.n_steps)
                 steps = result.n_steps
-        print(f"N = {loops} ({12 * loops + 3} unknowns), {steps} steps, {np.sum(result.newton_iterations) / steps:.2f} "
+        pattern = discretize(n_four_bar(loops)).constraints
+        print(f"N = {loops} ({pattern.n_coordinates + pattern.n_equations} unknowns), {steps} steps, {np.sum(result.newton_iterations) / steps:.2f} "
               f"Newton, {result.n_factorizations / steps:.3f} factorizations, {result.n_solves / steps:.1f} solves a step: "
               + ", ".join(f"{name} {np.median(wall) * 1e3:.3f} ms" for name, wall in walls.items())
               + f" a step (medians of {rounds}), python / compiled {np.median(walls['python']) / np.median(walls['compiled']):.1f}",
@@ -129,12 +133,13 @@ def steptime(sizes, t_end: float, rtol: float, rounds: int) -> None:
 
 
 def profile(loops: int, step: float, rho: float, t_end: float, rtol: float | None, dense_up_to: int | None,
-            rad_angles: bool = False, quiet: bool = False) -> None:  # fmt: skip
+            angle_length: float | None = None, quiet: bool = False) -> None:  # fmt: skip
     """One run followed output by output (`__doc__`): where the steps go and where the
     errors are made, flat crossings (every bar horizontal: the crank angle a multiple of π)
-    against the rest of the motion.  `rad_angles`: the estimate weighs the angles in rad,
-    as before branch c25rtolc, instead of as the displacement at each body's reach over the
-    model size (`sparsekin.solve.error_control.error_weights`; a study, not a setting)."""
+    against the rest of the motion.  `angle_length` (m): the estimate weighs an angle error
+    as the displacement it makes `angle_length` from the body's frame, over the model size
+    like x and y, instead of in rad (a study of the estimate's weights, not a setting: the
+    N-four-bar's bars are all 1 m, so 1 is each bar's reach)."""
     from sparsekin.solve._compiled_dynamics import block_stepper
     from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
@@ -150,9 +155,9 @@ def profile(loops: int, step: float, rho: float, t_end: float, rtol: float | Non
     start = time.perf_counter()
     for k in range(times.size):
         block = blocks.advance_block(times[k : k + 1])
-        if k == 0 and rad_angles:  # before the compiled loop's first block reads them
+        if k == 0 and angle_length is not None:  # before the compiled loop's first block reads them
             weights = stepper.controller.weights.copy()
-            weights[2::3] = 1.0
+            weights[2::3] = angle_length * weights[0]
             stepper.controller.weights = weights
         angle.append(block.coordinates[0, 2])
         q, v = block.coordinates[0, :3], block.velocities[0, :3]  # crank 0: frame at O0, B0 1 m along it
@@ -202,7 +207,7 @@ if __name__ == "__main__":
     parser.add_argument("--t-end", type=float, default=20.0)
     parser.add_argument("--rtol", type=float, default=None, help="error-controlled steps (largest step: --steps)")
     parser.add_argument("--dense-up-to", type=int, default=None, help="compiled dense loop up to this saddle size")
-    parser.add_argument("--rad-angles", action="store_true", help="profile: the estimate's angles in rad (before c25rtolc)")
+    parser.add_argument("--angle-length", type=float, default=None, help="profile: angles weighed as this length, m")
     parser.add_argument("--quiet", action="store_true", help="profile: the summary only")
     arguments = parser.parse_args()
     if arguments.reference == "cost":
@@ -214,6 +219,6 @@ if __name__ == "__main__":
     elif arguments.reference == "profile":
         for step in arguments.steps:
             profile(arguments.loops, step, arguments.rho, arguments.t_end, arguments.rtol, arguments.dense_up_to,
-                    arguments.rad_angles, arguments.quiet)  # fmt: skip
+                    arguments.angle_length, arguments.quiet)  # fmt: skip
     else:
         andrews(arguments.steps, arguments.rtol)

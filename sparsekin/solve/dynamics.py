@@ -65,7 +65,7 @@ from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
 from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
 from .error_control import StepFailed as _StepFailed
-from .error_control import StepSizeController, advance_controlled, error_weights
+from .error_control import StepSizeController, advance_controlled
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -286,8 +286,8 @@ class GeneralizedAlphaStepper:
         self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
-        self.controller = None if self.rtol is None else StepSizeController(self.rtol, *self.integrator.coefficients[2:],
-            error_weights(self.pattern, system.loads.arrays.masses), self.max_step)  # fmt: skip
+        self.controller = None if self.rtol is None else StepSizeController(
+            self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip

@@ -24,14 +24,11 @@ estimator for Newmark (β − 1/6 there: their a is ã for α_m = α_f = 0), gen
 Géradin & Cardona's book.  It costs one pass over ã per step and falls as h³ on a smooth
 motion (tests/test_dynamics_error_control.py checks the order and the constant).
 
-**The norm.**  Displacements relative to the model size S: x and y over S, a body's
-angle as the displacement it makes at the body's reach over S (`error_weights`):
-``error = max_i w_i |e_i| / rtol``, so `rtol` is the local error of one step as a
-fraction of the model's size, for every point of every body: an absolute tolerance scaled
-by the model, the same for every body wherever it is drawn (absolute coordinates make a
-tolerance relative to |q_i| depend on where the origin is).  (Until branch c25rtolc the
-angles were in rad, the Newton tolerance's weights: a chain of short bars then counted its
-angles far above its translations.)
+**The norm.**  Lengths relative to the model size, angles in rad (the coordinates'
+weights of the Newton tolerance): ``error = max_i w_i |e_i| / rtol``, so `rtol` is the
+local error of one step as a fraction of the model's size (and in rad for angles): an
+absolute tolerance scaled by the model, the same for every body wherever it is drawn
+(absolute coordinates make a tolerance relative to |q_i| depend on where the origin is).
 
 **The controller** (Hairer, Nørsett & Wanner, II.4): a step is accepted when
 ``error <= 1``; the next one is h · min(`GROWTH_LIMIT`, max(`SHRINK_LIMIT`, `SAFETY` ·
@@ -57,7 +54,7 @@ from ..errors import ConvergenceError
 from ..model.mechanism import Analysis
 
 __all__ = ["RTOL_RANGE", "SAFETY", "GROWTH_LIMIT", "SHRINK_LIMIT", "StepSizeController", "StepFailed",
-           "ErrorTooLarge", "advance_controlled", "error_weights", "local_error_constant", "step_to"]
+           "ErrorTooLarge", "advance_controlled", "local_error_constant", "step_to"]
 
 #: Smallest and largest accepted `rtol` (`sparsekin.model.mechanism.Analysis.rtol_range`).
 RTOL_RANGE = Analysis.rtol_range
@@ -85,45 +82,6 @@ def local_error_constant(gamma: float, beta: float) -> float:
     0.083333
     """
     return beta - 0.5 * gamma + 1.0 / 12.0
-
-
-def error_weights(pattern, masses) -> np.ndarray:
-    """The estimate's weights (module docstring, "The norm"): 1 / S for x and y, and for a
-    body's angle its reach / S, S the model size; a body's reach is the farthest of its
-    joints' points, its centre of mass and its radius of gyration from its frame (1 rad, as
-    S, for a body with none: an angle that moves no point).
-
-    An angle error δφ moves the body's points by up to reach · δφ: weighed so, the
-    estimate is the largest displacement of a point over S, whatever the bodies' sizes.
-    Weighed in rad (reach = S for every body), a chain of N bars of 1 m counted its
-    angles N times more than the displacements of its translating bars: at the
-    N-four-bar's flat crossings, where the cranks' third derivative vanishes and the
-    couplers' is largest, the steps of N = 40 grew and that error went unseen
-    (docs/design-notes.md, "A02: where the error is made").
-
-    Parameters
-    ----------
-    pattern : ConstraintPattern
-    masses : MassArrays
-        `sparsekin.model.loads.MassArrays` of the bodies.
-
-    Returns
-    -------
-    ndarray, shape (n_coordinates,)
-    """
-    n_bodies, size = pattern.n_bodies, pattern.length_scale
-    reach = np.zeros(n_bodies + 1)  # the ground's last
-    primitives = pattern.primitives
-    for arrays in (primitives.coincidence, primitives.projection, primitives.distance):
-        for body, local in ((arrays.body_i, arrays.local_i), (arrays.body_j, arrays.local_j)):
-            np.maximum.at(reach, body, np.hypot(local[:, 0], local[:, 1]))
-    reach = reach[:n_bodies]
-    np.maximum(reach, np.hypot(masses.com[:, 0], masses.com[:, 1]), out=reach)
-    gyration = np.sqrt(np.divide(masses.inertia, masses.mass, out=np.zeros(n_bodies), where=masses.mass > 0.0))
-    np.maximum(reach, gyration, out=reach)
-    weights = np.full(pattern.n_coordinates, 1.0 / size)
-    weights[2::3] = np.where(reach > 0.0, reach / size, 1.0)
-    return weights
 
 
 class StepFailed(Exception):
