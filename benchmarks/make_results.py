@@ -44,6 +44,8 @@ MESH_LU = _HERE / "mesh_lu.jsonl"
 MESH_REUSE = _HERE / "mesh_reuse.jsonl"
 #: The table printed by `memory_estimates.py` (issue 28) with its command and load, kept by hand.
 MEMORY_ESTIMATES = _HERE / "memory_estimates.md"
+#: Hand-measured error-controlled runs of A02 (`measure_dynamics_accuracy.py`), as written.
+DYNAMICS_ACCURACY = _HERE / "dynamics_accuracy.md"
 #: Sizes over which the scaling exponents are fitted, bodies.
 FIT_RANGE = (1_000, 1_000_000)
 #: The solver whose time the ratios divide, and the baselines, in column order.
@@ -225,6 +227,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
                                                  if line])]  # fmt: skip
     if ANDREWS_WORK_PRECISION.exists():
         lines += ["", *andrews_section([json.loads(line) for line in ANDREWS_WORK_PRECISION.read_text().splitlines() if line])]
+    if DYNAMICS_ACCURACY.exists():
+        lines += ["", *DYNAMICS_ACCURACY.read_text(encoding="utf-8").rstrip("\n").splitlines()]
     if document["others"]:
         lines += [
             "",

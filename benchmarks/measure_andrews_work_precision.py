@@ -4,10 +4,10 @@ The error is the largest of the seven angles at t = 0.03 s against the Test Set'
 reference (tests/dynamics_reference.py); the work is the wall time of the solve.  Series:
 
 * ``sparsekin fixed``: `solve_dynamics` at fixed steps h (the compiled small-model loop);
-* ``sparsekin fixed (Python)``: the same steps on the Python stepper (the path ``rtol``
-  takes), to compare the cost per step of the two step rules on one path;
+* ``sparsekin fixed (Python)``: the same steps on the Python stepper, the path of models
+  the compiled loop does not take;
 * ``sparsekin rtol``: error-controlled steps (`rtol`, largest step `RTOL_MAX_STEP`; the
-  Python stepper);
+  compiled loop since branch c25rtolc, the Python stepper before);
 * ``Exudyn fixed``: Exudyn 1.13.6's generalized-α (index 3, ρ∞ 0.9, modified Newton,
   EigenSparse) at fixed steps, each in a fresh interpreter (benchmarks/peers/exudyn_models.py,
   its ``seconds``: ``SolveDynamic`` alone).  Exudyn's implicit solver has no error control:

@@ -4,8 +4,9 @@ For a model of a few dozen coordinates the generalized-α step of
 `sparsekin.solve.dynamics.GeneralizedAlphaStepper` spends its time in Python call overhead,
 not in arithmetic.  `CompiledDynamicsLoop` runs the same step — predictor, modified Newton
 on the scaled index-3 saddle system, velocity and acceleration projections, step halving
-and growth, the
-work and dissipated energy — for a whole block of samples inside one compiled function,
+and growth or error-controlled steps (``rtol``: the controller of
+`sparsekin.solve.error_control` in `sparsekin.solve._error_control_kernels`), the work
+and dissipated energy — for a whole block of samples inside one compiled function,
 on a dense or banded LU of the saddle matrix (`sparsekin.solve._saddle_factorization`:
 dense for small models, banded in reverse Cuthill–McKee order for chains such as the
 IFToMM N-four-bar, as `sparsekin.solve.policy.plan_compiled_factorization` plans once the
@@ -57,14 +58,15 @@ from ..engine._motion_kernels import fill_motion_forces, fill_saddle_triplets, m
 from ..model.laws import fill_laws
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled import _unsupported_law
+from ._error_control_kernels import accept_step, control_rules, control_state, next_step, restore_controller, step_to
 from ._saddle_factorization import compiled_factorization, factor_saddle, solve_saddle
 from .policy import plan_saddle_solver
 from .steppers import SampleBlock, SampleSteps, StepperStats
 
 __all__ = ["CompiledDynamicsLoop", "block_stepper", "compiled_start", "resume", "supports_compiled_dynamics"]
 
-#: What a step, a projection or a block ends with.
-_OK, _STEP_FAILED, _HAND_BACK = 0, 1, 2
+#: What a step, a projection or a block ends with (`_REJECTED`: the step's local error is above rtol).
+_OK, _STEP_FAILED, _HAND_BACK, _REJECTED = 0, 1, 2, 3
 #: The flat tuples the compiled functions share (flat: taking an item from a tuple of
 #: tuples of arrays would count a reference to every array in it, which dominated a
 #: small model's step).  The model (read only):
@@ -98,8 +100,7 @@ def block_stepper(stepper, options, chunk: int, forces=None):
     models whose laws are all built in), else ``SampleSteps(stepper, stepper.recorded)``."""
     pattern = stepper.discretization.constraints
     plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              supports_compiled_dynamics(stepper.mechanism),
-                              error_controlled=stepper.rtol is not None)  # fmt: skip
+                              supports_compiled_dynamics(stepper.mechanism))  # fmt: skip
     if plan.loop == "compiled":
         return CompiledDynamicsLoop(stepper, chunk, forces, options.thresholds, options.linear_solver == "auto")
     return SampleSteps(stepper, stepper.recorded)
@@ -363,9 +364,10 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
 
 
 @njit(inline="always", **JIT)
-def _step(model, work, state, settings, rules_, h, t_next, after):
+def _step(model, work, state, settings, rules_, h, t_next, after, control):
     """One generalized-α step of size `h` from the state into `after` ``(q, v, a, pseudo,
-    lam)`` (`GeneralizedAlphaStepper._step`); returns `_OK`, `_STEP_FAILED` or `_HAND_BACK`."""
+    lam)`` (`GeneralizedAlphaStepper._step`); returns `_OK`, `_STEP_FAILED`, `_HAND_BACK`
+    or, with an rtol in `control` (`_advance_samples`), `_REJECTED`."""
     alpha_m, alpha_f, gamma, beta, tolerance, max_iterations = settings[:6]
     rounding, stall_factor, noise, contraction = rules_[0], rules_[1], rules_[2], rules_[3]
     q0, v0, a0, p0, lam0 = state[_Q], state[_V], state[_A], state[_PSEUDO], state[_LAM]
@@ -456,6 +458,10 @@ def _step(model, work, state, settings, rules_, h, t_next, after):
     outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
     if outcome != _OK:
         return outcome
+    control_rules_ = control[0]
+    if control_rules_[0] > 0.0 and not accept_step(control[1], control_rules_, pseudo, p0, control[4], h,
+                                                   min(last, stall) if stalled else 0.0, control[3]):  # fmt: skip
+        return _REJECTED  # rtol: taken again shorter (`StepSizeController.check`)
     _load(work, q, v, a)
     power, damping = motion_powers(model[_LOADS], model[_ACTUATORS], work[_Q_GROUND], work[_V_GROUND], work[_TURNS],
                                    work[_LAW_VALUES][0], lam, model[_DRIVEN_ROW], work[_VELOCITY_RHS])  # fmt: skip
@@ -518,14 +524,64 @@ def _work_arrays(model, n, n_laws):
             np.zeros(n), np.zeros(size), np.zeros(size), np.zeros(n + 3), np.zeros(m))  # fmt: skip
 
 
+@njit(inline="always", **JIT)
+def _advance_controlled(model, work, state, settings, rules_, control, t, after):
+    """Error-controlled steps to time `t` (`sparsekin.solve.error_control.advance_controlled`):
+    a step whose local error is above rtol is taken again with the controller's shorter
+    step, a failed one is halved and the steps after it held for `GROWTH_AFTER` steps, all
+    on a fresh factorization.  Returns the step proposed for the next interval, or −1 at a
+    step the Python stepper must take (`_HAND_BACK`) or below the largest step over
+    2^`MAX_HALVINGS` (the Python stepper raises there)."""
+    scalars, counts = state[_SCALARS], state[_COUNTS]
+    rules, values = control[0], control[1]
+    proposed, held = scalars[_STEP], 0
+    shortest = settings[6] * 0.5 ** rules_[_MAX_HALVINGS]
+    while scalars[_TIME] < t:
+        now = scalars[_TIME]
+        h = step_to(t - now, proposed)
+        t_next = t if h == t - now else now + h
+        outcome = _step(model, work, state, settings, rules_, h, t_next, after, control)
+        if outcome == _OK:
+            _copy_state(after, state)
+            scalars[_TIME] = t_next
+            proposed = next_step(values, rules, h, proposed, held == 0)
+            held = max(held - 1, 0)
+            continue
+        counts[_FACTORED] = 0
+        if outcome == _HAND_BACK:
+            return -1.0
+        if outcome == _REJECTED:
+            proposed = next_step(values, rules, h, h, True)
+        else:
+            proposed, held = 0.5 * h, rules_[_GROWTH_AFTER]
+            counts[_SUBDIVISIONS] += 1
+        if proposed < shortest:
+            return -1.0
+    return proposed
+
+
+@njit(inline="always", **JIT)
+def _restore(saved, saved_scalars, saved_values, state, values):
+    """The state, its scalars and the controller's `values` back to those of the sample before."""
+    _copy_state(saved, state)
+    scalars = state[_SCALARS]
+    for j in range(scalars.size):
+        scalars[j] = saved_scalars[j]
+    for j in range(values.size):
+        values[j] = saved_values[j]
+
+
 @njit(**{**JIT, "_nrt": False})  # no reference counts: see the docstring
-def _advance_samples(model, state, work, spare, settings, rules_, times, out, forces):
+def _advance_samples(model, state, work, spare, settings, rules_, control, times, out, forces):
     """Integrate from the state to each of `times` in turn, publishing row k of `out`
     ``(coordinates, velocities, accelerations, iterations, energy, drift)`` (and of
     ``forces[2]``) at ``times[k]``; returns the samples solved.  At a sample it cannot
     solve it stops with the state of the sample before (see the module docstring).
     `work` is `_work_arrays`; `spare` is ``(after, saved, saved_scalars)``: the state after
     a step and at the sample before (q, q̇, q̈, ã, λ each), and that sample's scalars.
+    `control` is ``(rules, values, saved_values, scratch, weights)`` of the step-size controller
+    (`sparsekin.solve._error_control_kernels`): with an rtol in its rules, the steps are
+    error-controlled (`_advance_controlled`), else of the largest size, halved on a failure.
 
     Compiled without reference counting (numba's ``_nrt=False``): it allocates nothing and
     every array it touches is held by the caller for the whole call, so it needs none.
@@ -538,18 +594,26 @@ def _advance_samples(model, state, work, spare, settings, rules_, times, out, fo
     after, saved, saved_scalars = spare
     scalars, counts = state[_SCALARS], state[_COUNTS]
     max_step, max_halvings, growth_after = settings[6], rules_[6], rules_[7]
+    controlled, values, saved_values = control[0][0] > 0.0, control[1], control[2]
     iterations = out[3]
     for k in range(times.size):
         t = times[k]
         _copy_state(state, saved)
         for j in range(scalars.size):
             saved_scalars[j] = scalars[j]
+        for j in range(values.size):
+            saved_values[j] = values[j]
         step, good, before = scalars[_STEP], int(scalars[_GOOD]), counts[_NEWTON]  # good steps across samples
+        if controlled:
+            step = _advance_controlled(model, work, state, settings, rules_, control, t, after)
+            if step < 0.0:
+                _restore(saved, saved_scalars, saved_values, state, values)
+                return k
         while scalars[_TIME] < t:
             now = scalars[_TIME]
             remaining = t - now
             h = remaining if remaining <= step * (1.0 + 1e-9) else step
-            outcome = _step(model, work, state, settings, rules_, h, t if h == remaining else now + h, after)
+            outcome = _step(model, work, state, settings, rules_, h, t if h == remaining else now + h, after, control)
             if outcome == _OK:
                 _copy_state(after, state)
                 scalars[_TIME] = t if h == remaining else now + h
@@ -562,9 +626,7 @@ def _advance_samples(model, state, work, spare, settings, rules_, times, out, fo
             counts[_SUBDIVISIONS] += 1
             counts[_FACTORED] = 0
             if outcome == _HAND_BACK or step < max_step * 0.5**max_halvings:
-                _copy_state(saved, state)
-                for j in range(scalars.size):
-                    scalars[j] = saved_scalars[j]
+                _restore(saved, saved_scalars, saved_values, state, values)
                 return k
         scalars[_STEP], scalars[_GOOD] = step, good
         iterations[k] = counts[_NEWTON] - before
@@ -631,8 +693,9 @@ class CompiledDynamicsLoop:
         forces = (*self._forces[:2], self._forces[2][:count])
         counts = self._state[_COUNTS].copy()
         solved = int(_advance_samples(self._model, self._state, self._work, self._spare, self._settings, self._rules,
-                                      times, out, forces))  # fmt: skip
+                                      self._control, times, out, forces))  # fmt: skip
         self._count(self._state[_COUNTS] - counts)
+        restore_controller(python.controller, self._control[1])
         self.n_compiled += solved
         if solved < count:
             self.fell_back = True
@@ -682,6 +745,10 @@ class CompiledDynamicsLoop:
         n, m = pattern.n_coordinates, python.state.multipliers.size
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
+        values = control_state(python.controller)
+        weights = pattern.coordinate_weights if python.controller is None else python.controller.weights
+        self._control = (control_rules(python.controller), values, values.copy(), np.zeros(n),
+                         np.ascontiguousarray(weights, dtype=float))  # fmt: skip
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0,
                             python._good])  # fmt: skip

@@ -308,8 +308,7 @@ def _drawn_places(discretization: Discretization) -> np.ndarray:
 
 
 def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thresholds | None = None,
-                       compilable: bool = False, discretization: Discretization | None = None,
-                       error_controlled: bool = False) -> SolverPlan:  # fmt: skip
+                       compilable: bool = False, discretization: Discretization | None = None) -> SolverPlan:  # fmt: skip
     """The plan of forward dynamics's saddle matrix of `size` unknowns (coordinates plus
     kept equations) with the `linear_solver` asked for (one of `LINEAR_SOLVERS`):
     ``"dense"`` up to `Thresholds.saddle_dense_max_size` with ``"auto"``, ``"refactor"``
@@ -324,11 +323,11 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
     `Thresholds.compiled_banded_max_size`, runs the compiled block stepper (loop
     ``"compiled"``, `sparsekin.solve._compiled_dynamics`; its own LU, dense or banded, is
     planned after the start, when the saddle pattern is known:
-    `plan_compiled_factorization`), else the Python loop.  An `error_controlled` run
-    (``rtol``) always runs the Python loop: the compiled loop takes fixed steps only
-    (halved on a failure).
+    `plan_compiled_factorization`), else the Python loop; error-controlled steps (``rtol``)
+    as well as fixed ones (the compiled loop runs `sparsekin.solve.error_control`'s
+    controller, `sparsekin.solve._error_control_kernels`).
 
-    >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=True, error_controlled=True).loop
+    >>> plan_saddle_solver(60, compilable=True).loop, plan_saddle_solver(60, compilable=False).loop
     ('compiled', 'python')
     >>> plan = plan_saddle_solver(485, compilable=True)
     >>> plan.loop, plan.solver
@@ -347,7 +346,7 @@ def plan_saddle_solver(size: int, linear_solver: str = "auto", thresholds: Thres
                                   points=_drawn_places(discretization), take_out_factors=False)  # fmt: skip
             return SolverPlan(loop="python", solver=thresholds.mesh_saddle_solver, chord=False, thresholds=thresholds)
         linear_solver = "dense" if size <= thresholds.saddle_dense_max_size else "refactor"
-    compiled = compilable and not error_controlled and thresholds.compiled_saddle_max_size > 0 and (
+    compiled = compilable and thresholds.compiled_saddle_max_size > 0 and (
         (linear_solver == "dense" and size <= thresholds.compiled_saddle_max_size)
         or (auto and thresholds.min_banded_saddle_size <= size <= thresholds.compiled_banded_max_size))  # fmt: skip
     return SolverPlan(loop="compiled" if compiled else "python", solver=linear_solver, chord=False,
