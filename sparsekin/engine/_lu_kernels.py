@@ -4,9 +4,10 @@ Symbols (for these kernels only):
 
 * ``B = Pr A Pc`` — the permuted matrix that is factored, ``B = L U``, stored by columns
   (CSC): ``b_indptr``, ``b_rows`` (row indices already permuted) and values read either
-  straight from ``values`` or through ``gather`` (``B`` entry ``p`` is
-  ``values[gather[p]]``).  Entries within a column may come in any order, and repeated
-  rows are summed.
+  straight from ``values`` or shifted by a per-column ``offsets`` (``B`` entry ``p`` of
+  column ``j`` is ``values[p + offsets[j]]``: each column of ``B`` is one contiguous run of
+  the values, a row of the CSR matrix whose transpose is factored).  Entries within a
+  column may come in any order, and repeated rows are summed.
 * ``L`` — unit lower triangular, strictly lower part by columns: ``l_indptr``,
   ``l_indices``, ``l_values``.
 * ``U`` — upper triangular, strictly upper part by columns (rows in a topological order
@@ -17,7 +18,8 @@ Symbols (for these kernels only):
   of ``A`` is column ``perm_c[c]`` of ``B``.
 * Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
-  which the solves are bound by), int64 otherwise; ``*_indptr`` are always int64.
+  which the solves are bound by), int64 otherwise; `analyse_lu_pattern` returns int64
+  ``*_indptr``, which its caller may narrow to int32 when their last entry fits.
 
 The patterns of ``L`` and ``U`` are *structural*: every entry that can be nonzero for some
 values of ``B`` with the pivot sequence fixed, so a value that is exactly zero at one
@@ -130,13 +132,13 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
 
 
 @njit(**_JIT)
-def refactor_lu(values, gather, b_pattern, lower, upper, work, stats):
+def refactor_lu(values, offsets, b_pattern, lower, upper, work, stats):
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
 
     `b_pattern` is B's ``(indptr, rows)``, `lower` L's ``(indptr, indices, values)``,
     `upper` U's ``(indptr, indices, values, inverse of the diagonal)``; the values of L
-    and U are filled.  B's entry p is ``values[gather[p]]``, or ``values[p]`` when `gather`
-    is empty.
+    and U are filled.  B's entry p of column j is ``values[p + offsets[j]]``, or
+    ``values[p]`` when `offsets` is empty.
     `work` (shape (n,)) must be zero on entry and is zero on return.  The factorization
     stops at the first column whose pivot is zero or non-finite and records it in
     ``stats[STAT_BAD_COLUMN]``; a non-finite entry of L or U makes
@@ -146,7 +148,7 @@ def refactor_lu(values, gather, b_pattern, lower, upper, work, stats):
     l_indptr, l_indices, l_values = lower
     u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
-    direct = gather.size == 0
+    direct = offsets.size == 0
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
@@ -159,8 +161,9 @@ def refactor_lu(values, gather, b_pattern, lower, upper, work, stats):
                 work[b_rows[p]] += value  # repeated entries add up
                 max_b = max(max_b, abs(value))
         else:
+            shift = offsets[j]
             for p in range(b_indptr[j], b_indptr[j + 1]):
-                value = values[gather[p]]
+                value = values[p + shift]
                 work[b_rows[p]] += value
                 max_b = max(max_b, abs(value))
         for p in range(u_indptr[j], u_indptr[j + 1]):  # in topological order
@@ -422,3 +425,14 @@ def ordered_columns(indptr, indices, order):
             gather[q] = p
             start[indices[p]] = q + 1
     return c_indptr, c_indices, gather
+
+
+@njit(**_JIT)
+def fill_column_rows(indices, offsets, b_indptr, perm_r, b_rows):
+    """``b_rows[p] = perm_r[indices[p + offsets[j]]]`` for the entries p of each column j of
+    B: B's row indices, permuted, read from the CSR indices of the matrix whose transpose
+    is factored (without an index array per entry to gather them through)."""
+    for j in range(b_indptr.size - 1):
+        shift = offsets[j]
+        for p in range(b_indptr[j], b_indptr[j + 1]):
+            b_rows[p] = perm_r[indices[p + shift]]
