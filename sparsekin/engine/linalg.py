@@ -427,7 +427,7 @@ class RefactorSolver:
             return
         data = jacobian.data if jacobian.data.dtype == np.float64 else jacobian.data.astype(float)
         self.n_refactorizations += 1
-        if self._numeric(data, self._offsets) and self._guard_accepts():
+        if self._numeric(data, False) and self._guard_accepts():
             self._factored = True
             return
         self.n_fallbacks += 1
@@ -456,7 +456,7 @@ class RefactorSolver:
             )
         self._factored = False
         self.n_refactorizations += 1
-        if self._numeric(values, self._direct) and self._guard_accepts():
+        if self._numeric(values, True) and self._guard_accepts():
             self._factored = True
             return
         self.n_fallbacks += 1
@@ -542,7 +542,7 @@ class RefactorSolver:
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
         self._analyse(perm_r, perm_c, 2 * self._nnz)
-        if self._numeric(data, self._offsets) and self._guard_accepts():
+        if self._numeric(data, False) and self._guard_accepts():
             self._factored = True
             return True
         self.n_fallbacks += 1
@@ -565,7 +565,7 @@ class RefactorSolver:
         del lu
         self._analyse(perm_r, perm_c, capacity)
         # SuperLU's own pivots: accepted whatever the guard says, unless one is zero or not finite.
-        if not self._numeric(data, self._offsets):
+        if not self._numeric(data, False):
             column = int(self._stats[_lu_kernels.STAT_BAD_COLUMN])
             if column < 0:
                 raise SingularMatrix("the matrix holds non-finite values")
@@ -597,21 +597,21 @@ class RefactorSolver:
             column_of[perm_c] = np.arange(n)
             b_indptr = np.zeros(n + 1, dtype=np.int64)
             np.cumsum(np.diff(indptr)[column_of], out=b_indptr[1:])
-            self._offsets = indptr[column_of] - b_indptr[:-1]
+            self._offsets = (indptr[column_of] - b_indptr[:-1]).astype(index)  # |offset| < nnz
             del column_of
             self._b_indptr = b_indptr.astype(index)  # its last entry is nnz
             self._value_positions = None  # made when asked for (`value_positions`)
-            self._direct = self._offsets[:0]  # no offsets: the values come in factor order
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
         self._perm_r = perm_r.astype(index)
-        self._b_rows = np.empty(nnz, dtype=index)
-        _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, self._b_rows)
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None  # the last pattern's, freed first
         self._l_values = self._u_values = None
+        b_rows = np.empty(nnz, dtype=index)  # for the analysis only: the refactorizations read the CSR pattern
+        _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
         l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, self._b_rows, capacity // 2, capacity // 2
+            self._b_indptr, b_rows, capacity // 2, capacity // 2
         )
+        del b_rows
         # int32 row pointers when every entry fits (checked on the last, the largest)
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
@@ -624,14 +624,15 @@ class RefactorSolver:
         self._work = np.zeros(n)
         self._work_is_zero = True
 
-    def _numeric(self, values: np.ndarray, offsets: np.ndarray) -> bool:
+    def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
         stats = self._stats
         if not self._work_is_zero:
             self._work.fill(0.0)
             self._work_is_zero = True
         _lu_kernels.refactor_lu(
-            values, offsets, (self._b_indptr, self._b_rows), (self._l_indptr, self._l_indices, self._l_values),
+            values, in_factor_order, (self._b_indptr, self._offsets, self._indices, self._perm_r),
+            (self._l_indptr, self._l_indices, self._l_values),
             (self._u_indptr, self._u_indices, self._u_values, self._u_inverse), self._work, stats,
         )  # fmt: skip
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
