@@ -2,15 +2,13 @@
 
 Symbols (for these kernels only):
 
-* ``B = Pr A Pc`` — the permuted matrix that is factored, ``B = L U``, by columns:
-  ``b_indptr`` and, for each column j, its shift ``offsets[j]`` into the CSR pattern
-  ``indices`` of the matrix whose transpose is ``A`` (column j of ``B`` is one row of that
-  matrix, a contiguous run): ``B`` entry ``p`` of column ``j`` is in row
-  ``perm_r[indices[p + offsets[j]]]`` (`analyse_lu_pattern` takes these rows as one array,
-  ``b_rows``, made by `fill_column_rows`), and its value is ``values[p + offsets[j]]``
-  (CSR order) or ``values[p]`` (factor order).  No copy of the pattern is kept beside the
-  matrix's own.  Entries within a column may come in any order, and repeated rows are
-  summed.
+* ``B = Pr A Pc`` — the permuted matrix that is factored, ``B = L U``, stored by columns
+  (CSC): ``b_indptr``, ``b_rows`` (row indices already permuted, `fill_column_rows`) and
+  values read either straight from ``values`` (factor order) or shifted by a per-column
+  ``offsets`` (``B`` entry ``p`` of column ``j`` is ``values[p + offsets[j]]``: each
+  column of ``B`` is one contiguous run of the values, a row of the CSR matrix whose
+  transpose is ``A``).  Entries within a column may come in any order, and repeated rows
+  are summed.
 * ``L`` — unit lower triangular, strictly lower part by columns: ``l_indptr``,
   ``l_indices``, ``l_values``.
 * ``U`` — upper triangular, strictly upper part by columns (rows in a topological order
@@ -138,16 +136,16 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
 def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
 
-    `b_pattern` is B's ``(indptr, offsets, indices, perm_r)`` (module docstring), `lower`
-    L's ``(indptr, indices, values)``, `upper` U's ``(indptr, indices, values, inverse of
-    the diagonal)``; the values of L and U are filled.  B's entry p of column j is
-    ``values[p + offsets[j]]``, or ``values[p]`` if `in_factor_order`.
+    `b_pattern` is B's ``(indptr, rows, offsets)``, `lower` L's ``(indptr, indices,
+    values)``, `upper` U's ``(indptr, indices, values, inverse of the diagonal)``; the
+    values of L and U are filled.  B's entry p of column j is ``values[p + offsets[j]]``,
+    or ``values[p]`` if `in_factor_order`.
     `work` (shape (n,)) must be zero on entry and is zero on return.  The factorization
     stops at the first column whose pivot is zero or non-finite and records it in
     ``stats[STAT_BAD_COLUMN]``; a non-finite entry of L or U makes
     ``stats[STAT_NON_FINITE]`` NaN.
     """
-    b_indptr, offsets, indices, perm_r = b_pattern
+    b_indptr, b_rows, offsets = b_pattern
     l_indptr, l_indices, l_values = lower
     u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
@@ -157,16 +155,16 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
     stats[STAT_BAD_COLUMN] = -1.0
     for j in range(n):
-        shift = offsets[j]
         if in_factor_order:
             for p in range(b_indptr[j], b_indptr[j + 1]):
                 value = values[p]
-                work[perm_r[indices[p + shift]]] += value  # repeated entries add up
+                work[b_rows[p]] += value  # repeated entries add up
                 max_b = max(max_b, abs(value))
         else:
+            shift = offsets[j]
             for p in range(b_indptr[j], b_indptr[j + 1]):
                 value = values[p + shift]
-                work[perm_r[indices[p + shift]]] += value
+                work[b_rows[p]] += value
                 max_b = max(max_b, abs(value))
         for p in range(u_indptr[j], u_indptr[j + 1]):  # in topological order
             k = u_indices[p]
