@@ -129,25 +129,28 @@ def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
 
 
 def against_markdown(rows: list[dict]) -> str:
-    """Per size: median time per step and peak of this tree and of the other, and their ratios."""
+    """Per size, its latest commit's rows: median time per step and peak of this tree and of
+    the other, their ratios, and the load (times compare only at similar loads)."""
     import statistics
 
-    lines = ["| bodies | rounds | per step, before | per step, after | after / before | peak before | peak after "
-             "| after / before |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | peak before "
+             "| peak after | after / before | load |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for bodies in sorted({row["bodies"] for row in rows}):
-        by = {name: [row for row in rows if row["bodies"] == bodies and row["tree"] == name] for name in ("other", "this")}
+        commit = [row["commit"] for row in rows if row["bodies"] == bodies][-1]
+        of_size = [row for row in rows if row["bodies"] == bodies and row["commit"] == commit]
+        by = {name: [row for row in of_size if row["tree"] == name] for name in ("other", "this")}
         if not (by["other"] and by["this"]):
             continue
         time_, peak = ({name: statistics.median(row[key] for row in by[name]) for name in by}
                        for key in ("seconds_per_step", "peak_memory_mb"))  # fmt: skip
-        lines.append(f"| {bodies} | {len(by['this'])} | {_seconds(time_['other'])} | {_seconds(time_['this'])} "
-                     f"| {time_['this'] / time_['other']:.2f} | {peak['other']:.0f} MB | {peak['this']:.0f} MB "
-                     f"| {peak['this'] / peak['other']:.2f} |")  # fmt: skip
-    loads = [row["load_average"] for row in rows]
+        loads = [row["load_average"] for row in of_size]
+        lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
+                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {peak['other']:.0f} MB "
+                     f"| {peak['this']:.0f} MB | {peak['this'] / peak['other']:.2f} "
+                     f"| {min(loads):.1f}–{max(loads):.1f} |")  # fmt: skip
     runs = sorted(row["utc"] for row in rows)
-    lines.append(f"\nMedians of alternating fresh processes; load average (1 min) {min(loads):.1f} to "
-                 f"{max(loads):.1f}; {runs[0]} to {runs[-1]} UTC; after = commit "
-                 f"{', '.join(sorted({row['commit'] for row in rows}))}.")  # fmt: skip
+    lines.append(f"\nMedians of alternating fresh processes (before: the other tree, e.g. main's; after: this "
+                 f"tree at the commit given); load: the 1-min load average; {runs[0]} to {runs[-1]} UTC.")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -222,8 +225,8 @@ def results_section(rows: list[dict]) -> list[str]:
     rows = latest([row for row in rows if "against" not in row])
     before = [] if not compared else [
         "", "The dynamic run against the tree before a change (`against`, the lines with ``against``",
-        "in the same file): the latest comparison.", "",
-        *against_markdown([row for row in compared if row["utc"][:10] == compared[-1]["utc"][:10]]).splitlines(),
+        "in the same file): per size, its latest commit's comparison.", "",
+        *against_markdown(compared).splitlines(),
     ]  # fmt: skip
     return [
         "## Forward dynamics: the N-four-bar chain (issue 25; `measure_dynamics_chain.py`)",
