@@ -121,8 +121,9 @@ def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
     rows = []
     for round_ in range(rounds):
         for name, root in (("other", tree), ("this", ROOT)):
-            row = in_subprocess(str(root / "benchmarks" / "measure_dynamics_chain.py"), "one", "dynamic", "--bodies",
-                                str(bodies), "--steps", str(steps), tree=root)  # fmt: skip
+            script = str(root / "benchmarks" / "measure_dynamics_chain.py")
+            arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps))
+            row = in_subprocess(script, *arguments, tree=root)
             rows.append({**row, "against": str(tree), "tree": name, "round": round_})
             print(json.dumps(rows[-1]), flush=True)
     return rows

@@ -604,7 +604,8 @@ class RefactorSolver:
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
         self._perm_r = perm_r.astype(index)
-        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None  # the last pattern's, freed first
+        # the last pattern's, freed before the new one is made
+        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
         self._l_values = self._u_values = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
         # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain)

@@ -119,7 +119,9 @@ class CoincidenceArrays(NamedTuple):
     local_i: np.ndarray  # float64 (k, 2): the point in body i's frame
     local_j: np.ndarray
     row: np.ndarray  # int64 (k,): first of the two rows
-    slots: np.ndarray  # int32 (int64 if nnz does not fit) (k, 8): x_i, angle_i, x_j, angle_j (row x), then y_i, angle_i, y_j, angle_j
+    # int32 (int64 if nnz does not fit), (k, 8): x_i, angle_i, x_j, angle_j (row x),
+    # then y_i, angle_i, y_j, angle_j
+    slots: np.ndarray
 
 
 class ProjectionArrays(NamedTuple):
@@ -164,8 +166,10 @@ class Primitives(NamedTuple):
         `positions` has the nnz + 1 entries of a permutation of the values followed by
         the discard slot.  The slots keep their dtype (the positions are below nnz + 1 too).
         """
-        return Primitives(*(arrays._replace(slots=positions[arrays.slots].astype(arrays.slots.dtype, copy=False))
-                            for arrays in self))  # fmt: skip
+        def moved(slots: np.ndarray) -> np.ndarray:
+            return positions[slots].astype(slots.dtype, copy=False)
+
+        return Primitives(*(arrays._replace(slots=moved(arrays.slots)) for arrays in self))
 
 
 class PackedEquations(NamedTuple):

@@ -282,7 +282,7 @@ class GeneralizedAlphaStepper:
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system)
         self._work = (np.zeros(system.size), np.zeros(n))  # Newton's rhs (its correction solved in place), force
-        # the projections': solution, residual (Newton's rhs: they run after it), drift, drift left, zeros (q̈)
+        # the projections': solution, residual (Newton's rhs: they follow it), drift, drift left, zeros
         self._projection_work = (np.zeros(system.size), self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._floor = RoundingFloor(self.path != "dense")
