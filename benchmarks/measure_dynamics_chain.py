@@ -21,10 +21,13 @@ holds ~130 MB of it).  Commands::
     python3 benchmarks/measure_dynamics_chain.py table            # 10^3, 10^4, 10^5 bodies
     python3 benchmarks/measure_dynamics_chain.py table --accuracy  # + 100 steps at 10^5, both
     python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001 --steps 20
+    python3 benchmarks/measure_dynamics_chain.py against /tmp/base --bodies 100001 --rounds 3
 
-(the last: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
-on the shared machine first).  Each measurement prints one JSON line; ``table`` prints
-them and a Markdown table with the ratios of the same run.
+(the third: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
+on the shared machine first; the last: the dynamic run of this tree and of another
+checkout, e.g. ``git archive main | tar -x -C /tmp/base``, alternately in fresh
+processes, each with its own sparsekin).  Each measurement prints one JSON line;
+``table`` prints them and a Markdown table with the ratios of the same run.
 """
 
 from __future__ import annotations
@@ -104,11 +107,12 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
     return result
 
 
-def in_subprocess(*arguments: str) -> dict:
-    """One measurement in a fresh interpreter, parsed from its last output line."""
+def in_subprocess(*arguments: str, tree: Path = ROOT) -> dict:
+    """One measurement in a fresh interpreter (with the sparsekin of `tree`), parsed from its
+    last output line."""
     command = [sys.executable, "-W", "ignore", *arguments]
-    output = subprocess.run(command, check=True, capture_output=True, text=True, cwd=ROOT,
-                            env={**os.environ, "PYTHONPATH": str(ROOT)})  # fmt: skip
+    output = subprocess.run(command, check=True, capture_output=True, text=True, cwd=tree,
+                            env={**os.environ, "PYTHONPATH": str(tree)})  # fmt: skip
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
                             cwd=ROOT).stdout.strip()  # fmt: skip
     return {**json.loads(output.stdout.strip().splitlines()[-1]), "load_average": os.getloadavg()[0],
@@ -117,6 +121,47 @@ def in_subprocess(*arguments: str) -> dict:
 
 def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
     return in_subprocess(__file__, "one", analysis, "--bodies", str(bodies), "--steps", str(steps))
+
+
+def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
+    """The dynamic run of this tree and of `tree` (another checkout, its own script and
+    sparsekin) alternately, `rounds` times each, fresh processes: rows with ``against``
+    (`tree`) and ``tree`` ("this" or "other")."""
+    rows = []
+    for round_ in range(rounds):
+        for name, root in (("other", tree), ("this", ROOT)):
+            script = str(root / "benchmarks" / "measure_dynamics_chain.py")
+            arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps))
+            row = in_subprocess(script, *arguments, tree=root)
+            rows.append({**row, "against": str(tree), "tree": name, "round": round_})
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def against_markdown(rows: list[dict]) -> str:
+    """Per size, its latest commit's rows: median time per step and peak of this tree and of
+    the other, their ratios, and the load (times compare only at similar loads)."""
+    import statistics
+
+    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | peak before "
+             "| peak after | after / before | load |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for bodies in sorted({row["bodies"] for row in rows}):
+        commit = [row["commit"] for row in rows if row["bodies"] == bodies][-1]
+        of_size = [row for row in rows if row["bodies"] == bodies and row["commit"] == commit]
+        by = {name: [row for row in of_size if row["tree"] == name] for name in ("other", "this")}
+        if not (by["other"] and by["this"]):
+            continue
+        time_, peak = ({name: statistics.median(row[key] for row in by[name]) for name in by}
+                       for key in ("seconds_per_step", "peak_memory_mb"))  # fmt: skip
+        loads = [row["load_average"] for row in of_size]
+        lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
+                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {peak['other']:.0f} MB "
+                     f"| {peak['this']:.0f} MB | {peak['this'] / peak['other']:.2f} "
+                     f"| {min(loads):.1f}–{max(loads):.1f} |")  # fmt: skip
+    runs = sorted(row["utc"] for row in rows)
+    lines.append(f"\nMedians of alternating fresh processes (before: the other tree, e.g. main's; after: this "
+                 f"tree at the commit given); load: the 1-min load average; {runs[0]} to {runs[-1]} UTC.")  # fmt: skip
+    return "\n".join(lines)
 
 
 def exudyn_row(bodies: int, steps: int) -> dict:
@@ -186,7 +231,13 @@ def latest(rows: list[dict]) -> list[dict]:
 def results_section(rows: list[dict]) -> list[str]:
     """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`
     (the latest of each measurement)."""
-    rows = latest(rows)
+    compared = [row for row in rows if "against" in row]
+    rows = latest([row for row in rows if "against" not in row])
+    before = [] if not compared else [
+        "", "The dynamic run against the tree before a change (`against`, the lines with ``against``",
+        "in the same file): per size, its latest commit's comparison.", "",
+        *against_markdown(compared).splitlines(),
+    ]  # fmt: skip
     return [
         "## Forward dynamics: the N-four-bar chain (issue 25; `measure_dynamics_chain.py`)",
         "",
@@ -202,6 +253,7 @@ def results_section(rows: list[dict]) -> list[str]:
         "answer (every crank moves as one four-bar), largest over the steps taken.",
         "",
         *markdown(rows).splitlines(),
+        *before,
     ]
 
 
@@ -219,7 +271,21 @@ def main(argv=None) -> None:
     run_table = commands.add_parser("table", help="every size, each measurement in a fresh process")
     run_table.add_argument("--accuracy", action="store_true", help=f"and {ACCURACY_STEPS} steps at the largest size")
     run_table.add_argument("--out", type=Path, help="also write the JSON lines here")
+    compare = commands.add_parser("against", help="the dynamic run of this tree and another, alternately")
+    compare.add_argument("tree", type=Path, help="the other checkout (e.g. an export of main)")
+    compare.add_argument("--bodies", type=int, nargs="+", default=[10001, 100001])
+    compare.add_argument("--steps", type=int, default=20)
+    compare.add_argument("--rounds", type=int, default=3)
+    compare.add_argument("--append", type=Path, help="append the JSON lines to this file")
     arguments = parser.parse_args(argv)
+    if arguments.command == "against":
+        rows = [row for bodies in arguments.bodies
+                for row in against(arguments.tree.resolve(), bodies, arguments.steps, arguments.rounds)]  # fmt: skip
+        if arguments.append:
+            with arguments.append.open("a") as out:
+                out.write("".join(json.dumps(row) + "\n" for row in rows))
+        print(against_markdown(rows))
+        return
     if arguments.command == "one":
         print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps)))
         return

@@ -3,10 +3,12 @@
 Symbols (for these kernels only):
 
 * ``B = Pr A Pc`` — the permuted matrix that is factored, ``B = L U``, stored by columns
-  (CSC): ``b_indptr``, ``b_rows`` (row indices already permuted) and values read either
-  straight from ``values`` or through ``gather`` (``B`` entry ``p`` is
-  ``values[gather[p]]``).  Entries within a column may come in any order, and repeated
-  rows are summed.
+  (CSC): ``b_indptr``, ``b_rows`` (row indices already permuted, `fill_column_rows`) and
+  values read either straight from ``values`` (factor order) or shifted by a per-column
+  ``offsets`` (``B`` entry ``p`` of column ``j`` is ``values[p + offsets[j]]``: each
+  column of ``B`` is one contiguous run of the values, a row of the CSR matrix whose
+  transpose is ``A``).  Entries within a column may come in any order, and repeated rows
+  are summed.
 * ``L`` — unit lower triangular, strictly lower part by columns: ``l_indptr``,
   ``l_indices``, ``l_values``.
 * ``U`` — upper triangular, strictly upper part by columns (rows in a topological order
@@ -17,7 +19,12 @@ Symbols (for these kernels only):
   of ``A`` is column ``perm_c[c]`` of ``B``.
 * Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
-  which the solves are bound by), int64 otherwise; ``*_indptr`` are always int64.
+  which the solves are bound by), int64 otherwise; `analyse_lu_pattern` returns int64
+  ``*_indptr``, which its caller may narrow to int32 when their last entry fits.
+
+Loops over int32 row pointers take int64 bounds (`_wide`): numba counts a ``range`` of
+int32 bounds in int32, which made the refactorization 5–10 % slower than with int64
+pointers (10^5-body chain, interleaved in one process); with the cast it is as fast.
 
 The patterns of ``L`` and ``U`` are *structural*: every entry that can be nonzero for some
 values of ``B`` with the pivot sequence fixed, so a value that is exactly zero at one
@@ -35,6 +42,8 @@ import numpy as np
 from numba import njit
 
 from .._jit import JIT as _JIT
+
+_wide = np.int64  # a loop bound read from an int32 array, counted in int64 (module docstring)
 
 #: Layout of the `stats` array filled by `refactor_lu`.
 #: (`sparsekin.engine.linalg` unpacks it in this order.)
@@ -130,59 +139,59 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
 
 
 @njit(**_JIT)
-def refactor_lu(values, gather, b_pattern, lower, upper, work, stats):
+def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
 
-    `b_pattern` is B's ``(indptr, rows)``, `lower` L's ``(indptr, indices, values)``,
-    `upper` U's ``(indptr, indices, values, inverse of the diagonal)``; the values of L
-    and U are filled.  B's entry p is ``values[gather[p]]``, or ``values[p]`` when `gather`
-    is empty.
+    `b_pattern` is B's ``(indptr, rows, offsets)``, `lower` L's ``(indptr, indices,
+    values)``, `upper` U's ``(indptr, indices, values, inverse of the diagonal)``; the
+    values of L and U are filled.  B's entry p of column j is ``values[p + offsets[j]]``,
+    or ``values[p]`` if `in_factor_order`.
     `work` (shape (n,)) must be zero on entry and is zero on return.  The factorization
     stops at the first column whose pivot is zero or non-finite and records it in
     ``stats[STAT_BAD_COLUMN]``; a non-finite entry of L or U makes
     ``stats[STAT_NON_FINITE]`` NaN.
     """
-    b_indptr, b_rows = b_pattern
+    b_indptr, b_rows, offsets = b_pattern
     l_indptr, l_indices, l_values = lower
     u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
-    direct = gather.size == 0
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
     probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
     stats[STAT_BAD_COLUMN] = -1.0
     for j in range(n):
-        if direct:
-            for p in range(b_indptr[j], b_indptr[j + 1]):
+        if in_factor_order:
+            for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
                 value = values[p]
                 work[b_rows[p]] += value  # repeated entries add up
                 max_b = max(max_b, abs(value))
         else:
-            for p in range(b_indptr[j], b_indptr[j + 1]):
-                value = values[gather[p]]
+            shift = offsets[j]
+            for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
+                value = values[p + shift]
                 work[b_rows[p]] += value
                 max_b = max(max_b, abs(value))
-        for p in range(u_indptr[j], u_indptr[j + 1]):  # in topological order
+        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
             k = u_indices[p]
             x_k = work[k]
             work[k] = 0.0
             u_values[p] = x_k
             max_u = max(max_u, abs(x_k))
             probe += 0.0 * x_k
-            for q in range(l_indptr[k], l_indptr[k + 1]):
+            for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
                 work[l_indices[q]] -= l_values[q] * x_k
         pivot = work[j]
         work[j] = 0.0
         if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
-            for q in range(l_indptr[j], l_indptr[j + 1]):
+            for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
                 work[l_indices[q]] = 0.0
             stats[STAT_BAD_COLUMN] = j
             break
         max_u = max(max_u, abs(pivot))
         inverse = 1.0 / pivot
         u_inverse[j] = inverse
-        for q in range(l_indptr[j], l_indptr[j + 1]):
+        for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
             i = l_indices[q]
             entry = work[i] * inverse
             work[i] = 0.0
@@ -210,12 +219,12 @@ def solve_lu(factors, rhs, work, out, probe):
         work[perm_r[i]] = rhs[i]
     for j in range(n):  # L y = Pr rhs, column by column
         x_j = work[j]
-        for p in range(l_indptr[j], l_indptr[j + 1]):
+        for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
             work[l_indices[p]] -= l_values[p] * x_j
     for j in range(n - 1, -1, -1):  # U z = y
         x_j = work[j] * u_inverse[j]
         work[j] = x_j
-        for p in range(u_indptr[j], u_indptr[j + 1]):
+        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
             work[u_indices[p]] -= u_values[p] * x_j
     total = 0.0
     for i in range(n):  # x = Pc z
@@ -239,12 +248,12 @@ def solve_lu_transposed(factors, rhs, work, out, probe):
         work[perm_c[i]] = rhs[i]
     for j in range(n):  # U^T y = Pc^T rhs: dot products with the columns of U
         total = work[j]
-        for p in range(u_indptr[j], u_indptr[j + 1]):
+        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
             total -= u_values[p] * work[u_indices[p]]
         work[j] = total * u_inverse[j]
     for j in range(n - 1, -1, -1):  # L^T z = y
         total = work[j]
-        for p in range(l_indptr[j], l_indptr[j + 1]):
+        for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
             total -= l_values[p] * work[l_indices[p]]
         work[j] = total
     total = 0.0
@@ -422,3 +431,14 @@ def ordered_columns(indptr, indices, order):
             gather[q] = p
             start[indices[p]] = q + 1
     return c_indptr, c_indices, gather
+
+
+@njit(**_JIT)
+def fill_column_rows(indices, offsets, b_indptr, perm_r, b_rows):
+    """``b_rows[p] = perm_r[indices[p + offsets[j]]]`` for the entries p of each column j of
+    B: B's row indices, permuted, read from the CSR indices of the matrix whose transpose
+    is factored (without an index array per entry to gather them through)."""
+    for j in range(b_indptr.size - 1):
+        shift = offsets[j]
+        for p in range(b_indptr[j], b_indptr[j + 1]):
+            b_rows[p] = perm_r[indices[p + shift]]

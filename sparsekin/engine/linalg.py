@@ -379,9 +379,10 @@ class RefactorSolver:
         never asks, forward dynamics, does not hold)."""
         self._require_analysis()
         if self._value_positions is None:
-            nnz = self._gather.size
+            nnz = self._nnz
+            gather = np.repeat(self._offsets, np.diff(self._b_indptr)) + np.arange(nnz, dtype=np.int64)
             self._value_positions = np.empty(nnz, dtype=np.int64)
-            self._value_positions[self._gather] = np.arange(nnz, dtype=np.int64)
+            self._value_positions[gather] = np.arange(nnz, dtype=np.int64)
         return self._value_positions
 
     @property
@@ -426,7 +427,7 @@ class RefactorSolver:
             return
         data = jacobian.data if jacobian.data.dtype == np.float64 else jacobian.data.astype(float)
         self.n_refactorizations += 1
-        if self._numeric(data, self._gather) and self._guard_accepts():
+        if self._numeric(data, False) and self._guard_accepts():
             self._factored = True
             return
         self.n_fallbacks += 1
@@ -455,7 +456,7 @@ class RefactorSolver:
             )
         self._factored = False
         self.n_refactorizations += 1
-        if self._numeric(values, self._direct) and self._guard_accepts():
+        if self._numeric(values, True) and self._guard_accepts():
             self._factored = True
             return
         self.n_fallbacks += 1
@@ -491,7 +492,8 @@ class RefactorSolver:
         kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
         factors = (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
                    (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
-        finite = solve_factored(kernel, factors, rhs, out, self._solve_work, self._probe)
+        self._work_is_zero = False
+        finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if not finite:
             raise SingularMatrix("the solution is not finite")
@@ -540,7 +542,7 @@ class RefactorSolver:
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
         self._analyse(perm_r, perm_c, 2 * self._nnz)
-        if self._numeric(data, self._gather) and self._guard_accepts():
+        if self._numeric(data, False) and self._guard_accepts():
             self._factored = True
             return True
         self.n_fallbacks += 1
@@ -563,7 +565,7 @@ class RefactorSolver:
         del lu
         self._analyse(perm_r, perm_c, capacity)
         # SuperLU's own pivots: accepted whatever the guard says, unless one is zero or not finite.
-        if not self._numeric(data, self._gather):
+        if not self._numeric(data, False):
             column = int(self._stats[_lu_kernels.STAT_BAD_COLUMN])
             if column < 0:
                 raise SingularMatrix("the matrix holds non-finite values")
@@ -589,35 +591,51 @@ class RefactorSolver:
         index = _index_dtype(max(n, nnz))
         if self._perm_c is None or not np.array_equal(perm_c, self._perm_c):
             # Column j of B is column c = column_of[j] of A, i.e. row c of the CSR Jacobian,
-            # its entries in the CSR order: contiguous runs of jacobian.data.
+            # its entries in the CSR order: a contiguous run of jacobian.data, which starts
+            # `offsets[j]` after B's column j (n offsets instead of a gather index per entry).
             column_of = np.empty(n, dtype=np.int64)
             column_of[perm_c] = np.arange(n)
-            counts = np.diff(indptr).astype(np.int64)[column_of]
-            self._b_indptr = np.zeros(n + 1, dtype=np.int64)
-            np.cumsum(counts, out=self._b_indptr[1:])
-            gather = np.repeat(indptr[column_of].astype(np.int64) - self._b_indptr[:-1], counts)
-            gather += np.arange(nnz, dtype=np.int64)
+            b_indptr = np.zeros(n + 1, dtype=np.int64)
+            np.cumsum(np.diff(indptr)[column_of], out=b_indptr[1:])
+            self._offsets = (indptr[column_of] - b_indptr[:-1]).astype(index)  # |offset| < nnz
+            del column_of
+            self._b_indptr = b_indptr.astype(index)  # its last entry is nnz
             self._value_positions = None  # made when asked for (`value_positions`)
-            self._gather = gather.astype(index)
-            self._direct = self._gather[:0]  # an empty gather: the values come in factor order
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
         self._perm_r = perm_r.astype(index)
-        self._b_rows = self._perm_r[indices[self._gather]]
-        (self._l_indptr, self._l_indices, self._u_indptr, self._u_indices) = _lu_kernels.analyse_lu_pattern(
+        # the last pattern's, freed before the new one is made
+        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
+        self._l_values = self._u_values = None
+        # B's rows, a permuted copy of the pattern: reading them through perm_r and the
+        # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain)
+        self._b_rows = None
+        self._b_rows = np.empty(nnz, dtype=index)
+        _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, self._b_rows)
+        l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
             self._b_indptr, self._b_rows, capacity // 2, capacity // 2
         )
+        # int32 row pointers when every entry fits (checked on the last, the largest)
+        self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
+        self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
+        del l_indptr, u_indptr
         self._l_values = np.zeros(self._l_indices.size)
         self._u_values = np.zeros(self._u_indices.size)
         self._u_inverse = np.zeros(n)
-        self._work = np.zeros(n)  # the refactorization's accumulator: zero between columns
-        self._solve_work = np.zeros(n)
+        # the refactorization's accumulator (zero between its columns) and the solves'
+        # scratch, one array: `_numeric` zeroes it after the solves have used it
+        self._work = np.zeros(n)
+        self._work_is_zero = True
 
-    def _numeric(self, values: np.ndarray, gather: np.ndarray) -> bool:
+    def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
         stats = self._stats
+        if not self._work_is_zero:
+            self._work.fill(0.0)
+            self._work_is_zero = True
         _lu_kernels.refactor_lu(
-            values, gather, (self._b_indptr, self._b_rows), (self._l_indptr, self._l_indices, self._l_values),
+            values, in_factor_order, (self._b_indptr, self._b_rows, self._offsets),
+            (self._l_indptr, self._l_indices, self._l_values),
             (self._u_indptr, self._u_indices, self._u_values, self._u_inverse), self._work, stats,
         )  # fmt: skip
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()

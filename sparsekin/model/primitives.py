@@ -119,7 +119,9 @@ class CoincidenceArrays(NamedTuple):
     local_i: np.ndarray  # float64 (k, 2): the point in body i's frame
     local_j: np.ndarray
     row: np.ndarray  # int64 (k,): first of the two rows
-    slots: np.ndarray  # int64 (k, 8): x_i, angle_i, x_j, angle_j (row x), then y_i, angle_i, y_j, angle_j
+    # int32 (int64 if nnz does not fit), (k, 8): x_i, angle_i, x_j, angle_j (row x),
+    # then y_i, angle_i, y_j, angle_j
+    slots: np.ndarray
 
 
 class ProjectionArrays(NamedTuple):
@@ -138,7 +140,7 @@ class CombinationArrays(NamedTuple):
     column: np.ndarray  # int64 (m,): coordinate index of each term
     coefficient: np.ndarray  # float64 (m,)
     row: np.ndarray
-    slots: np.ndarray  # int64 (m,)
+    slots: np.ndarray  # (m,), the dtype of the others
 
 
 class DistanceArrays(NamedTuple):
@@ -162,9 +164,12 @@ class Primitives(NamedTuple):
         """The same equations writing entry k of the Jacobian to ``positions[k]`` instead.
 
         `positions` has the nnz + 1 entries of a permutation of the values followed by
-        the discard slot.
+        the discard slot.  The slots keep their dtype (the positions are below nnz + 1 too).
         """
-        return Primitives(*(arrays._replace(slots=positions[arrays.slots]) for arrays in self))
+        def moved(slots: np.ndarray) -> np.ndarray:
+            return positions[slots].astype(slots.dtype, copy=False)
+
+        return Primitives(*(arrays._replace(slots=moved(arrays.slots)) for arrays in self))
 
 
 class PackedEquations(NamedTuple):
@@ -241,7 +246,8 @@ def pack(blocks, n_rows: int, frames: np.ndarray, shapes=None) -> PackedEquation
     slots = np.empty(rows.size, dtype=np.int64)
     indices = _csr_pattern(rows, columns, n_coordinates, indptr, slots)
     if max(n_coordinates, indices.size) < 2**31 - 1:  # int32 when every index fits: half the memory traffic
-        indices, indptr = indices.astype(np.int32), indptr.astype(np.int32)
+        # (the slots too: they are below nnz + 1, the discard slot)
+        indices, indptr, slots = indices.astype(np.int32), indptr.astype(np.int32), slots.astype(np.int32)
     ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
 
     drawn_local = LocalCoordinates(frames)

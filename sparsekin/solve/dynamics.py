@@ -280,8 +280,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system)
         self._work = (np.zeros(system.size), np.zeros(n))  # Newton's rhs (its correction solved in place), force
-        # the projections': solution, residual; drift, drift left (every equation); zeros (q̈)
-        self._projection_work = tuple(np.zeros(size) for size in (system.size, system.size, m, m, n))
+        # the projections': solution, residual (Newton's rhs: they follow it), drift, drift left, zeros
+        self._projection_work = (np.zeros(system.size), self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
