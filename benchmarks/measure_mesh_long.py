@@ -11,8 +11,9 @@ reference in the same process: one SuperLU factorization (COLAMD, `SuperLUSolver
 ``linear_solver="superlu"`` factors) of the Jacobian at t = 0.  Prints one JSON object: the
 steps' median, mean (the refactorizations amortized), 90th percentile and largest; the mean
 against the reference (issue 29: at most 0.07); counted on the factorizing solver inside
-`ReusingSolver` (so the same for every tree): the factorizations (their time, the sample time
-and the entries of their factors), the solves with the held factors and their mean time per
+`ReusingSolver` (so the same for every tree): the factorizations (the sample time, their
+time, the entries of their factors, and their kind: fresh, numeric on a held pattern, or a
+numeric one the guard rejected followed by a fresh one), the solves with the held factors and their mean time per
 factorization, the GMRES iterations and how many GMRES solves took each count; the peak
 resident memory before and after the reference.
 """
@@ -40,11 +41,18 @@ class _Counted:
         return getattr(self._target, name)
 
     def factor(self, *args, **kwargs):
+        before = self._kinds()
         result, seconds = _timed(self._target.factor, args, kwargs)
+        numeric, fallback = (after - b for after, b in zip(self._kinds(), before))
+        kind = "fallback" if fallback else "numeric" if numeric else "fresh"
         entries = getattr(self._target, "nnz_factors", None)
-        self.factorizations.append([round(self._clock(), 6), seconds, entries])
+        self.factorizations.append([round(self._clock(), 6), seconds, entries, kind])
         self.epochs.append([0, 0.0])
         return result
+
+    def _kinds(self):
+        """The target's numeric refactorizations and rejected ones, so far."""
+        return getattr(self._target, "n_refactorizations", 0), getattr(self._target, "n_fallbacks", 0)
 
     def solve(self, *args, **kwargs):
         result, seconds = _timed(self._target.solve, args, kwargs)

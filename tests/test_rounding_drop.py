@@ -65,21 +65,62 @@ def test_the_factors_without_rounding_are_smaller_and_flagged(rng):
     b = rng.standard_normal(jacobian.shape[0])
     expected = splu(without.tocsc()).solve(b)
     np.testing.assert_allclose(dropping.solve(b), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
-    dropping.factor(without)  # nothing nonzero left to drop: exact again
-    assert dropping.factors_exact
-    dropping.factor(jacobian, drop_tolerance=0.0)  # asked per factorization
+    dropping.factor(jacobian, drop_tolerance=0.0)  # asked per factorization: every entry, afresh
     assert dropping.factors_exact and dropping.nnz_factors == exact.nnz_factors
+    assert (dropping.n_factorizations, dropping.n_refactorizations) == (2, 0)
+
+
+def test_a_moved_pose_is_refactored_on_the_held_pattern(rng):
+    """The same kept entries at the next pose: a numeric refactorization with the held
+    pivots, its solutions SuperLU's on the kept entries, both systems, its factors no
+    larger than SuperLU's and flagged inexact; a pose whose pivots fail the guard, or with
+    other entries kept, is factored afresh."""
+    jacobian, places = _moved_lattice(16, 16, 0.3, rng)
+    solver = DissectionSolver(places, drop_tolerance=ROUNDING_DROP)
+    solver.factor(jacobian)
+    fresh_entries = solver.nnz_factors
+    for turn in (0.31, 0.45, -0.2):
+        jacobian, _ = _moved_lattice(16, 16, turn, rng)
+        solver.factor(jacobian)
+        assert not solver.factors_exact and solver.nnz_factors <= 1.05 * fresh_entries  # its exact zeros left out
+        kept = jacobian.copy()
+        kept.data[np.abs(kept.data) <= ROUNDING_DROP] = 0.0
+        rhs = rng.standard_normal((jacobian.shape[0], 2))
+        for transposed, operator in ((False, kept), (True, kept.T)):
+            expected = splu(operator.tocsc()).solve(rhs)
+            np.testing.assert_allclose(solver.solve(rhs, transposed=transposed), expected, rtol=0,
+                                       atol=1e-10 * np.abs(expected).max())  # fmt: skip
+    assert (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks) == (1, 3, 0)
+    # The held pivot order made bad: the guard rejects the refactorization, SuperLU pivots anew.
+    bad = jacobian.copy()
+    bad.data *= 1.0 + 1e-3 * rng.standard_normal(bad.nnz)
+    held = solver._held
+    held.perm_r = held.perm_r[::-1].copy()  # pivots no longer SuperLU's
+    held._analysis = None
+    solver.factor(bad)
+    assert (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks) == (2, 4, 1)
+    assert solver.factors_exact is False  # still without the rounding entries, but SuperLU's own pivots
+    b = rng.standard_normal(bad.shape[0])
+    kept = bad.copy()
+    kept.data[np.abs(kept.data) <= ROUNDING_DROP * np.abs(bad.data).max()] = 0.0
+    expected = splu(kept.tocsc()).solve(b)
+    np.testing.assert_allclose(solver.solve(b), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+    # An entry beyond the rounding where the held pattern has none: afresh.
+    grown = bad.copy()
+    grown.data[np.flatnonzero(np.abs(grown.data) <= 1e-13)[0]] = 0.3
+    solver.factor(grown)
+    assert (solver.n_factorizations, solver.n_refactorizations) == (3, 4)
 
 
 def test_reusing_solves_reach_the_backward_error_on_dropped_factors(rng):
     """The reuse path at a moved pose: refactored there without the tiny entries, then the
     next poses; solutions against SuperLU's on the Jacobian itself, both systems."""
-    jacobian, places = _moved_lattice(12, 12, 0.0, rng)  # the drawing with rounding in the horizontals' angles
+    _, places = _moved_lattice(12, 12, 0.0, rng)
     solver = ReusingSolver(DissectionSolver(places))
     for step, turn in enumerate((0.25, 0.26, 0.27)):
         jacobian, _ = _moved_lattice(12, 12, turn, rng)
         solver.factor(jacobian)
-        if step == 0:  # stale on purpose: refactor at this pose
+        if step == 0:  # stale on purpose: refactored at this pose (numerically, on the kept pattern)
             solver._stale = True
             solver.factor(jacobian)
             assert not solver.inner.factors_exact
@@ -91,7 +132,7 @@ def test_reusing_solves_reach_the_backward_error_on_dropped_factors(rng):
                 assert _backward_error(operator, x[:, c], rhs[:, c]) <= KRYLOV_TOLERANCE
             np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
     assert solver.n_krylov_iterations >= 8  # every solve by GMRES, the refactored pose's too
-    assert solver.n_factorizations == 2
+    assert (solver.n_factorizations, solver.n_refactorizations) == (1, 1)
 
 
 def test_nothing_dropped_when_told_not_to(rng):
