@@ -82,7 +82,8 @@ def test_a_moved_pose_is_refactored_on_the_held_pattern(rng):
     for turn in (0.31, 0.45, -0.2):
         jacobian, _ = _moved_lattice(16, 16, turn, rng)
         solver.factor(jacobian)
-        assert not solver.factors_exact and solver.nnz_factors <= 1.05 * fresh_entries  # its exact zeros left out
+        # its exact zeros left out: about SuperLU's count
+        assert not solver.factors_exact and solver.nnz_factors <= 1.05 * fresh_entries
         kept = jacobian.copy()
         kept.data[np.abs(kept.data) <= ROUNDING_DROP] = 0.0
         rhs = rng.standard_normal((jacobian.shape[0], 2))
@@ -166,7 +167,8 @@ def test_a_preconditioner_too_poor_falls_back_to_every_entry(rng):
     n = 200
     off = csr_array(rng.uniform(-1.0, 1.0, (n, n)) * (rng.random((n, n)) < 0.03))
     matrix = csr_array(off + csr_array(np.diag(np.full(n, 4.0))))
-    solver = ReusingSolver(_DroppingSuperLU(), drop_tolerance=0.3, max_iterations=1)  # a diagonal preconditioner
+    # the diagonal alone as preconditioner
+    solver = ReusingSolver(_DroppingSuperLU(), drop_tolerance=0.3, max_iterations=1)
     solver.factor(matrix)
     assert not solver.inner.factors_exact
     b = rng.standard_normal(n)

@@ -285,7 +285,8 @@ class _HeldPivots:
         b_indptr, b_rows, gather, lower, upper, work, stats, compressed = self._analysis
         _lu_kernels.refactor_lu(data, gather, (b_indptr, b_rows), lower, upper, work, stats)
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
-        if bad_column >= 0 or non_finite != 0.0 or ratio < MIN_PIVOT_RATIO or largest_u > MAX_GROWTH * largest_b:
+        rejected = ratio < MIN_PIVOT_RATIO or largest_u > MAX_GROWTH * largest_b
+        if bad_column >= 0 or non_finite != 0.0 or rejected:
             return None
         (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = lower, upper
         (cl_indptr, cl_indices, cl_values), (cu_indptr, cu_indices, cu_values) = compressed
@@ -311,8 +312,8 @@ class _HeldPivots:
         )
         lower = (l_indptr, l_indices, np.zeros(l_indices.size))
         upper = (u_indptr, u_indices, np.zeros(u_indices.size), np.zeros(n))
-        compressed = ((np.zeros(n + 1, dtype=np.int64), np.empty_like(l_indices), np.empty(l_indices.size)),
-                      (np.zeros(n + 1, dtype=np.int64), np.empty_like(u_indices), np.empty(u_indices.size)))  # fmt: skip
+        compressed = tuple((np.zeros(n + 1, dtype=np.int64), np.empty_like(indices), np.empty(indices.size))
+                           for indices in (l_indices, u_indices))  # fmt: skip
         stats = np.zeros(_lu_kernels.N_STATS)
         self._analysis = (b_indptr, b_rows, gather, lower, upper, np.zeros(n), stats, compressed)
 

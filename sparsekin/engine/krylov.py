@@ -36,12 +36,12 @@ MAX_KRYLOV_ITERATIONS = 12
 REFACTOR_ITERATIONS = 4
 
 #: `ReusingSolver`'s factorizations, preconditioners of GMRES, leave out (where the inner
-#: solver can: `DissectionSolver`) the entries within this factor of the Jacobian's
-#: largest: the rounding left where an exact zero moved (a bar that stays along an axis, its angle Newton's rounding away from
-#: 0: on the lattice its sin φ at 1e-21 to 1e-14 from the first steps on, 4 % of the
-#: entries).  Kept, they cost as much fill as real entries: at 10^4 bodies after 150 steps
-#: 0.67 M entries of L + U with them, 0.27 M without (docs/design-notes.md, "Sparse LU on
-#: meshes", fourth session).
+#: solver can: `DissectionSolver`) the entries within this factor of the Jacobian's largest:
+#: the rounding left where an exact zero moved (a bar that stays along an axis, its angle
+#: Newton's rounding away from 0: on the lattice its sin φ at 1e-21 to 1e-14 from the first
+#: steps on, 4 % of the entries).  Kept, they cost as much fill as real entries: at 10^4
+#: bodies after 150 steps 0.67 M entries of L + U with them, 0.27 M without
+#: (docs/design-notes.md, "Sparse LU on meshes", fourth session).
 ROUNDING_DROP = 1e-13
 
 
