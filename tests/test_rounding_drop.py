@@ -73,8 +73,8 @@ def test_the_factors_without_rounding_are_smaller_and_flagged(rng):
 def test_a_moved_pose_is_refactored_on_the_held_pattern(rng):
     """The same kept entries at the next pose: a numeric refactorization with the held
     pivots, its solutions SuperLU's on the kept entries, both systems, its factors no
-    larger than SuperLU's and flagged inexact; a pose whose pivots fail the guard, or with
-    other entries kept, is factored afresh."""
+    larger than SuperLU's and flagged inexact; a pose whose pivots fail the guard is
+    factored afresh; other entries kept, the held pivots on their pattern."""
     jacobian, places = _moved_lattice(16, 16, 0.3, rng)
     solver = DissectionSolver(places, drop_tolerance=ROUNDING_DROP)
     solver.factor(jacobian)
@@ -106,11 +106,37 @@ def test_a_moved_pose_is_refactored_on_the_held_pattern(rng):
     kept.data[np.abs(kept.data) <= ROUNDING_DROP * np.abs(bad.data).max()] = 0.0
     expected = splu(kept.tocsc()).solve(b)
     np.testing.assert_allclose(solver.solve(b), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
-    # An entry beyond the rounding where the held pattern has none: afresh.
+    # An entry beyond the rounding where the held pattern has none: the held pivots on the
+    # new pattern (analysed anew), SuperLU's solution on it.
     grown = bad.copy()
     grown.data[np.flatnonzero(np.abs(grown.data) <= 1e-13)[0]] = 0.3
     solver.factor(grown)
-    assert (solver.n_factorizations, solver.n_refactorizations) == (3, 4)
+    assert (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks) == (2, 5, 1)
+    kept = grown.copy()
+    kept.data[np.abs(kept.data) <= ROUNDING_DROP * np.abs(grown.data).max()] = 0.0
+    expected = splu(kept.tocsc()).solve(b)
+    np.testing.assert_allclose(solver.solve(b), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+def test_the_drawings_pivots_serve_a_moved_pose(rng):
+    """The drawing factored without a drop tolerance (the first sample), a moved pose with
+    it: refactored with the drawing's pivots on the moved pose's kept entries."""
+    mechanism = testset.lattice(16, 16)
+    pattern = build_pattern(mechanism)
+    assembler = Assembler(Discretization(mechanism, pattern))
+    assembler.set_time(0.0)
+    assembler.fill_residual_jacobian(pattern.initial_coordinates)
+    drawing = assembler.jacobian.copy()
+    solver = DissectionSolver(pattern.initial_coordinates.reshape(-1, 3)[:, :2])
+    solver.factor(drawing)
+    moved, _ = _moved_lattice(16, 16, 0.3, rng)
+    solver.factor(moved, drop_tolerance=ROUNDING_DROP)
+    assert (solver.n_factorizations, solver.n_refactorizations, solver.n_fallbacks) == (1, 1, 0)
+    kept = moved.copy()
+    kept.data[np.abs(kept.data) <= ROUNDING_DROP] = 0.0
+    b = rng.standard_normal(moved.shape[0])
+    expected = splu(kept.tocsc()).solve(b)
+    np.testing.assert_allclose(solver.solve(b), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
 
 
 def test_reusing_solves_reach_the_backward_error_on_dropped_factors(rng):
