@@ -127,8 +127,9 @@ class ReusingSolver:
     `solve` runs `fgmres` with that factorization as the preconditioner to the backward
     error `tolerance`; if GMRES does not get there in `max_iterations`, the solver
     refactors at once and solves directly (by GMRES on the new factors if entries were
-    left out, and if that fails too, on a factorization that keeps them).  `solve_held` solves with the held
-    factorization alone: chord Newton's corrections, which only need to contract.
+    left out, and if that fails too, on a factorization that keeps them).  `solve_held`
+    solves with the held factorization alone: chord Newton's corrections, which only need
+    to contract.
 
     Parameters
     ----------
