@@ -29,6 +29,8 @@ from measure_dynamics_chain import DYNAMICS_CHAIN
 from measure_dynamics_chain import results_section as dynamics_chain_section
 from measure_lattice_dynamics import LATTICE_DYNAMICS
 from measure_lattice_dynamics import results_section as lattice_dynamics_section
+from measure_mesh_long import MESH_LONG
+from measure_mesh_long import results_section as mesh_long_section
 from measure_small_dynamics import SMALL_DYNAMICS
 from measure_small_dynamics import results_section as small_dynamics_section
 
@@ -212,6 +214,8 @@ def render(steps: dict, setups: dict, document: dict) -> str:
         lines += ["", *mesh_lu_section([json.loads(line) for line in MESH_LU.read_text().splitlines() if line])]
     if MESH_REUSE.exists():
         lines += ["", *mesh_reuse_section([json.loads(line) for line in MESH_REUSE.read_text().splitlines() if line])]
+    if MESH_LONG.exists():
+        lines += ["", *mesh_long_section([json.loads(line) for line in MESH_LONG.read_text().splitlines() if line])]
     if MEMORY_ESTIMATES.exists():
         lines += ["", *MEMORY_ESTIMATES.read_text(encoding="utf-8").rstrip("\n").splitlines()]
     if SMALL_DYNAMICS.exists():

@@ -442,3 +442,17 @@ def fill_column_rows(indices, offsets, b_indptr, perm_r, b_rows):
         shift = offsets[j]
         for p in range(b_indptr[j], b_indptr[j + 1]):
             b_rows[p] = perm_r[indices[p + shift]]
+def copy_nonzeros(indptr, indices, values, out_indptr, out_indices, out_values):
+    """Copy a compressed-column factor without its exactly zero entries (a refactorization's
+    structural zeros: exact cancellations of the Jacobian's constant coefficients) into the
+    `out_` arrays (as large as the input's); ``out_indptr`` receives the new column pointers."""
+    n = indptr.size - 1
+    k = 0
+    out_indptr[0] = 0
+    for j in range(n):
+        for p in range(indptr[j], indptr[j + 1]):
+            if values[p] != 0.0:
+                out_indices[k] = indices[p]
+                out_values[k] = values[p]
+                k += 1
+        out_indptr[j + 1] = k

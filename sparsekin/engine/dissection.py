@@ -17,10 +17,17 @@ both costs down to SuperLU's own:
   (`sparsekin.engine.linalg.solve_factored`), faster than SuperLU's own solves with the
   permutations of its Python wrapper.
 
-Every `factor` is a fresh factorization (its pivoting its own); there is no
-refactorization on a fixed pattern: a mesh's run refactors rarely (when GMRES with the
-held factors slows down), and SuperLU with the order held is as fast as a refactorization
-with static pivots on these matrices (docs/design-notes.md, "Sparse LU on meshes").
+With a drop tolerance (a caller that checks its solutions: GMRES in
+`sparsekin.engine.krylov.ReusingSolver`), a `factor` after the first refactors
+numerically with the last fresh factorization's pivots held (`_lu_kernels.refactor_lu`
+on the structural pattern of the entries kept, the exact zeros and the rounding-level
+entries left out: analysed once per such pattern — along a motion the drawing's, then
+every moved pose's —, its exact zeros then left out of the factors the solves read),
+guarded like `RefactorSolver`'s (`MIN_PIVOT_RATIO`, `MAX_GROWTH`): at 10^4 bodies 11 ms
+against 55 ms for SuperLU afresh, at 10^5 0.23 s against 1.4 s (the first at a moved pose,
+with the drawing's pivots and its analysis, 1.0 s).  Any other `factor` is a fresh SuperLU
+factorization (its pivoting its own), as is one whose refactorization the guard rejects;
+a refactorization's factors are `factors_exact` False.
 """
 
 from __future__ import annotations
@@ -30,7 +37,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import _lu_kernels
-from .linalg import COORDINATES_PER_BODY, SingularMatrix, _checked_rhs, _checked_square, has_pattern, solve_factored
+from .linalg import (
+    COORDINATES_PER_BODY,
+    MAX_GROWTH,
+    MIN_PIVOT_RATIO,
+    SingularMatrix,
+    _checked_rhs,
+    _checked_square,
+    _index_dtype,
+    has_pattern,
+    solve_factored,
+)
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -44,6 +61,9 @@ __all__ = ["DissectionSolver", "PANEL_SIZE", "RELAXED_SUPERNODE"]
 PANEL_SIZE = 4
 RELAXED_SUPERNODE = 4
 
+#: `_lu_kernels.refactor_lu`'s per-column offsets, unused: the refactorization gathers the
+#: kept entries into B's column order first.
+_NO_OFFSETS = np.zeros(0, dtype=np.int64)
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
 
@@ -67,11 +87,25 @@ class DissectionSolver:
         with SuperLU's own solves (forward dynamics, which factors its saddle matrix
         about once a step on a moving lattice: taking the factors out cost a third of
         the factorization there).
+    drop_tolerance : float
+        Leave out of every factorization the entries of magnitude at most this factor of
+        the Jacobian's largest (default 0: only the exact zeros): the factors are then
+        those of a nearby matrix, for a caller that checks its solutions (GMRES on the
+        held factors: `sparsekin.engine.krylov.ReusingSolver` passes its
+        `~sparsekin.engine.krylov.ROUNDING_DROP` to `factor`); `factors_exact` tells whether
+        an entry was left out.  With it, every `factor` after the first is refactored
+        numerically with the last fresh factorization's pivots held.
 
     Attributes
     ----------
     n_factorizations, n_refactorizations, n_solves : int
-        As every linear solver's (`sparsekin.engine.linalg`); no refactorizations.
+        As every linear solver's (`sparsekin.engine.linalg`): fresh SuperLU factorizations,
+        numeric refactorizations on a held pattern (those the guard rejected included), solves.
+    n_fallbacks : int
+        Refactorizations the guard rejected (each followed by a fresh factorization).
+    factors_exact : bool
+        Whether the last factorization is of the Jacobian itself by SuperLU's partial
+        pivoting (no nonzero entry left out by `drop_tolerance`, not a refactorization).
 
     Examples
     --------
@@ -86,10 +120,14 @@ class DissectionSolver:
 
     name = "dissection"
 
-    def __init__(self, points, take_out_factors: bool = True) -> None:
+    def __init__(self, points, take_out_factors: bool = True, drop_tolerance: float = 0.0) -> None:
         points = np.asarray(points, dtype=float)
         if points.ndim != 2 or points.shape[1] != 2:
             raise ValueError(f"`points` must have shape (n_bodies, 2), got {points.shape}.")
+        if not (0.0 <= drop_tolerance < 1.0):
+            raise ValueError(f"`drop_tolerance` must be in [0, 1), got {drop_tolerance!r}.")
+        self.drop_tolerance = float(drop_tolerance)
+        self.factors_exact = True
         self.points = points
         self._order = None  # the column order of the pattern `_pattern`, once computed
         self._ordered = None  # (indptr, indices, gather): J[:, order] in CSC is (J.data[gather], indices, indptr)
@@ -98,8 +136,10 @@ class DissectionSolver:
         self._lu = None  # SuperLU's own factorization, when the factors are not taken out
         self.take_out_factors = bool(take_out_factors)
         self._n = 0
+        self._held = None  # the last fresh factorization's pivots and kept entries (`_HeldPivots`)
         self.n_factorizations = 0
         self.n_refactorizations = 0
+        self.n_fallbacks = 0
         self.n_solves = 0
 
     @property
@@ -112,25 +152,47 @@ class DissectionSolver:
         _, _, (l_indptr, _, _), (u_indptr, _, _, _) = self._factors
         return int(l_indptr[-1] + u_indptr[-1] + 2 * self._n)
 
-    def factor(self, jacobian: csr_array) -> None:
-        """Factor `jacobian` (square CSR, its columns the bodies' coordinates in turn);
+    def factor(self, jacobian: csr_array, *, drop_tolerance: float | None = None) -> None:
+        """Factor `jacobian` (square CSR, its columns the bodies' coordinates in turn), its
+        entries within `drop_tolerance` (default: the solver's) of its largest left out;
         raise `SingularMatrix` if it is exactly singular or not finite."""
+        drop = self.drop_tolerance if drop_tolerance is None else float(drop_tolerance)
         n = _checked_square(jacobian)
-        self.n_factorizations += 1
         self._factors = self._lu = None
         order = self._column_order(jacobian)
         if not np.all(np.isfinite(jacobian.data)):
+            self.n_factorizations += 1
             raise SingularMatrix("the Jacobian has entries that are not finite")
+        data = jacobian.data.astype(float, copy=False)
+        # The Jacobian's exact zeros (a bar along an axis at the drawing: a third of the
+        # lattice's entries at t = 0) left out: SuperLU's fill and work follow its pattern,
+        # and a fresh factorization needs no room for them (a refactorization on a fixed
+        # pattern would); 0.41x COLAMD's time at 3·10^5 bodies instead of 1.4x.  With
+        # `drop`, the rounding-level entries too.
+        magnitudes = np.abs(data)
+        kept = magnitudes > drop * magnitudes.max() if data.size else magnitudes > 0.0
+        exact = drop == 0.0 or not np.any(~kept & (magnitudes > 0.0))
+        held = self._held
+        if drop > 0.0 and held is not None:
+            if not np.array_equal(kept, held.kept):  # other entries kept: the held pivots on their pattern
+                held = _HeldPivots(kept, held.perm_r, held.perm_c, held.entries)
+            self.n_refactorizations += 1
+            factors = held.refactor(jacobian, data)
+            if factors is not None:
+                self._held, self._factors, self._n, self.factors_exact = held, factors, n, False
+                return
+            self.n_fallbacks += 1
+        self.n_factorizations += 1
+        self._held = None
+        self.factors_exact = exact
         from scipy.sparse import csc_array
         from scipy.sparse.linalg import splu
 
         indptr, indices, gather = self._ordered
-        values = np.take(jacobian.data, gather).astype(float, copy=False)
-        ordered = csc_array((values, indices, indptr), shape=jacobian.shape, copy=True)
-        # The Jacobian's exact zeros (a bar along an axis at the drawing: a third of the
-        # lattice's entries at t = 0) left out: SuperLU's fill and work follow its pattern,
-        # and a fresh factorization needs no room for them (a refactorization on a fixed
-        # pattern would); 0.41x COLAMD's time at 3·10^5 bodies instead of 1.4x.
+        values = np.take(data, gather)
+        values[~kept[gather]] = 0.0
+        # (a copy of the held pattern: eliminate_zeros works in place)
+        ordered = csc_array((values, indices.copy(), indptr.copy()), shape=jacobian.shape, copy=False)
         ordered.eliminate_zeros()
         try:
             lu = splu(ordered, permc_spec="NATURAL", relax=RELAXED_SUPERNODE, panel_size=PANEL_SIZE)
@@ -145,6 +207,7 @@ class DissectionSolver:
         perm_c = np.empty(n, dtype=np.int64)
         perm_c[order] = lu.perm_c
         perm_r = lu.perm_r.astype(np.int64)
+        entries = int(lu.nnz)
         lower, upper = lu.L, lu.U
         del lu  # its supernodal storage: the factors live on as compressed columns
         unit = np.empty(n)
@@ -157,6 +220,7 @@ class DissectionSolver:
             raise SingularMatrix("a pivot of the factorization is zero or not finite")
         self._factors = (perm_r, perm_c, (l_indptr, lower.indices, lower.data),
                          (u_indptr, upper.indices, upper.data, u_inverse))  # fmt: skip
+        self._held = _HeldPivots(kept, perm_r, perm_c, entries)
         self._work = np.empty(n)
         self._probe = np.zeros(1)
 
@@ -188,7 +252,7 @@ class DissectionSolver:
         if not has_pattern(jacobian, self._pattern):
             from .ordering import geometric_column_order
 
-            self._order = self._pattern = None  # until the new order is there
+            self._order = self._pattern = self._held = None  # until the new order is there
             n, coordinates = jacobian.shape[1], COORDINATES_PER_BODY * self.points.shape[0]
             if n < coordinates:
                 raise ValueError(
@@ -203,6 +267,61 @@ class DissectionSolver:
             self._ordered = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, self._order)
             self._pattern = (jacobian.indptr.copy(), jacobian.indices.copy())
         return self._order
+
+
+class _HeldPivots:
+    """A fresh factorization's pivots and the Jacobian entries it factored, and (made at the
+    first refactorization) the structural patterns of L and U for them.
+
+    `kept` marks the entries of the Jacobian's CSR values that were factored; row i of the
+    ordered Jacobian went to row ``perm_r[i]`` of B = L U, column c of the Jacobian to
+    column ``perm_c[c]``; `entries` is SuperLU's count of L + U (room for the analysis).
+    """
+
+    def __init__(self, kept: np.ndarray, perm_r: np.ndarray, perm_c: np.ndarray, entries: int) -> None:
+        self.kept, self.perm_r, self.perm_c, self.entries = kept, perm_r, perm_c, entries
+        self._analysis = None
+
+    def refactor(self, jacobian, data: np.ndarray):
+        """The factors of the kept entries of `jacobian` (values `data`) with the held
+        pivots, as `solve_factored` reads them, or None if the guard rejects them."""
+        if self._analysis is None:
+            self._analyse(jacobian)
+        b_indptr, b_rows, gather, ordered, lower, upper, work, stats, compressed = self._analysis
+        np.take(data, gather, out=ordered)  # the kept entries in B's column order
+        _lu_kernels.refactor_lu(ordered, True, (b_indptr, b_rows, _NO_OFFSETS), lower, upper, work, stats)
+        ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
+        rejected = ratio < MIN_PIVOT_RATIO or largest_u > MAX_GROWTH * largest_b
+        if bad_column >= 0 or non_finite != 0.0 or rejected:
+            return None
+        (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = lower, upper
+        (cl_indptr, cl_indices, cl_values), (cu_indptr, cu_indices, cu_values) = compressed
+        _lu_kernels.copy_nonzeros(l_indptr, l_indices, l_values, cl_indptr, cl_indices, cl_values)
+        _lu_kernels.copy_nonzeros(u_indptr, u_indices, u_values, cu_indptr, cu_indices, cu_values)
+        l_end, u_end = cl_indptr[-1], cu_indptr[-1]
+        return (self.perm_r, self.perm_c, (cl_indptr, cl_indices[:l_end], cl_values[:l_end]),
+                (cu_indptr, cu_indices[:u_end], cu_values[:u_end], u_inverse))  # fmt: skip
+
+    def _analyse(self, jacobian) -> None:
+        n, nnz = self.perm_r.size, jacobian.nnz
+        index = _index_dtype(max(n, nnz))
+        column_of = np.empty(n, dtype=np.int64)
+        column_of[self.perm_c] = np.arange(n)  # column j of B is column column_of[j] of the Jacobian
+        c_indptr, c_rows, c_gather = _lu_kernels.ordered_columns(jacobian.indptr, jacobian.indices, column_of)
+        keep = self.kept[c_gather]
+        kept_before = np.concatenate([[0], np.cumsum(keep, dtype=np.int64)])
+        b_indptr = kept_before[c_indptr]
+        b_rows = self.perm_r[c_rows[keep]].astype(index)
+        gather = c_gather[keep].astype(index)
+        l_indptr, l_indices, u_indptr, u_indices = _lu_kernels.analyse_lu_pattern(
+            b_indptr, b_rows, self.entries // 2, self.entries // 2
+        )
+        lower = (l_indptr, l_indices, np.zeros(l_indices.size))
+        upper = (u_indptr, u_indices, np.zeros(u_indices.size), np.zeros(n))
+        compressed = tuple((np.zeros(n + 1, dtype=np.int64), np.empty_like(indices), np.empty(indices.size))
+                           for indices in (l_indices, u_indices))  # fmt: skip
+        stats = np.zeros(_lu_kernels.N_STATS)
+        self._analysis = (b_indptr, b_rows, gather, np.empty(gather.size), lower, upper, np.zeros(n), stats, compressed)
 
 
 def _saddle_groups(matrix: csr_array, coordinates: int) -> np.ndarray:

@@ -22,7 +22,8 @@ import numpy as np
 from . import _krylov_kernels as _kernels
 from .linalg import SingularMatrix
 
-__all__ = ["fgmres", "ReusingSolver", "KRYLOV_TOLERANCE", "MAX_KRYLOV_ITERATIONS", "REFACTOR_ITERATIONS"]
+__all__ = ["fgmres", "ReusingSolver", "KRYLOV_TOLERANCE", "MAX_KRYLOV_ITERATIONS", "REFACTOR_ITERATIONS",
+           "ROUNDING_DROP"]
 
 #: A solve is accepted when ``||b - J x||_2 <= KRYLOV_TOLERANCE * (||b||_2 + ||J||_1 ||x||_2)``: a
 #: backward error of a few units of rounding, what a direct LU reaches (measured on the
@@ -33,6 +34,15 @@ MAX_KRYLOV_ITERATIONS = 12
 #: A solve that needed more iterations than this marks the held factorization stale: the
 #: next `ReusingSolver.factor` refactors (docs/design-notes.md, "Factorization reuse").
 REFACTOR_ITERATIONS = 4
+
+#: `ReusingSolver`'s factorizations, preconditioners of GMRES, leave out (where the inner
+#: solver can: `DissectionSolver`) the entries within this factor of the Jacobian's largest:
+#: the rounding left where an exact zero moved (a bar that stays along an axis, its angle
+#: Newton's rounding away from 0: on the lattice its sin φ at 1e-21 to 1e-14 from the first
+#: steps on, 4 % of the entries).  Kept, they cost as much fill as real entries: at 10^4
+#: bodies after 150 steps 0.67 M entries of L + U with them, 0.27 M without
+#: (docs/design-notes.md, "Sparse LU on meshes", fourth session).
+ROUNDING_DROP = 1e-13
 
 
 def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
@@ -111,10 +121,15 @@ class ReusingSolver:
     `factor` takes the Jacobian to solve with (a copy of its values) but keeps the held
     factorization of the inner solver, unless a solve since the last refactorization
     needed more than `refactor_iterations` GMRES iterations (then it refactors now).
+    An inner solver that can (one with a ``drop_tolerance``: `DissectionSolver`) leaves the
+    Jacobian's entries within `drop_tolerance` of its largest out of those factorizations;
+    a factorization without them is a preconditioner only, its solves made by GMRES too.
     `solve` runs `fgmres` with that factorization as the preconditioner to the backward
     error `tolerance`; if GMRES does not get there in `max_iterations`, the solver
-    refactors at once and solves directly.  `solve_held` solves with the held
-    factorization alone: chord Newton's corrections, which only need to contract.
+    refactors at once and solves directly (by GMRES on the new factors if entries were
+    left out, and if that fails too, on a factorization that keeps them).  `solve_held`
+    solves with the held factorization alone: chord Newton's corrections, which only need
+    to contract.
 
     Parameters
     ----------
@@ -126,6 +141,8 @@ class ReusingSolver:
         `MAX_KRYLOV_ITERATIONS`.
     refactor_iterations : int
         `REFACTOR_ITERATIONS`.
+    drop_tolerance : float
+        `ROUNDING_DROP`; 0 keeps every nonzero entry.
     factored : bool
         Whether `inner` already holds the factorization of the Jacobian that the first
         `factor` will give (a run that switches solvers at a converged sample): that
@@ -164,16 +181,21 @@ class ReusingSolver:
         tolerance: float = KRYLOV_TOLERANCE,
         max_iterations: int = MAX_KRYLOV_ITERATIONS,
         refactor_iterations: int = REFACTOR_ITERATIONS,
+        drop_tolerance: float = ROUNDING_DROP,
         factored: bool = False,
     ) -> None:
         if not (tolerance > 0.0):
             raise ValueError(f"`tolerance` must be positive, got {tolerance!r}.")
+        if not (0.0 <= drop_tolerance < 1.0):
+            raise ValueError(f"`drop_tolerance` must be in [0, 1), got {drop_tolerance!r}.")
         if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 1:
             raise ValueError(f"`max_iterations` must be a whole number >= 1, got {max_iterations!r}.")
         self.inner = inner
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.refactor_iterations = int(refactor_iterations)
+        self.drop_tolerance = float(drop_tolerance)
+        self._drops = self.drop_tolerance > 0.0 and hasattr(inner, "drop_tolerance")
         self._base = (inner.n_factorizations, inner.n_refactorizations)
         self.n_solves = 0
         self.n_krylov_iterations = 0
@@ -207,7 +229,8 @@ class ReusingSolver:
             self._matrix = csr_array((jacobian.data.astype(float), jacobian.indices, jacobian.indptr), shape=jacobian.shape)
             self._column_sums = np.empty(jacobian.shape[1])
             self._transposed = None
-            self._held = self._exact = self._factored
+            self._held = self._factored
+            self._exact = self._factored and getattr(self.inner, "factors_exact", True)
         else:
             np.copyto(matrix.data, jacobian.data)
             self._exact = False
@@ -253,10 +276,16 @@ class ReusingSolver:
         return self.inner.solve(rhs, out=out)
 
     # ------------------------------------------------------------------ internals
-    def _refactor(self) -> None:
+    def _refactor(self, drop: bool = True) -> None:
+        """Factor the Jacobian of the last `factor`, its rounding-level entries left out
+        where the inner solver can (`drop_tolerance`) unless `drop` is false."""
         self._held = self._exact = False
-        self.inner.factor(self._matrix)
-        self._held = self._exact = True
+        if self._drops:
+            self.inner.factor(self._matrix, drop_tolerance=self.drop_tolerance if drop else 0.0)
+        else:
+            self.inner.factor(self._matrix)
+        self._held = True
+        self._exact = getattr(self.inner, "factors_exact", True)
         self._stale = False
 
     def _solve_one(self, rhs: np.ndarray, out: np.ndarray, transposed: bool) -> None:
@@ -276,15 +305,28 @@ class ReusingSolver:
         def precondition(v, target):
             inner.solve(v, out=target, transposed=transposed)
 
-        iterations = fgmres(operator.__matmul__, precondition, rhs, self.tolerance, self.max_iterations, out,
-                            self._scale)  # fmt: skip
+        def run_gmres():
+            return fgmres(operator.__matmul__, precondition, rhs, self.tolerance, self.max_iterations, out,
+                          self._scale)  # fmt: skip
+
+        iterations = run_gmres()
         if iterations < 0:  # the held factorization is too far off: refactor, solve directly
             self._refactor()
+            if not self._exact:  # entries left out: the new factors precondition GMRES
+                iterations = run_gmres()
+                if iterations >= 0:
+                    self.n_krylov_iterations += iterations
+                    return self._check_finite(out)
+                self._refactor(drop=False)
             inner.solve(rhs, out=out, transposed=transposed)
             return
         self.n_krylov_iterations += iterations
         if iterations > self.refactor_iterations:
             self._stale = True
+        self._check_finite(out)
+
+    @staticmethod
+    def _check_finite(out: np.ndarray) -> None:
         if not np.all(np.isfinite(out)):
             raise SingularMatrix("the solution is not finite")
 
