@@ -34,22 +34,6 @@ PYTHON = Thresholds(compiled_saddle_max_size=0)
 BANDED = Thresholds(min_banded_saddle_size=20)
 
 
-@pytest.fixture(autouse=True)
-def compiled_loops(monkeypatch):
-    """The compiled loops the runs made."""
-    from sparsekin.solve import _compiled_dynamics
-
-    loops = []
-
-    class Recorded(_compiled_dynamics.CompiledDynamicsLoop):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            loops.append(self)
-
-    monkeypatch.setattr(_compiled_dynamics, "CompiledDynamicsLoop", Recorded)
-    return loops
-
-
 def banded(loop) -> bool:
     """Whether `loop` held a banded factorization (a banded order)."""
     return loop._state is not None and loop._state[6][1].size > 0

@@ -41,22 +41,6 @@ TOLERANCE = 1e-10
 PYTHON, COMPILED = Thresholds(compiled_saddle_max_size=0), Thresholds()
 
 
-@pytest.fixture(autouse=True)
-def compiled_loops(monkeypatch):
-    """The compiled loops the runs made (to check that the compiled path did run)."""
-    from sparsekin.solve import _compiled_dynamics
-
-    loops = []
-
-    class Recorded(_compiled_dynamics.CompiledDynamicsLoop):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            loops.append(self)
-
-    monkeypatch.setattr(_compiled_dynamics, "CompiledDynamicsLoop", Recorded)
-    return loops
-
-
 @pytest.fixture
 def steppers(monkeypatch):
     """The `GeneralizedAlphaStepper` of every run, in order (their controllers' counts)."""
