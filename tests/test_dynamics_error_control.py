@@ -174,3 +174,23 @@ def test_a_tolerance_at_the_noise_of_a_flat_crossing_does_not_stop_the_run():
     b0 = np.array([x + np.cos(angle), y + np.sin(angle)])
     assert stepper.controller.n_uncontrolled > 0 and stepper.n_steps < 20_000
     assert np.abs(b0 - position[0]).max() < 1e-6
+
+
+def test_a_non_finite_estimate_is_too_large_in_both_controllers():
+    """A NaN or infinite local error estimate rejects the step (Python controller and the
+    compiled loop's kernels alike), and the next step is the shortest shrink allowed."""
+    from sparsekin.solve import _error_control_kernels as kernels
+    from sparsekin.solve.error_control import SHRINK_LIMIT, ErrorTooLarge, StepSizeController
+
+    weights = np.ones(3)
+    old, change = np.zeros(3), np.zeros(3)
+    for bad in (np.nan, np.inf):
+        new = np.array([0.0, bad, 0.0])
+        controller = StepSizeController(1e-8, 0.5, 0.25, weights, 1e-2)
+        values, rules = kernels.control_state(controller), kernels.control_rules(controller)
+        with pytest.raises(ErrorTooLarge):
+            controller.check(new, old, 1e-3)
+        assert controller.n_rejected == 1 and controller.factor() == SHRINK_LIMIT
+        assert not kernels.accept_step(values, rules, new, old, weights, 1e-3, 0.0, change)
+        assert values[kernels.CONTROL_FIELDS.index("n_rejected")] == 1.0
+        assert kernels._factor(values, rules) == SHRINK_LIMIT

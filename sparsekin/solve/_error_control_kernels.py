@@ -14,6 +14,8 @@ step accepted lately, and the counts of rejected and uncontrolled steps.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -76,11 +78,12 @@ def accept_step(values, rules, pseudo_new, pseudo_old, weights, h, newton_error,
     error = rules[_CONSTANT] * h * h * weighted_norm(change, weights) / (rules[_RTOL] + newton_error)
     values[_ERROR] = error
     values[_HOLD] = 1.0 if (values[_RETRY] != 0.0 or newton_error > rules[_RTOL]) else 0.0
-    if error > 1.0 and h > _shortest(values, rules) * (1.0 + 1e-9):
+    too_large = not error <= 1.0  # NaN included
+    if too_large and h > _shortest(values, rules) * (1.0 + 1e-9):
         values[_REJECTED] += 1.0
         values[_RETRY] = 1.0
         return False
-    if error > 1.0:
+    if too_large:
         values[_UNCONTROLLED] += 1.0
     values[_RETRY] = 0.0
     values[_LONGEST] = max(h, values[_LONGEST] * rules[_MEMORY])
@@ -93,6 +96,8 @@ def _factor(values, rules):
     error = values[_ERROR]
     if error <= 0.0:
         return rules[_GROWTH]
+    if not error < math.inf:  # a non-finite estimate: the shortest allowed
+        return rules[_SHRINK]
     return min(rules[_GROWTH], max(rules[_SHRINK], rules[_SAFETY] * error ** (-1.0 / rules[_ORDER])))
 
 

@@ -47,6 +47,8 @@ here is a change there (tests/test_compiled_dynamics.py compares the two stepper
 from __future__ import annotations
 
 
+import math
+
 import numpy as np
 
 from ..engine import _dynamics_kernels
@@ -155,11 +157,12 @@ class StepSizeController:
         # no growth right after a rejection (Hairer & Wanner), nor after a step whose tolerance
         # Newton's stall widened (its estimate says little of the next step's error)
         self.hold = self._retry or newton_error > self.rtol
-        if error > 1.0 and h > self.shortest * (1.0 + 1e-9):
+        too_large = not error <= 1.0  # NaN included
+        if too_large and h > self.shortest * (1.0 + 1e-9):
             self.n_rejected += 1
             self._retry = True
             raise ErrorTooLarge(f"local error {error:.3g} × rtol")
-        self.n_uncontrolled += error > 1.0
+        self.n_uncontrolled += too_large
         self._retry = False
         self._longest = max(h, self._longest * MEMORY)
 
@@ -173,6 +176,8 @@ class StepSizeController:
         """How much longer (or shorter) than the last step the next one may be."""
         if self.error <= 0.0:
             return GROWTH_LIMIT
+        if not self.error < math.inf:  # a non-finite estimate: the shortest allowed
+            return SHRINK_LIMIT
         return min(GROWTH_LIMIT, max(SHRINK_LIMIT, SAFETY * self.error ** (-1.0 / ORDER)))
 
     def next_step(self, h: float, proposed: float, grow: bool = True) -> float:
