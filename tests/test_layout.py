@@ -155,3 +155,27 @@ def test_public_api_is_kept():
     assert set(PUBLIC_API) <= set(sparsekin.__all__)
     for name in sparsekin.__all__:
         assert getattr(sparsekin, name) is not None, name
+
+
+#: Functions of the kernel modules that run in Python on purpose (set-up around the kernels).
+PYTHON_HELPERS = {
+    "sparsekin.engine._banded_kernels": {"bandwidths", "band_slots", "_ordered_entries"},
+    "sparsekin.solve._error_control_kernels": {"control_rules", "control_state", "restore_controller"},
+}
+
+
+@pytest.mark.parametrize("module", [f"sparsekin.{name}" for name in _modules() if name.endswith("_kernels")])
+def test_every_kernel_is_compiled(module):
+    """A kernel module's functions are numba dispatchers (a lost ``@njit`` only shows as a
+    slow run: a merge once dropped one), besides its declared Python helpers."""
+    import importlib
+    import inspect
+
+    import numba
+
+    if numba.config.DISABLE_JIT:
+        pytest.skip("NUMBA_DISABLE_JIT=1: every kernel is plain Python")
+    imported = importlib.import_module(module)
+    plain = {name for name, value in vars(imported).items()
+             if inspect.isfunction(value) and value.__module__ == module}  # fmt: skip
+    assert plain == PYTHON_HELPERS.get(module, set())

@@ -209,3 +209,20 @@ def test_bad_drop_tolerances_are_refused():
         DissectionSolver(np.zeros((2, 2)), drop_tolerance=-1.0)
     with pytest.raises(ValueError, match=r"`drop_tolerance` must be in \[0, 1\), got 1.0"):
         ReusingSolver(SuperLUSolver(), drop_tolerance=1.0)
+
+
+def test_a_factorization_singular_without_the_dropped_entries_is_made_with_every_entry(rng):
+    """An entry within the drop tolerance that the matrix needs (a small inertia beside the
+    largest entry): the dropped factorization is singular, so every entry is kept."""
+    n = 50
+    diagonal = np.full(n, 4.0)
+    diagonal[-1] = 0.1  # alone in its row and column: left out, the matrix is singular
+    off = csr_array(rng.uniform(-1.0, 1.0, (n, n)) * (rng.random((n, n)) < 0.05))
+    off = csr_array(off.toarray() * (np.arange(n)[:, None] < n - 1) * (np.arange(n)[None, :] < n - 1))
+    matrix = csr_array(off + csr_array(np.diag(diagonal)))
+    solver = ReusingSolver(_DroppingSuperLU(), drop_tolerance=0.3)
+    solver.factor(matrix)
+    assert solver.inner.factors_exact
+    b = rng.standard_normal(n)
+    x = solver.solve(b)
+    assert _backward_error(matrix, x, b) <= KRYLOV_TOLERANCE

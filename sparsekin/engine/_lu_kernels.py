@@ -442,6 +442,9 @@ def fill_column_rows(indices, offsets, b_indptr, perm_r, b_rows):
         shift = offsets[j]
         for p in range(b_indptr[j], b_indptr[j + 1]):
             b_rows[p] = perm_r[indices[p + shift]]
+
+
+@njit(**_JIT)
 def copy_nonzeros(indptr, indices, values, out_indptr, out_indices, out_values):
     """Copy a compressed-column factor without its exactly zero entries (a refactorization's
     structural zeros: exact cancellations of the Jacobian's constant coefficients) into the

@@ -281,7 +281,14 @@ class ReusingSolver:
         where the inner solver can (`drop_tolerance`) unless `drop` is false."""
         self._held = self._exact = False
         if self._drops:
-            self.inner.factor(self._matrix, drop_tolerance=self.drop_tolerance if drop else 0.0)
+            try:
+                self.inner.factor(self._matrix, drop_tolerance=self.drop_tolerance if drop else 0.0)
+            except SingularMatrix:
+                if not drop:
+                    raise
+                # the entries left out were needed (a tiny inertia beside the largest entry):
+                # every entry, as a failing GMRES on dropped factors would ask next
+                self.inner.factor(self._matrix, drop_tolerance=0.0)
         else:
             self.inner.factor(self._matrix)
         self._held = True

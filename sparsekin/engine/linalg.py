@@ -401,7 +401,7 @@ class RefactorSolver:
     def nnz_factors(self) -> int:
         """Entries of L and U in the structural patterns, diagonal counted once."""
         self._require_analysis()
-        return int(self._l_indptr[-1] + self._u_indptr[-1] + self._n)
+        return int(self._l_indptr[-1]) + int(self._u_indptr[-1]) + self._n  # each may be int32
 
     def suggest(self, perm_r: np.ndarray, perm_c: np.ndarray) -> None:
         """A pivot order for the next new pattern, instead of SuperLU's (`sparsekin.engine.ordering`).

@@ -17,6 +17,14 @@ functions `sparsekin.engine.saddle.DynamicSystem` calls) and the force columns o
 `sparsekin.engine._force_kernels`, with the rules and constants of
 `sparsekin.solve.dynamics`; only the linear algebra is its own (LAPACK or the sparse
 refactorization there, these LUs here: the two paths agree to rounding, not bit for bit).
+The rules are those of the Python stepper's dense path at every size: the (2, 2)
+regularization on from the first step, no measured rounding floor (`RoundingFloor`), no
+extrapolated predictor.  For the banded chains above
+`sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE` unknowns the Python stepper runs its large
+path's rules instead
+(`RoundingFloor` enabled), so there the two paths agree to Newton's tolerance and the
+integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
+6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
@@ -97,10 +105,11 @@ def block_stepper(stepper, options, chunk: int, forces=None):
     """The block stepper of a forward-dynamics run (`sparsekin.solve.dynamics.run_dynamics`):
     a `CompiledDynamicsLoop` around `stepper` (a `GeneralizedAlphaStepper` not started yet)
     where `sparsekin.solve.policy.plan_saddle_solver` plans the loop ``"compiled"`` (small
-    models whose laws are all built in), else ``SampleSteps(stepper, stepper.recorded)``."""
+    and chain-like models whose laws are all built in), else
+    ``SampleSteps(stepper, stepper.recorded)``."""
     pattern = stepper.discretization.constraints
     plan = plan_saddle_solver(pattern.n_coordinates + pattern.n_equations, options.linear_solver, options.thresholds,
-                              supports_compiled_dynamics(stepper.mechanism))  # fmt: skip
+                              supports_compiled_dynamics(stepper.mechanism), stepper.discretization)  # fmt: skip
     if plan.loop == "compiled":
         return CompiledDynamicsLoop(stepper, chunk, forces, options.thresholds, options.linear_solver == "auto")
     return SampleSteps(stepper, stepper.recorded)
@@ -252,7 +261,7 @@ def _rounding_response(model, work, state, n, floor):
 # ---------------------------------------------------------------------- one step
 @njit(inline="always", **JIT)
 def _converges_in_time(correction, rate, target, corrections_left):
-    """`sparsekin.solve.dynamics._converges_in_time`."""
+    """`sparsekin.solve.projections._converges_in_time`."""
     return correction * rate ** max(corrections_left, 0) <= target
 
 
@@ -309,7 +318,7 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
 @njit(**JIT)
 def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound):
     """The projection's solve ``[Δ; μ]`` into ``work[_SOLUTION]`` (drift on the kept rows in
-    ``work[_KEPT_RESIDUAL]``), refined on the held dense factorization, refactored when the
+    ``work[_KEPT_RESIDUAL]``), refined on the held factorization (dense or banded), refactored when the
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
     a few steps only, and compiles once)."""
     iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
@@ -755,7 +764,8 @@ class CompiledDynamicsLoop:
         counts = np.zeros(8, dtype=np.int64)
         self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
                        tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip
-        # the factorization column-major: the column-oriented substitutions of `dense_lu_solve`
+        # a dense factorization is held column-major (`compiled_factorization`): the
+        # column-oriented substitutions of `dense_lu_solve`
         # (a dozen per step on A03) then run along contiguous memory (41 unknowns: 1.8 µs a
         # solve against 2.4 row-major; the factorization the same within 5 %)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),

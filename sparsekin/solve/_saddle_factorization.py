@@ -18,7 +18,10 @@ factors)``: ``matrix`` the dense (size, size) or band (2 kl + ku + 1, size) stor
 Fortran-ordered; ``order`` the banded order (empty: dense); ``band_slot`` where each CSR
 entry goes in the band; ``bandwidths`` ``[kl, ku]``; ``scratch`` a vector of the size;
 ``extent`` the reach of L's and U's columns and ``factors`` their nonzero entries
-compressed, which the solves run over (`sparsekin.engine._banded_kernels`).
+compressed, which the solves run over (`sparsekin.engine._banded_kernels`).  Both kinds
+share this one tuple type, the dense one with empty placeholders, and the two functions
+branch on ``order.size``: the loop's state is a single numba type, so the loop compiles
+once for both LUs (two specializations chosen by a literal flag would compile it twice).
 """
 
 from __future__ import annotations

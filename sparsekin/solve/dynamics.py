@@ -71,7 +71,7 @@ from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
 from .policy import LINEAR_SOLVERS, plan_saddle_solver
 from .projections import PROJECTION_ITERATIONS, REFINEMENT_CONTRACTION, ConstraintProjections, _converges_in_time
-from .rounding_floor import RoundingFloor, rounding_response
+from .rounding_floor import EXTRAPOLATION_RATIO, RoundingFloor, rounding_response
 from .run import run
 from .steppers import SampleBlock, StepperStats
 
@@ -430,7 +430,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         # predictor: the accelerations of the last step, extrapolated from the one before where
         # that paid (`RoundingFloor.extrapolates`) (new arrays: the state keeps them)
         q, v, a = np.empty(n), np.empty(n), np.empty(n)
-        extrapolate = self._previous is not None and self._floor.extrapolates()
+        extrapolate = (self._previous is not None and h <= EXTRAPOLATION_RATIO * self._previous[1]
+                       and self._floor.extrapolates())  # fmt: skip
         previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (state.accelerations, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a, previous, ratio)  # fmt: skip

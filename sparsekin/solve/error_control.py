@@ -39,7 +39,7 @@ step size brings down).  Output times are met exactly: the last step before a
 sample ends on it, and when the sample is less than two steps away the distance is split
 in two equal steps (no sliver step, which the index-3 form's 1/h² scaling dislikes).
 
-**The compiled loop** (`sparsekin.solve._compiled_dynamics`, small models) runs the same
+**The compiled loop** (`sparsekin.solve._compiled_dynamics`, small and chain-like models) runs the same
 controller from `sparsekin.solve._error_control_kernels`, with these constants: a change
 here is a change there (tests/test_compiled_dynamics.py compares the two steppers' steps).
 """

@@ -110,8 +110,9 @@ MIN_MESH_SADDLE_SIZE = 18_000
 #: 0.85–1.4 times COLAMD's, its factorization and solves no faster.
 MESH_SADDLE_SOLVER = "superlu"
 #: ``linear_solver="auto"`` or ``"dense"`` of forward dynamics runs the compiled block
-#: stepper (`sparsekin.solve._compiled_dynamics`) up to this saddle size (coordinates plus
-#: equations), when the model's laws are all built in.
+#: stepper (`sparsekin.solve._compiled_dynamics`) on a dense LU up to this saddle size
+#: (coordinates plus equations), when the model's laws are all built in (``"auto"`` also
+#: on a banded LU up to `COMPILED_BANDED_MAX_SIZE`); 0: never the compiled loop.
 COMPILED_SADDLE_MAX_SIZE = 400
 #: The compiled block stepper factors the saddle matrix in a band (the unknowns in reverse
 #: Cuthill–McKee order, `sparsekin.solve._saddle_factorization`) from this size on, when
@@ -205,8 +206,9 @@ class SolverPlan:
     Attributes
     ----------
     loop : {"compiled", "python"}
-        The compiled dense loop first (it hands over to the Python loop at a sample it
-        cannot solve), or the Python loop all the way.
+        The compiled loop first (kinematics: dense LU; dynamics: dense or banded LU; it
+        hands over to the Python loop at a sample it cannot solve), or the Python loop all
+        the way.
     solver : {"dense", "refactor", "superlu", "dissection"}
         The linear solver of the Python loop (``"dissection"``: `DissectionSolver`,
         ``"auto"`` on meshes only).
@@ -359,7 +361,8 @@ def plan_compiled_factorization(size: int, lower: int | None, upper: int | None,
     bandwidths below and above the diagonal are `lower` and `upper` in reverse
     Cuthill–McKee order (None: not computed): ``"banded"`` from
     `Thresholds.min_banded_saddle_size` to `Thresholds.compiled_banded_max_size` when
-    ``lower + upper`` is at most `Thresholds.max_band_fraction` of the size, else
+    ``lower + upper`` is at most `Thresholds.max_band_fraction` of the size and
+    ``size * (lower + upper)`` at most `Thresholds.max_banded_work`, else
     ``"dense"`` up to `Thresholds.compiled_saddle_max_size`, else None (the Python stepper).
 
     >>> plan_compiled_factorization(485, 9, 9), plan_compiled_factorization(41, None, None)

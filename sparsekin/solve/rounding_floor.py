@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from ..engine._dynamics_kernels import fill_rounding_probe, weighted_norm
 
-__all__ = ["EXTRAPOLATION_GAIN", "FLOOR_MARGIN", "FLOOR_STEPS", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN",
-           "RoundingFloor", "rounding_response"]
+__all__ = ["EXTRAPOLATION_GAIN", "EXTRAPOLATION_RATIO", "FLOOR_MARGIN", "FLOOR_STEPS", "PROJECTION_NOISE",
+           "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor", "rounding_response"]
 
 #: A floor measured by a stalled Newton is trusted for this many steps, then measured again.
 FLOOR_STEPS = 100
@@ -27,6 +27,10 @@ RATE_STEPS = 8
 #: The predictor extrapolates the accelerations while that leaves Newton a first correction
 #: at most this fraction of the last one without (`RoundingFloor.extrapolates`).
 EXTRAPOLATION_GAIN = 0.5
+#: The predictor extrapolates only over a step at most this many times the step it
+#: extrapolates from (a step grows by at most 2): after a short step that ended on an
+#: output sample, the line through its accelerations would carry their noise a long way.
+EXTRAPOLATION_RATIO = 2.0
 
 
 class RoundingFloor:
