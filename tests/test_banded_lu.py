@@ -14,16 +14,14 @@ from scipy.sparse import csr_array
 from scipy.sparse.linalg import spsolve
 
 from sparsekin.engine._banded_kernels import (
-    band_slots,
     banded_lu,
     banded_lu_solve,
-    bandwidths,
     compress_factors,
     compressed_lu_solve,
     factor_band,
     solve_band,
 )
-from sparsekin.solve._saddle_factorization import saddle_band_order
+from sparsekin.solve._saddle_factorization import band_slots, bandwidths, saddle_band_order
 
 #: ‖A x − b‖ / (‖A‖ ‖x‖ + ‖b‖) of a stable LU solve, with room for growth at these sizes.
 BACKWARD_ERROR = 1e-13

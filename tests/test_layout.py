@@ -159,7 +159,6 @@ def test_public_api_is_kept():
 
 #: Functions of the kernel modules that run in Python on purpose (set-up around the kernels).
 PYTHON_HELPERS = {
-    "sparsekin.engine._banded_kernels": {"bandwidths", "band_slots", "_ordered_entries"},
     "sparsekin.solve._error_control_kernels": {"control_rules", "control_state", "restore_controller"},
 }
 

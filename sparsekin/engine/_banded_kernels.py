@@ -13,7 +13,8 @@ Symbols (for these kernels only):
 * ``order`` — the unknowns' order: unknown ``order[i]`` of the saddle matrix is unknown
   ``i`` of the banded one (rows and columns alike).
 * ``band_slot`` — shape (2, nnz): entry ``s`` of the saddle matrix's CSR values goes to
-  ``band[band_slot[0, s], band_slot[1, s]]``; `band_slots` computes it.
+  ``band[band_slot[0, s], band_slot[1, s]]``
+  (`sparsekin.solve._saddle_factorization.band_slots` computes it).
 * ``pivots`` — as LAPACK's ``gbtrf`` but 0-based: at step j, rows j and ``pivots[j] >= j``
   of the banded matrix were swapped.
 * ``factors`` — ``(pointers, rows, values)``: the nonzero entries of L (below the
@@ -33,40 +34,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from .._jit import JIT as _JIT
 
-__all__ = ["band_slots", "bandwidths", "banded_lu", "banded_lu_solve", "compress_factors", "compressed_lu_solve",
-           "factor_band", "solve_band"]
-
-
-def bandwidths(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[int, int]:
-    """``(kl, ku)``: the largest distance below and above the diagonal of any entry of the
-    CSR pattern ``(indptr, indices)`` with its rows and columns in `order`."""
-    rows, columns = _ordered_entries(indptr, indices, order)
-    if rows.size == 0:
-        return 0, 0
-    return int(max(0, (rows - columns).max())), int(max(0, (columns - rows).max()))
-
-
-def band_slots(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray, lower: int, upper: int) -> np.ndarray:
-    """Where each CSR entry of the pattern ``(indptr, indices)``, rows and columns in `order`,
-    goes in the band storage of `lower` and `upper` bandwidths: shape (2, nnz), its row
-    and column there."""
-    rows, columns = _ordered_entries(indptr, indices, order)
-    if rows.size and ((rows - columns).max() > lower or (columns - rows).max() > upper):
-        raise ValueError(f"the pattern does not fit a band of {lower} below and {upper} above the diagonal")
-    return np.stack((lower + upper + rows - columns, columns))
-
-
-def _ordered_entries(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The row and column of each CSR entry once the rows and columns are put in `order`."""
-    position = np.empty(order.size, dtype=np.int64)
-    position[order] = np.arange(order.size)
-    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
-    return rows, position[np.asarray(indices, dtype=np.int64)]
+__all__ = ["banded_lu", "banded_lu_solve", "compress_factors", "compressed_lu_solve", "factor_band", "solve_band"]
 
 
 @njit(**_JIT)

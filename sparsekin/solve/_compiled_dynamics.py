@@ -21,9 +21,8 @@ The rules are those of the Python stepper's dense path at every size: the (2, 2)
 regularization on from the first step, no measured rounding floor (`RoundingFloor`), no
 extrapolated predictor.  For the banded chains above
 `sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE` unknowns the Python stepper runs its large
-path's rules instead
-(`RoundingFloor` enabled), so there the two paths agree to Newton's tolerance and the
-integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
+path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
+tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
 6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
 
 The start (the drawing assembled, redundant equations, consistent velocities,

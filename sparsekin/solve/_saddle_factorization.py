@@ -32,12 +32,39 @@ from scipy.sparse import csr_array
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .._jit import JIT
-from ..engine._banded_kernels import band_slots, bandwidths, factor_band, solve_band
+from ..engine._banded_kernels import factor_band, solve_band
 from ..engine._lu_kernels import dense_lu_solve
 from ._compiled import _factor
 from .policy import Thresholds, plan_compiled_factorization
 
-__all__ = ["compiled_factorization", "factor_saddle", "saddle_band_order", "solve_saddle"]
+__all__ = ["band_slots", "bandwidths", "compiled_factorization", "factor_saddle", "saddle_band_order", "solve_saddle"]
+
+
+def bandwidths(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[int, int]:
+    """``(kl, ku)``: the largest distance below and above the diagonal of any entry of the
+    CSR pattern ``(indptr, indices)`` with its rows and columns in `order`."""
+    rows, columns = _ordered_entries(indptr, indices, order)
+    if rows.size == 0:
+        return 0, 0
+    return int(max(0, (rows - columns).max())), int(max(0, (columns - rows).max()))
+
+
+def band_slots(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray, lower: int, upper: int) -> np.ndarray:
+    """Where each CSR entry of the pattern ``(indptr, indices)``, rows and columns in `order`,
+    goes in the band storage of `lower` and `upper` bandwidths: shape (2, nnz), its row
+    and column there."""
+    rows, columns = _ordered_entries(indptr, indices, order)
+    if rows.size and ((rows - columns).max() > lower or (columns - rows).max() > upper):
+        raise ValueError(f"the pattern does not fit a band of {lower} below and {upper} above the diagonal")
+    return np.stack((lower + upper + rows - columns, columns))
+
+
+def _ordered_entries(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column of each CSR entry once the rows and columns are put in `order`."""
+    position = np.empty(order.size, dtype=np.int64)
+    position[order] = np.arange(order.size)
+    rows = position[np.repeat(np.arange(indptr.size - 1), np.diff(indptr))]
+    return rows, position[np.asarray(indices, dtype=np.int64)]
 
 
 def saddle_band_order(indptr: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, int, int]:
