@@ -55,9 +55,13 @@ import sys as _sys
 def _quiet_interrupt(signum, frame):
     """Ctrl-C while the command line loads the package (a second or more with cold caches):
     one line and exit status 130, as later, rather than a traceback of the imports.  The
-    commands install their own handlers (`sparsekin.cli.signals`)."""
+    process ends at once (`os._exit`): an exception raised here could land inside a
+    C extension's initialization (numpy's), which reports it as an ImportError with its
+    traceback; nothing is solved or open yet.  The commands install their own handlers
+    (`sparsekin.cli.signals`)."""
     _sys.stderr.write("sparsekin: interrupted: nothing solved yet, nothing written\n")
-    raise SystemExit(130)
+    _sys.stderr.flush()
+    _os._exit(130)
 
 
 # ``sparsekin ...`` (the console script) or ``python -m sparsekin`` (``-m`` while the package loads)
