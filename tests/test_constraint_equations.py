@@ -191,3 +191,49 @@ def test_a_row_that_is_not_finite_leaves_the_others_complete():
     finite = np.isfinite(assembler.residual)
     assert not finite[: pattern.driven_row[0]].all() and finite[pattern.driven_row].all()
     np.testing.assert_array_equal(assembler.residual[finite], complete[finite])
+
+
+#: Elements whose equations subtract two far points (two bodies, or a body and the ground),
+#: drawn at the origin and SHIFT m along x.  Points, origins and coordinates lie on a grid of
+#: 2^-20 m, so the shifted drawing and coordinates are the same geometry exactly.
+SHIFT = 1e5
+FAR_ELEMENTS = {
+    "revolute": lambda s: [Revolute(("b1", "b2"), at="P")],
+    "revolute to ground": lambda s: [Revolute(("b2", "ground"), at="R")],
+    "revolute from ground": lambda s: [Revolute(("ground", "b1"), at=(0.5 + s, 0.5))],
+    "translational axis": lambda s: [Translational(("b1", "b2"), axis=("P", "Q"))],
+    "translational on ground": lambda s: [Translational(("ground", "b2"), axis=("R", "Q"))],
+    "pin in a ground slot": lambda s: [PinInSlot(("ground", "b2"), at="P", direction=(1.0, 0.25))],
+    "distance driver to the ground": lambda s: [],
+}
+
+
+def drawn_at(element, shift):
+    points = {name: (x + shift, y) for name, (x, y) in {"P": (0.25, -0.125), "Q": (1.125, 0.375),
+                                                          "R": (-0.625, 0.875)}.items()}  # fmt: skip
+    bodies = [Body("b1", origin=(0.125 + shift, 0.25), angle=0.4, points=("P", "Q")),
+              Body("b2", origin="Q", angle=-1.1, points=("Q", "R"))]  # fmt: skip
+    drivers = []
+    if element == "distance driver to the ground":
+        drivers = [DistanceDriver(("Q", (2.0 + shift, -1.0)), ("b2", "ground"), law=LAW)]
+    return Mechanism(points=points, bodies=bodies, joints=FAR_ELEMENTS[element](shift), drivers=drivers)
+
+
+@pytest.mark.parametrize("element", FAR_ELEMENTS, ids=list(FAR_ELEMENTS))
+@settings(max_examples=40, deadline=None)
+@given(q=arrays(np.float64, 6, elements=st.floats(-3.0, 3.0)), qd=arrays(np.float64, 6, elements=st.floats(-4.0, 4.0)))
+def test_far_from_the_origin_the_equations_keep_their_digits(element, q, qd):
+    """Φ, Φq and γ of a mechanism drawn 10^5 m from the origin equal those of the same one at
+    the origin to the rounding of their own size, not to the ulp of 10^5 m (1.5e-11 m).
+    That rounding, amplified along Φq's vanishing singular values, is what stopped a chain of
+    5·10^4 four-bars at its first flat crossing (docs/design-notes.md)."""
+    q = np.round(q * 2.0**20) / 2.0**20
+    far = q.copy()
+    far[[0, 3]] += SHIFT  # exact: x on the 2^-20 grid, below 2^17
+    near_assembler, far_assembler = assembled(drawn_at(element, 0.0)), assembled(drawn_at(element, SHIFT))
+    near, far_residual = residual(near_assembler, q), residual(far_assembler, far)
+    np.testing.assert_allclose(far_residual, near, rtol=0.0, atol=1e-14)
+    np.testing.assert_allclose(far_assembler.jacobian.toarray(), near_assembler.jacobian.toarray(), rtol=0.0, atol=1e-13)
+    near_assembler.fill_acceleration_rhs(q, qd)
+    far_assembler.fill_acceleration_rhs(far, qd)
+    np.testing.assert_allclose(far_assembler.acceleration_rhs, near_assembler.acceleration_rhs, rtol=0.0, atol=1e-12)

@@ -143,10 +143,13 @@ def test_predictor_extrapolates_while_it_pays():
     assert not RoundingFloor(False).extrapolates()  # ... nor on the dense path
 
 
-def test_long_chain_extrapolating_predictor_saves_a_correction(monkeypatch):
+def test_long_chain_extrapolating_predictor_starts_newton_closer(monkeypatch):
     """10^4 bodies, 40 steps of 1 ms: the extrapolating predictor (`RoundingFloor.extrapolates`)
-    takes fewer Newton corrections than the last accelerations alone, B0 on the exact
-    answer as well, the drifts at the tolerance at every sample."""
+    leaves B0 nearer the exact answer than the last accelerations alone, for at most a tenth
+    more solves, the drifts at the tolerance at every sample.  (While the residuals rounded
+    at the far coordinates' ulp it also saved a correction, 312 solves against 328; with
+    them summed exactly Newton's stopping rule, not the predictor, sets the count: 255
+    against 240, B0 3.54e-8 against 3.68e-8 m; at 10^5 bodies 9.4e-8 against 1.5e-7 m.)"""
     from sparsekin.solve import rounding_floor
 
     loops, times = 5000, np.linspace(0.0, 0.04, 41)
@@ -158,9 +161,9 @@ def test_long_chain_extrapolating_predictor_saves_a_correction(monkeypatch):
         results[gain] = run_dynamics(discretize(n_four_bar(loops)), times, options, DynamicsOptions(1e-3),
                                      Request(coordinates=False, points=["B0"], energy=True))  # fmt: skip
     extrapolating, constant = results[EXTRAPOLATION_GAIN], results[-1.0]
-    assert extrapolating.stats.n_solves < constant.stats.n_solves
+    assert extrapolating.stats.n_solves <= 1.1 * constant.stats.n_solves
     errors = [np.abs(result.point("B0").position - exact).max() for result in (extrapolating, constant)]
-    assert errors[0] < 1e-7 and errors[0] <= 1.01 * errors[1]
+    assert errors[0] < 1e-7 and errors[0] < errors[1]
     assert extrapolating.energy.drift_position.max() <= 1e-10 and extrapolating.energy.drift_velocity.max() <= 1e-10
 
 
@@ -243,11 +246,28 @@ def _n_four_bar_at(loops: int, x0: float) -> Mechanism:
     return Mechanism(points=points, bodies=bodies, joints=joints, gravity=(0.0, -9.81))
 
 
+def test_a_long_chain_far_from_the_origin_stays_on_the_exact_motion():
+    """400 four-bars drawn 10^7 m from the origin (coordinates' ulp 1.9e-9 m) through their
+    first flat crossing (0.72 s).  Summed left to right, each revolute's residual rounded at
+    that ulp, and Newton's corrections carried it along Φq's vanishing singular values
+    (σ_min ≈ (π/2) θ / N): B0 ended 8.1e-4 m off the exact answer at 0.8 s (the integrator's
+    own error is 2.7e-6 m, the same chain at the origin).  With the residuals' differences of
+    far terms formed exactly (`sparsekin.engine._kernels._gap`): 5.0e-6 m, the rest being the
+    ulp of the coordinates themselves."""
+    loops, x0 = 400, 1e7
+    times = np.linspace(0.0, 0.8, 801)
+    result = run_dynamics(discretize(_n_four_bar_at(loops, x0)), times, SolveOptions(1e-10), DynamicsOptions(1e-3),
+                          Request(points=["B0"]))  # fmt: skip
+    exact, _ = n_four_bar_b0(times, n_loops=loops)
+    assert np.abs(result.point("B0").position - (x0, 0.0) - exact).max() < 1e-5
+
+
 @pytest.mark.parametrize("path", ["refactor", "dense", "compiled"])
 def test_chain_far_from_the_origin_passes_its_flat_crossing(path):
     """The 10^5-body chain's stop at its first flat crossing, in small: coordinates far from
     the origin carry a rounding (10^4 m: 1.8e-12 m) that Φq's vanishing singular values
-    amplify past Newton's stall allowance ``STALL √n`` times the rounding of q.  N = 4 drawn
+    amplify past Newton's stall allowance ``STALL √n`` times the rounding of q (then in the
+    residuals too; now only in q itself, see the test above).  N = 4 drawn
     10^4 m from the origin, one sample a step, stopped at t = 0.717 s ("Newton does not
     contract (3.2e-10 after 2.9e-10)") on all three paths.  It must cross on the exact
     motion: B0 within the integrator's own error at 1 ms and on the track of the same chain

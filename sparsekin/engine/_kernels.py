@@ -41,6 +41,31 @@ def _turned(cosine, sine, vector):
     return cosine * vector[0] - sine * vector[1], sine * vector[0] + cosine * vector[1]
 
 
+@njit(inline="always", **JIT)
+def _two_sum(a, b):
+    """``(s, e)`` with ``s = fl(a + b)`` and ``a + b = s + e`` exactly (Knuth's TwoSum)."""
+    s = a + b
+    b_part = s - a
+    return s, (a - (s - b_part)) + (b - b_part)
+
+
+@njit(inline="always", **JIT)
+def _gap(position_i, arm_i, position_j, arm_j):
+    """``position_i + arm_i - position_j - arm_j``, rounded once at the size of the result.
+
+    A body far from the origin holds coordinates of, say, 5·10^4 m: summed left to right,
+    the sum would round at their ulp (7e-12 m) however close the two points are, and that
+    rounding, not a geometric error, is what Newton then corrects along a mechanism's
+    nearly singular directions (a long chain at a flat crossing).  The two differences of
+    like terms (two positions; a ground point and an arm) are formed with their exact
+    errors, so only the final sum rounds: the result is exact to its own ulp whether the
+    large terms are the positions (two bodies) or a position and a ground point.
+    """
+    position, position_error = _two_sum(position_i, -position_j)
+    arm, arm_error = _two_sum(arm_i, -arm_j)
+    return (position + arm) + (position_error + arm_error)
+
+
 @njit(**JIT)
 def fill_body_turns(q, turns):
     """cos and sin of the angle of every body, the ground included: ``turns[b] = (cos, sin)``."""
@@ -59,8 +84,8 @@ def fill_coincidence(q, turns, c, residual, jac_data):
         i, j, r = 3 * bi, 3 * bj, c.row[k]
         ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])  # a = R_i s_i
         bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])  # b = R_j s_j
-        residual[r] = q[i] + ax - q[j] - bx
-        residual[r + 1] = q[i + 1] + ay - q[j + 1] - by
+        residual[r] = _gap(q[i], ax, q[j], bx)
+        residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
         s = c.slots[k]
         jac_data[s[0]] = 1.0
         jac_data[s[1]] = -ay
@@ -95,11 +120,12 @@ def fill_projection(q, turns, p, residual, jac_data):
         nx, ny = _turned(cos_i, sin_i, p.direction[k])
         ax, ay = _turned(cos_i, sin_i, p.local_i[k])
         bx, by = _turned(turns[bj, 0], turns[bj, 1], p.local_j[k])
-        # e = r_j + b - r_i: the end point seen from body i's frame origin
-        ex = q[j] + bx - q[i]
-        ey = q[j + 1] + by - q[i + 1]
+        # d = r_j + b - r_i - a, and e = d + a: the end point seen from body i's frame origin
+        dx = _gap(q[j], bx, q[i], ax)
+        dy = _gap(q[j + 1], by, q[i + 1], ay)
+        ex, ey = dx + ax, dy + ay
         rolling = p.rolling[k]
-        residual[p.row[k]] = nx * (ex - ax) + ny * (ey - ay) + rolling * (q[j + 2] - q[i + 2])
+        residual[p.row[k]] = nx * dx + ny * dy + rolling * (q[j + 2] - q[i + 2])
         s = p.slots[k]
         jac_data[s[0]] = -nx
         jac_data[s[1]] = -ny
@@ -123,8 +149,8 @@ def fill_projection_gamma(q, qd, turns, p, gamma):
         nx, ny = _turned(cos_i, sin_i, p.direction[k])
         ax, ay = _turned(cos_i, sin_i, p.local_i[k])
         bx, by = _turned(turns[bj, 0], turns[bj, 1], p.local_j[k])
-        dx = q[j] + bx - q[i] - ax
-        dy = q[j + 1] + by - q[i + 1] - ay
+        dx = _gap(q[j], bx, q[i], ax)
+        dy = _gap(q[j + 1], by, q[i + 1], ay)
         # d' = r_j' + Omega b w_j - r_i' - Omega a w_i
         ddx = qd[j] - by * wj - qd[i] + ay * wi
         ddy = qd[j + 1] + bx * wj - qd[i + 1] - ax * wi
@@ -162,8 +188,8 @@ def point_separation(q, turns, body_i, body_j, local_i, local_j):
     i, j = 3 * body_i, 3 * body_j
     ax, ay = _turned(turns[body_i, 0], turns[body_i, 1], local_i)
     bx, by = _turned(turns[body_j, 0], turns[body_j, 1], local_j)
-    dx = q[j] + bx - q[i] - ax
-    dy = q[j + 1] + by - q[i + 1] - ay
+    dx = _gap(q[j], bx, q[i], ax)
+    dy = _gap(q[j + 1], by, q[i + 1], ay)
     return ax, ay, bx, by, dx, dy, math.hypot(dx, dy)
 
 
