@@ -40,10 +40,13 @@ class RoundingFloor:
     lower with a held one (`sparsekin.solve.dynamics.NOISE`), trusted for `FLOOR_STEPS` steps.
 
     A chain of 10^5 bodies in absolute coordinates carries the rounding of its coordinates
-    (≈ 5·10^4 m × 1e-16) along its length: its Newton corrections stop falling at
-    4e-10–7e-10 at every step, held or fresh matrix alike, above the held matrix's noise
-    allowance ``NOISE √n`` times the rounding of q, so that the held factorization was
-    refactored at every step for nothing.  Once the floor is known, a held matrix's
+    (≈ 5·10^4 m × 1e-16) along its length: while its residuals were summed left to right,
+    its Newton corrections stopped falling at 4e-10–7e-10 at every step, held or fresh
+    matrix alike, above the held matrix's noise allowance ``NOISE √n`` times the rounding
+    of q, so that the held factorization was refactored at every step for nothing.  Summed
+    exactly (`sparsekin.engine._kernels._gap`) they fall three decades lower, still
+    contracting: Newton then settles once the error it predicts is within `noise`, and
+    the projections' noise is Newton's allowance (`converged`).  Once the floor is known, a held matrix's
     correction within `FLOOR_MARGIN` times it is noise too, and the velocity projection
     stops refining once its increment is below ``PROJECTION_NOISE`` times the velocity noise
     γ′ · floor that Newton leaves anyway and the drift is at the tolerance.  When Newton
