@@ -15,8 +15,10 @@ measurement, one after the other (their peak memory is their own):
 
 Time per step: the mean over the timed steps after two warm-up steps (modified Newton
 refactors on some steps only: a mean, not a median); peak memory: the process's
-``ru_maxrss`` (build, start and steps; the interpreter with sparsekin and numba imported
-holds ~130 MB of it).  Commands::
+``ru_maxrss`` (build, start and steps; 185 MB of it is the process itself — a 3-body chain's
+dynamic run peaks there: the interpreter with numpy, scipy, numba and sparsekin imported,
+numba's runtime and registries, the kernels loaded — 172 MB for the kinematic run).
+Commands::
 
     python3 benchmarks/measure_dynamics_chain.py table            # 10^3, 10^4, 10^5 bodies
     python3 benchmarks/measure_dynamics_chain.py table --accuracy  # + 100 steps at 10^5, both
@@ -248,9 +250,10 @@ def results_section(rows: list[dict]) -> list[str]:
         "kinematic step of the twin chain (`four_bar_chain`, one driver), its dynamic step of",
         "`n_four_bar` under gravity (generalized-α, fixed 1 ms steps, one output sample per step) and",
         "Exudyn 1.13.6's (generalized-α, modified Newton, its sparse LU; benchmarks/peers/). Time per",
-        "step: the mean over the timed steps after two; peak: the process's resident set (≈ 130 MB of",
-        "it the interpreter with sparsekin and numba, 44 MB with Exudyn). B0 error: against the exact",
-        "answer (every crank moves as one four-bar), largest over the steps taken.",
+        "step: the mean over the timed steps after two; peak: the process's resident set (185 MB of it",
+        "the process itself, a 3-body chain's dynamic run: interpreter, numpy, scipy, numba and its runtime,",
+        "sparsekin's kernels; 172 MB for the kinematic run, 44 MB with Exudyn). B0 error: against the",
+        "exact answer (every crank moves as one four-bar), largest over the steps taken.",
         "",
         *markdown(rows).splitlines(),
         *before,

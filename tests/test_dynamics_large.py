@@ -54,6 +54,44 @@ def test_saddle_pattern_is_the_sorted_unique_entries():
     assert np.all(slots[~valid] == keys.size)  # the discard slot
 
 
+@pytest.mark.parametrize("name", ["chain", "chain, rows left out", "task5 with masses", "lattice with masses"])
+def test_derived_slots_fill_the_same_matrix_bit_for_bit(name):
+    """Where Φq's slots and the diagonal's are derived from the row pointers (not held), S
+    is the same, bit for bit, as every triplet scattered at the slot the pattern gave it,
+    and `triplet_slots` gives the pattern's slots back (what the compiled loop reads)."""
+    from sparsekin.testset import lattice, task5, with_masses
+
+    built = {"task5 with masses": lambda: with_masses(task5(), 1.0, 0.1),
+             "lattice with masses": lambda: with_masses(lattice(3, 4), 1.0, 0.1)}  # fmt: skip
+    mechanism = built.get(name, lambda: n_four_bar(12))()
+    discretization = discretize(mechanism)
+    pattern, m = discretization.constraints, discretization.constraints.n_equations
+    system = DynamicSystem(discretization, np.setdiff1d(np.arange(m), [3, 8] if "left out" in name else []))
+    rng = np.random.default_rng(4)
+    q = pattern.initial_coordinates + 0.05 * rng.standard_normal(system.n)
+    n = system.n
+    state = (q, rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(m), 1.0, 0.3, 0.2)
+    system.fill_constraints(q)
+    matrix = system.fill_matrix(*state, regularization=1e-9).copy()
+    # every triplet again, as the pattern was made (`_fill_triplets`), scattered at the slots
+    # of a pattern made from them
+    block, kept = system._rows.size, system.kept_rows.size
+    count = block + 2 * pattern.nnz + kept
+    rows, cols = np.zeros(count, dtype=system._rows.dtype), np.zeros(count, dtype=system._cols.dtype)
+    system._rows, system._cols, system._vals = rows, cols, np.zeros(count)
+    system._fill_triplets(*state)
+    system._vals[count - kept :] = -1e-9
+    indptr, slots = np.zeros(system.size + 1, dtype=np.int64), np.empty(count, dtype=np.int32)
+    indices = _dynamics_kernels.saddle_pattern(rows, cols, system.n, indptr, slots)
+    np.testing.assert_array_equal(indices, matrix.indices)
+    data = np.zeros(indices.size + 1)
+    _dynamics_kernels.scatter_add(system._vals, slots, data)
+    np.testing.assert_array_equal(matrix.data, data[:-1])
+    np.testing.assert_array_equal(system.triplet_slots(), slots)
+    if name.startswith("chain"):
+        assert system.saddle.slots is None  # derived, not held
+
+
 def test_product_is_the_assembled_matrix_times_x():
     discretization = discretize(n_four_bar(12))
     m = discretization.constraints.n_equations

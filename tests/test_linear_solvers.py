@@ -254,6 +254,32 @@ def test_fill_straight_into_factor_order(family, rng):
         solver.factor_ordered(np.zeros(3))
 
 
+def test_lean_solver_factors_bit_for_bit(family, rng):
+    """`lean` (B's rows read through perm_r at each refactorization, not held): the same
+    factors as the default solver, bit for bit, refactored along the motion, in factor
+    order and after the guard's fallback to a fresh factorization."""
+    held, lean = RefactorSolver(), RefactorSolver(lean=True)
+    for k in range(N_CONFIGURATIONS):
+        jacobian = family.jacobian_at(k)
+        held.factor(jacobian)
+        lean.factor(jacobian)
+        b = rng.standard_normal(jacobian.shape[0])
+        np.testing.assert_array_equal(lean.solve(b), held.solve(b))
+        check_solves(lean, jacobian, rng)
+    data = family.jacobian_at(1).data[np.argsort(lean.value_positions)]  # in factor order
+    held.factor_ordered(data)
+    lean.factor_ordered(data)
+    b = rng.standard_normal(family.jacobian_at(1).shape[0])
+    np.testing.assert_array_equal(lean.solve(b), held.solve(b))
+    jacobian = family.jacobian_at(2).copy()  # rescaled: the held pivots trip the guard
+    jacobian.data *= (10.0 ** rng.uniform(-6.0, 6.0, jacobian.shape[1]))[jacobian.indices]
+    held.factor(jacobian)
+    lean.factor(jacobian)
+    assert lean.n_fallbacks == held.n_fallbacks and lean.n_refactorizations == held.n_refactorizations
+    np.testing.assert_array_equal(lean.solve(b), held.solve(b))
+    check_solves(lean, jacobian, rng)
+
+
 def test_guard_trips_on_a_zero_pivot(rng):
     """Diagonally dominant first: the diagonal pivots.  Then a zero diagonal, not singular."""
     pattern = np.ones((4, 4))

@@ -397,6 +397,47 @@ def scatter_saddle(vals, jacobian, diagonal, block_slots, jacobian_slots, diagon
 
 
 @njit(**JIT)
+def scatter_saddle_derived(vals, jacobian, diagonal, block_slots, transposed_slots, jacobian_rows, data):
+    """`scatter_saddle` where Φq's slots and the diagonal's are not held but derived
+    (`derived_multiplier_slots`: a kept equation's row of S is its Jacobian row, columns in
+    order, then its diagonal): the same additions in the same order.  `jacobian_rows` is
+    ``(indptr, indices, kept_row, n, saddle_indptr)``; the last entry of `data` is the
+    discard slot."""
+    indptr, indices, kept_row, n, saddle_indptr = jacobian_rows
+    discard = data.size - 1
+    for k in range(data.size):
+        data[k] = 0.0
+    for e in range(vals.size):
+        data[block_slots[e]] += vals[e]
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        first = saddle_indptr[n + kept] - indptr[r] if kept >= 0 else 0
+        for s in range(indptr[r], indptr[r + 1]):
+            lower = first + s if kept >= 0 and indices[s] < n else discard
+            data[lower] += jacobian[s]
+            data[transposed_slots[s]] += jacobian[s]
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept >= 0:
+            data[saddle_indptr[n + kept + 1] - 1] += diagonal
+
+
+@njit(**JIT)
+def derived_multiplier_slots(jacobian_rows, discard, lower, diagonal):
+    """The slots `scatter_saddle_derived` derives: Φq's (`lower`, one per Jacobian entry)
+    and the diagonal's (`diagonal`, one per kept equation), to check them against the
+    pattern's."""
+    indptr, indices, kept_row, n, saddle_indptr = jacobian_rows
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        first = saddle_indptr[n + kept] - indptr[r] if kept >= 0 else 0
+        for s in range(indptr[r], indptr[r + 1]):
+            lower[s] = first + s if kept >= 0 and indices[s] < n else discard
+        if kept >= 0:
+            diagonal[kept] = saddle_indptr[n + kept + 1] - 1
+
+
+@njit(**JIT)
 def add_transposed_product(indptr, indices, values, weights, out):
     """``out += Jᵀ weights`` for a CSR J: the generalized force of row weights (actuators:
     ``F ∇s``; constraints: ``Φqᵀ λ``)."""

@@ -206,6 +206,69 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
 
 
 @njit(**_JIT)
+def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats):
+    """`refactor_lu` without B's row indices held: ``rows`` is ``(indices, perm_r)``, the CSR
+    column indices of the matrix whose transpose is factored and the row permutation, and
+    B's entry p of column j is in row ``perm_r[indices[p + offsets[j]]]`` (what
+    `fill_column_rows` would have stored).  The same elimination, in the same order: the
+    same factors, bit for bit; 4 bytes per entry fewer held, ~18 % slower (10^5-body
+    chain's saddle), for a solver that refactors rarely (`RefactorSolver`'s ``lean``)."""
+    b_indptr, offsets = b_pattern[0], b_pattern[2]
+    indices, perm_r = rows
+    l_indptr, l_indices, l_values = lower
+    u_indptr, u_indices, u_values, u_inverse = upper
+    n = b_indptr.size - 1
+    max_l = 1.0
+    max_u = 0.0
+    max_b = 0.0
+    probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
+    stats[STAT_BAD_COLUMN] = -1.0
+    for j in range(n):
+        shift = offsets[j]
+        if in_factor_order:
+            for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
+                value = values[p]
+                work[perm_r[indices[p + shift]]] += value  # repeated entries add up
+                max_b = max(max_b, abs(value))
+        else:
+            for p in range(_wide(b_indptr[j]) + shift, _wide(b_indptr[j + 1]) + shift):
+                value = values[p]
+                work[perm_r[indices[p]]] += value
+                max_b = max(max_b, abs(value))
+        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
+            k = u_indices[p]
+            x_k = work[k]
+            work[k] = 0.0
+            u_values[p] = x_k
+            max_u = max(max_u, abs(x_k))
+            probe += 0.0 * x_k
+            for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
+                work[l_indices[q]] -= l_values[q] * x_k
+        pivot = work[j]
+        work[j] = 0.0
+        if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
+            for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+                work[l_indices[q]] = 0.0
+            stats[STAT_BAD_COLUMN] = j
+            break
+        max_u = max(max_u, abs(pivot))
+        inverse = 1.0 / pivot
+        u_inverse[j] = inverse
+        for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+            i = l_indices[q]
+            entry = work[i] * inverse
+            work[i] = 0.0
+            l_values[q] = entry
+            max_l = max(max_l, abs(entry))
+            probe += 0.0 * entry
+    # |pivot| / max(|pivot|, max |candidate|) over the columns is 1 / max(1, max |L|).
+    stats[STAT_MIN_PIVOT_RATIO] = 1.0 / max_l
+    stats[STAT_MAX_ABS_U] = max_u
+    stats[STAT_MAX_ABS_B] = max_b
+    stats[STAT_NON_FINITE] = probe
+
+
+@njit(**_JIT)
 def solve_lu(factors, rhs, work, out, probe):
     """Solve ``A x = rhs`` with ``Pr A Pc = L U``: fill `out` (may be `rhs` itself).
 

@@ -302,6 +302,12 @@ class RefactorSolver:
         ``meshes`` extra), computed once per pattern; on meshes it has less fill and
         much faster refactorizations and solves (docs/design-notes.md, "Fill-reducing
         column order").
+    lean : bool
+        Hold no permuted copy of the pattern (B's row indices, 4 bytes per entry): each
+        refactorization reads them through ``perm_r`` from the matrix's own indices
+        (`_lu_kernels.refactor_lu_gathered`: the same factors, ~18 % slower on the 10^5-body
+        chain's saddle).  For a solver that refactors rarely and holds a large pattern
+        (forward dynamics' held iteration matrix).
 
     Attributes
     ----------
@@ -345,7 +351,12 @@ class RefactorSolver:
     name = "refactor"
 
     def __init__(
-        self, *, min_pivot_ratio: float = MIN_PIVOT_RATIO, max_growth: float = MAX_GROWTH, ordering: str = "colamd"
+        self,
+        *,
+        min_pivot_ratio: float = MIN_PIVOT_RATIO,
+        max_growth: float = MAX_GROWTH,
+        ordering: str = "colamd",
+        lean: bool = False,
     ) -> None:
         if ordering not in ORDERINGS:
             raise ValueError(f"`ordering` must be one of {', '.join(map(repr, ORDERINGS))}, got {ordering!r}.")
@@ -356,6 +367,7 @@ class RefactorSolver:
         self.min_pivot_ratio = float(min_pivot_ratio)
         self.max_growth = float(max_growth)
         self.ordering = ordering
+        self.lean = bool(lean)
         self._column_order = None  # METIS's order of the analysed pattern, once computed
         self.n_factorizations = 0
         self.n_refactorizations = 0
@@ -608,13 +620,16 @@ class RefactorSolver:
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
         self._l_values = self._u_values = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
-        # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain)
+        # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain);
+        # `lean` does, and holds them for the analysis only
         self._b_rows = None
-        self._b_rows = np.empty(nnz, dtype=index)
-        _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, self._b_rows)
+        b_rows = np.empty(nnz, dtype=index)
+        _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
         l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, self._b_rows, capacity // 2, capacity // 2
+            self._b_indptr, b_rows, capacity // 2, capacity // 2
         )
+        self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
+        del b_rows
         # int32 row pointers when every entry fits (checked on the last, the largest)
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
@@ -633,11 +648,15 @@ class RefactorSolver:
         if not self._work_is_zero:
             self._work.fill(0.0)
             self._work_is_zero = True
-        _lu_kernels.refactor_lu(
-            values, in_factor_order, (self._b_indptr, self._b_rows, self._offsets),
-            (self._l_indptr, self._l_indices, self._l_values),
-            (self._u_indptr, self._u_indices, self._u_values, self._u_inverse), self._work, stats,
-        )  # fmt: skip
+        b_pattern = (self._b_indptr, self._b_rows, self._offsets)
+        lower = (self._l_indptr, self._l_indices, self._l_values)
+        upper = (self._u_indptr, self._u_indices, self._u_values, self._u_inverse)
+        if self.lean:
+            rows = (self._indices, self._perm_r)
+            _lu_kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, self._work,
+                                             stats)  # fmt: skip
+        else:
+            _lu_kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, self._work, stats)
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
         if bad_column >= 0 or non_finite != 0.0:

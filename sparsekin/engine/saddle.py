@@ -28,7 +28,7 @@ multiplier updates there stay bounded, as in a least-squares step.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -51,15 +51,17 @@ class SaddlePattern:
         n_coordinates + number of kept equations.
     indptr, indices : ndarray
         CSR pattern, columns sorted within rows.
-    slots : ndarray of int, shape (n_triplets,)
+    slots : ndarray of int, shape (n_triplets,), or None
         The position of each triplet in the CSR values; ``nnz`` (a discard slot) for the
-        ground's coordinates and left-out equations.
+        ground's coordinates and left-out equations.  None in `DynamicSystem.saddle` when
+        the system holds only the slots it cannot derive (`DynamicSystem.triplet_slots`
+        gives them all).
     """
 
     size: int
     indptr: np.ndarray
     indices: np.ndarray
-    slots: np.ndarray
+    slots: np.ndarray | None
 
     @property
     def nnz(self) -> int:
@@ -76,6 +78,13 @@ class SaddlePattern:
         indices = kernels.saddle_pattern(rows, cols, n, indptr, slots)
         index = _index_dtype(max(size, indices.size))  # one dtype for both: scipy keeps them as they are
         return cls(size, indptr.astype(index), indices.astype(index), slots)
+
+
+def _is_every_row(kept_rows: np.ndarray, m: int) -> bool:
+    """Whether `kept_rows` is ``0, 1, …, m − 1`` (every equation kept, in order)."""
+    if kept_rows.size != m:
+        return False
+    return m == 0 or (int(kept_rows[0]) == 0 and bool(np.all(np.diff(kept_rows) == 1)))
 
 
 def _index_dtype(largest: int) -> type:
@@ -119,8 +128,11 @@ class DynamicSystem:
         n, m = pattern.n_coordinates, pattern.n_equations
         self.n = n
         self.kept_rows = np.arange(m, dtype=np.int64) if kept_rows is None else np.asarray(kept_rows, dtype=np.int64)
-        self.kept_row = np.full(m, -1, dtype=np.int64)
-        self.kept_row[self.kept_rows] = np.arange(self.kept_rows.size)
+        if _is_every_row(self.kept_rows, m):  # then each row's index among the kept is its own: one array
+            self.kept_row = self.kept_rows
+        else:
+            self.kept_row = np.full(m, -1, dtype=np.int64)
+            self.kept_row[self.kept_rows] = np.arange(self.kept_rows.size)
         self.size = n + self.kept_rows.size
         n_laws = self.loads.n_laws
         self.law_values, self._law_rates, self._law_accelerations = np.zeros(n_laws), np.zeros(n_laws), np.zeros(n_laws)
@@ -153,6 +165,17 @@ class DynamicSystem:
         self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
         slots = self.saddle.slots
         self._slots = (slots[:block], slots[block : block + 2 * pattern.nnz], slots[block + 2 * pattern.nnz :])
+        # Φq's slots and the diagonal's follow from the row pointers when each kept equation's
+        # row of S is its Jacobian row in order: then only the block's and Φqᵀ's are held
+        # (10^6 bodies: 52 MB fewer), checked here against the pattern's
+        self._jacobian_rows = (pattern.indptr, pattern.indices, self.kept_row, n, self.saddle.indptr)
+        lower = np.empty(pattern.nnz, dtype=slots.dtype)
+        diagonal = np.empty(self.kept_rows.size, dtype=slots.dtype)
+        kernels.derived_multiplier_slots(self._jacobian_rows, self.saddle.nnz, lower, diagonal)
+        if np.array_equal(lower, self._slots[1][0::2]) and np.array_equal(diagonal, self._slots[2]):
+            self._slots = (self._slots[0].copy(), self._slots[1][1::2].copy(), None)
+            self.saddle = replace(self.saddle, slots=None)
+        del slots, lower, diagonal
         self._data = np.zeros(self.saddle.nnz + 1)
         self.matrix = csr_array((self._data[:-1], self.saddle.indices, self.saddle.indptr), shape=(self.size, self.size))
 
@@ -240,8 +263,28 @@ class DynamicSystem:
         given, Phi_q from the last `fill_constraints` (at the same coordinates); returns
         `matrix`."""
         self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
-        kernels.scatter_saddle(self._vals, self.assembler.values, -regularization, *self._slots, self._data)
+        block_slots, jacobian_slots, diagonal_slots = self._slots
+        if diagonal_slots is None:  # Φq's and the diagonal's derived
+            kernels.scatter_saddle_derived(self._vals, self.assembler.values, -regularization, block_slots,
+                                           jacobian_slots, self._jacobian_rows, self._data)  # fmt: skip
+        else:
+            kernels.scatter_saddle(self._vals, self.assembler.values, -regularization, block_slots, jacobian_slots,
+                                   diagonal_slots, self._data)  # fmt: skip
         return self.matrix
+
+    def triplet_slots(self) -> np.ndarray:
+        """The position of each triplet of S in the CSR values (`SaddlePattern.slots`: the
+        block's, then Φq's and Φqᵀ's of each Jacobian entry, then the diagonal's), derived
+        again where the system does not hold them (a new array then)."""
+        block_slots, jacobian_slots, diagonal_slots = self._slots
+        if diagonal_slots is not None:
+            return self.saddle.slots
+        lower = np.empty_like(jacobian_slots)
+        diagonal = np.empty(self.kept_rows.size, dtype=jacobian_slots.dtype)
+        kernels.derived_multiplier_slots(self._jacobian_rows, self.saddle.nnz, lower, diagonal)
+        pairs = np.empty(2 * lower.size, dtype=lower.dtype)
+        pairs[0::2], pairs[1::2] = lower, jacobian_slots
+        return np.concatenate([block_slots, pairs, diagonal])
 
     def product(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
                 x: np.ndarray, out: np.ndarray, *, same_state: bool = False) -> np.ndarray:  # fmt: skip

@@ -749,7 +749,8 @@ class CompiledDynamicsLoop:
                        pattern.target.astype(float),
                        pattern.driven_row, python.discretization.driver_laws.table, kept.astype(np.int64),
                        system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
-                       loads.arrays, loads.laws, actuators, saddle.slots, saddle.indptr, saddle.indices)  # fmt: skip
+                       loads.arrays, loads.laws, actuators, system.triplet_slots(), saddle.indptr,
+                       saddle.indices)  # fmt: skip
         n, m = pattern.n_coordinates, python.state.multipliers.size
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)

@@ -279,9 +279,12 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system)
-        self._work = (np.zeros(system.size), np.zeros(n))  # Newton's rhs (its correction solved in place), force
-        # the projections': solution, residual (Newton's rhs: they follow it), drift, drift left, zeros
-        self._projection_work = (np.zeros(system.size), self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
+        # Newton's rhs (its correction solved in place) and force (the first n of the projections'
+        # solution: they follow Newton and zero it first); the projections': solution, residual
+        # (Newton's rhs), drift, drift left, zeros
+        solution = np.zeros(system.size)
+        self._work = (np.zeros(system.size), solution[:n])
+        self._projection_work = (solution, self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
