@@ -378,6 +378,7 @@ class RefactorSolver:
         self.layout_version = 0
         self._n = -1
         self._indptr = self._indices = None
+        self._l_indices = self._u_indices = None  # L's and U's patterns, made by `_analyse`
         self._factored = False
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
@@ -564,6 +565,11 @@ class RefactorSolver:
         """SuperLU with new pivoting, the structural analysis, then the numeric factors."""
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
+        # the old factors' values go before SuperLU makes its own factors (held across it,
+        # they made the peak of a long chain's run at its flat crossing, where the guard
+        # sends refactorizations here); their patterns stay, for a refactorization after a
+        # failure here
+        self._l_values = self._u_values = None
         try:
             if self.ordering == "metis":
                 lu, perm_c = self._splu_in_column_order(matrix)
@@ -571,6 +577,8 @@ class RefactorSolver:
                 lu = _splu(matrix, pivots_only=True)
                 perm_c = lu.perm_c.astype(np.int64)
         except RuntimeError as error:  # "Factor is exactly singular"
+            if self._l_indices is not None:
+                self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
             raise SingularMatrix(str(error)) from error
         perm_r = lu.perm_r.astype(np.int64)
         capacity = lu.nnz
