@@ -447,9 +447,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
         # as velocity errors (γ′ δq), within the step's share of the tolerance, or at the
-        # rounding floor of q; on the large path, the error left also when it is within the
-        # noise of a held matrix's corrections measured at its stalls (`RoundingFloor.noise`:
-        # a further correction would only chase that noise).
+        # rounding floor of q; on the large path, the error left also when it is within that
+        # floor (with the residuals summed exactly a long chain's held matrix keeps contracting
+        # down to it: correcting it away took a fourth correction a step).
         bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         q_size = _dynamics_kernels.weighted_norm(q, weights)  # then from `newton_update`
@@ -483,7 +483,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             else:
                 self._floor.predicted(extrapolate, correction)
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
-            settled = left <= max(bound, self._floor.noise(0.0)) or correction <= floor
+            settled = left <= (max(bound, floor) if self._floor.enabled else bound) or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
                 if correction <= (stall if fresh else self._floor.noise(NOISE * stall / STALL)):
                     # at the rounding floor of the (ill-conditioned) matrix: the ratio of two

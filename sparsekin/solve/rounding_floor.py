@@ -45,12 +45,12 @@ class RoundingFloor:
     matrix alike, above the held matrix's noise allowance ``NOISE √n`` times the rounding
     of q, so that the held factorization was refactored at every step for nothing.  Summed
     exactly (`sparsekin.engine._kernels._gap`) they fall three decades lower, still
-    contracting: Newton then settles once the error it predicts is within `noise`, and
-    the projections' noise is Newton's allowance (`converged`).  Once the floor is known, a held matrix's
-    correction within `FLOOR_MARGIN` times it is noise too, and the velocity projection
-    stops refining once its increment is below ``PROJECTION_NOISE`` times the velocity noise
-    γ′ · floor that Newton leaves anyway and the drift is at the tolerance.  When Newton
-    stops is otherwise unchanged; small models (dense path) never measure a floor.
+    contracting: Newton then settles once the error it predicts is within the rounding
+    of q, and the projections' noise is Newton's allowance (`converged`).  Once the floor
+    is known, a held matrix's correction within `FLOOR_MARGIN` times it is noise too, and
+    the velocity projection stops refining once its increment is below
+    ``PROJECTION_NOISE`` times the velocity noise γ′ · floor that Newton leaves anyway and
+    the drift is at the tolerance.  Small models (dense path) never measure a floor.
 
     The same object says whether the large path's iteration matrix carries the (2, 2)
     regularization −r I (`regularization`): only from a failed step until the step is back
