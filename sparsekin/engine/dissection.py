@@ -218,9 +218,11 @@ class DissectionSolver:
             u_inverse = 1.0 / diagonal
         if not np.all(np.isfinite(u_inverse)):
             raise SingularMatrix("a pivot of the factorization is zero or not finite")
-        self._factors = (perm_r, perm_c, (l_indptr, lower.indices, lower.data),
-                         (u_indptr, upper.indices, upper.data, u_inverse))  # fmt: skip
-        self._held = _HeldPivots(kept, perm_r, perm_c, entries)
+        held = _HeldPivots(kept, perm_r, perm_c, entries)
+        u_rows = _rows_last_first(u_indptr, upper.indices, upper.data)
+        del upper  # U by columns: the solves read it by rows
+        self._factors = (held.row_of, held.column_of, (l_indptr, lower.indices, lower.data), u_rows + (u_inverse,))
+        self._held = held
         self._work = np.empty(n)
         self._probe = np.zeros(1)
 
@@ -240,7 +242,7 @@ class DissectionSolver:
                 out[self._order] = self._lu.solve(rhs)
             finite = bool(np.all(np.isfinite(out)))
         else:
-            kernel = _lu_kernels.solve_lu_transposed if transposed else _lu_kernels.solve_lu
+            kernel = _lu_kernels.solve_lu_rows_transposed if transposed else _lu_kernels.solve_lu_rows
             finite = solve_factored(kernel, self._factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
         if not finite:
@@ -280,6 +282,11 @@ class _HeldPivots:
 
     def __init__(self, kept: np.ndarray, perm_r: np.ndarray, perm_c: np.ndarray, entries: int) -> None:
         self.kept, self.perm_r, self.perm_c, self.entries = kept, perm_r, perm_c, entries
+        index = _index_dtype(perm_r.size)
+        self.row_of = np.empty(perm_r.size, dtype=index)  # the inverse permutations, for the solves
+        self.row_of[perm_r] = np.arange(perm_r.size, dtype=index)
+        self.column_of = np.empty(perm_c.size, dtype=index)
+        self.column_of[perm_c] = np.arange(perm_c.size, dtype=index)
         self._analysis = None
 
     def refactor(self, jacobian, data: np.ndarray):
@@ -295,12 +302,12 @@ class _HeldPivots:
         if bad_column >= 0 or non_finite != 0.0 or rejected:
             return None
         (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = lower, upper
-        (cl_indptr, cl_indices, cl_values), (cu_indptr, cu_indices, cu_values) = compressed
+        (cl_indptr, cl_indices, cl_values), (ru_indptr, ru_indices, ru_values) = compressed
         _lu_kernels.copy_nonzeros(l_indptr, l_indices, l_values, cl_indptr, cl_indices, cl_values)
-        _lu_kernels.copy_nonzeros(u_indptr, u_indices, u_values, cu_indptr, cu_indices, cu_values)
-        l_end, u_end = cl_indptr[-1], cu_indptr[-1]
-        return (self.perm_r, self.perm_c, (cl_indptr, cl_indices[:l_end], cl_values[:l_end]),
-                (cu_indptr, cu_indices[:u_end], cu_values[:u_end], u_inverse))  # fmt: skip
+        _lu_kernels.rows_last_first(u_indptr, u_indices, u_values, ru_indptr, ru_indices, ru_values)
+        l_end, u_end = cl_indptr[-1], ru_indptr[-1]
+        return (self.row_of, self.column_of, (cl_indptr, cl_indices[:l_end], cl_values[:l_end]),
+                (ru_indptr, ru_indices[:u_end], ru_values[:u_end], u_inverse))  # fmt: skip
 
     def _analyse(self, jacobian) -> None:
         n, nnz = self.perm_r.size, jacobian.nnz
@@ -322,6 +329,16 @@ class _HeldPivots:
                            for indices in (l_indices, u_indices))  # fmt: skip
         stats = np.zeros(_lu_kernels.N_STATS)
         self._analysis = (b_indptr, b_rows, gather, np.empty(gather.size), lower, upper, np.zeros(n), stats, compressed)
+
+
+def _rows_last_first(indptr: np.ndarray, indices: np.ndarray, values: np.ndarray) -> tuple:
+    """``(indptr, indices, values)`` of a compressed-column factor's nonzeros by rows, the last
+    row first (`_lu_kernels.rows_last_first`), trimmed to their size."""
+    out_indptr = np.empty(indptr.size, dtype=np.int64)
+    out_indices, out_values = np.empty_like(indices), np.empty(values.size)
+    _lu_kernels.rows_last_first(indptr, indices, values, out_indptr, out_indices, out_values)
+    end = out_indptr[-1]
+    return out_indptr, out_indices[:end], out_values[:end]
 
 
 def _saddle_groups(matrix: csr_array, coordinates: int) -> np.ndarray:
