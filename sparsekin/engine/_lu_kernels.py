@@ -17,6 +17,9 @@ Symbols (for these kernels only):
   by them, a division per column being on their critical path.
 * ``perm_r``, ``perm_c`` — row ``i`` of ``A`` is row ``perm_r[i]`` of ``B``, column ``c``
   of ``A`` is column ``perm_c[c]`` of ``B``.
+* The solves of `solve_lu_rows` (`sparsekin.engine.dissection.DissectionSolver`'s) take U
+  by rows instead, the last row stored first (`rows_last_first`), and the inverse
+  permutations ``row_of``, ``column_of``.
 * Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
   which the solves are bound by), int64 otherwise; `analyse_lu_pattern` returns int64
