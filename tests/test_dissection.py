@@ -189,8 +189,9 @@ def test_the_ordered_columns_are_scipys(rng):
 
 def test_the_row_stored_solves_are_the_factors_solves(rng):
     """`_lu_kernels.rows_last_first` (U's nonzeros by rows, the last row first, its exact
-    zeros left out) and `solve_lu_rows` / `solve_lu_rows_transposed` on ``Pr A Pc = L U``
-    against dense solves with A, for random triangular factors and permutations."""
+    zeros left out) and back (`columns_from_rows_last_first`), `solve_lu_rows` and
+    `solve_lu_transposed` on them with ``Pr A Pc = L U`` against dense products with A, for
+    random triangular factors and permutations."""
     from scipy.sparse import csc_array
 
     from sparsekin.engine import _lu_kernels
@@ -219,12 +220,19 @@ def test_the_row_stored_solves_are_the_factors_solves(rng):
     np.testing.assert_array_equal(rebuilt, upper)
     for k in range(n):  # each stored row by increasing column
         assert np.all(np.diff(out_indices[out_indptr[k]:out_indptr[k + 1]]) > 0)
+    u_back = (np.empty(n + 1, dtype=np.int64), np.empty(end, dtype=out_indices.dtype), np.empty(end))
+    _lu_kernels.columns_from_rows_last_first(out_indptr, out_indices[:end], out_values[:end], *u_back)
+    nonzero = csc_array(upper)
+    assert np.array_equal(u_back[0], nonzero.indptr) and np.array_equal(u_back[1], nonzero.indices)
+    np.testing.assert_array_equal(u_back[2], nonzero.data)
     l_columns = csc_array(lower)
-    row_of, column_of = np.argsort(perm_r), np.argsort(perm_c)
-    factors = (row_of, column_of, (l_columns.indptr.astype(np.int64), l_columns.indices, l_columns.data),
+    lower_factor = (l_columns.indptr.astype(np.int64), l_columns.indices, l_columns.data)
+    by_rows = (np.argsort(perm_r), np.argsort(perm_c), lower_factor,
                (out_indptr, out_indices[:end], out_values[:end], 1.0 / diagonal))  # fmt: skip
+    by_columns = (perm_r, perm_c, lower_factor, u_back + (1.0 / diagonal,))
     rhs, work, out, probe = rng.standard_normal(n), np.empty(n), np.empty(n), np.ones(1)
-    for kernel, operator in ((_lu_kernels.solve_lu_rows, matrix), (_lu_kernels.solve_lu_rows_transposed, matrix.T)):
+    for kernel, factors, operator in ((_lu_kernels.solve_lu_rows, by_rows, matrix),
+                                      (_lu_kernels.solve_lu_transposed, by_columns, matrix.T)):  # fmt: skip
         kernel(factors, rhs, work, out, probe)
         assert probe[0] == 0.0
         np.testing.assert_allclose(operator @ out, rhs, rtol=0, atol=1e-10 * np.abs(rhs).max())

@@ -19,7 +19,8 @@ Symbols (for these kernels only):
   of ``A`` is column ``perm_c[c]`` of ``B``.
 * The solves of `solve_lu_rows` (`sparsekin.engine.dissection.DissectionSolver`'s) take U
   by rows instead, the last row stored first (`rows_last_first`), and the inverse
-  permutations ``row_of``, ``column_of``.
+  permutations ``row_of``, ``column_of``; its transposed solves take U back by columns
+  (`columns_from_rows_last_first`) and `solve_lu_transposed`.
 * Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
   which the solves are bound by), int64 otherwise; `analyse_lu_pattern` returns int64
@@ -338,30 +339,29 @@ def solve_lu_rows(factors, rhs, work, out, probe):
 
 
 @njit(**_JIT)
-def solve_lu_rows_transposed(factors, rhs, work, out, probe):
-    """Solve ``A^T x = rhs`` with the factors of `solve_lu_rows` (``A^T = Pc U^T L^T Pr``):
-    fill `out` (may be `rhs`); `probe` as there."""
-    row_of, column_of, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
-    n = rhs.size
-    for j in range(n):
-        work[j] = rhs[column_of[j]]
-    for i in range(n):  # U^T y = Pc^T rhs: y_i, then row i of U out of the later entries
-        k = n - 1 - i
-        y_i = work[i] * u_inverse[i]
-        work[i] = y_i
-        for p in range(_wide(u_indptr[k]), _wide(u_indptr[k + 1])):
-            work[u_indices[p]] -= u_values[p] * y_i
-    for j in range(n - 1, -1, -1):  # L^T z = y: dot products with the columns of L
-        total = work[j]
-        for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            total -= l_values[p] * work[l_indices[p]]
-        work[j] = total
-    total = 0.0
-    for i in range(n):  # x = Pr^T z
-        x_i = work[i]
-        out[row_of[i]] = x_i
-        total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
-    probe[0] = total
+def columns_from_rows_last_first(indptr, indices, values, out_indptr, out_indices, out_values):
+    """The strictly upper factor stored by `rows_last_first`, back by columns (rows increasing
+    within each): for `solve_lu_transposed`, whose sweeps read U's columns (on U by rows
+    they were 1.1–2 times slower).  The `out_` arrays are as large as the input's
+    (`out_indptr` shape (n + 1,)) and are filled."""
+    n = indptr.size - 1
+    for c in range(n + 1):
+        out_indptr[c] = 0
+    for p in range(_wide(indptr[n])):
+        out_indptr[indices[p] + 1] += 1
+    for c in range(n):
+        out_indptr[c + 1] += out_indptr[c]
+    for k in range(n - 1, -1, -1):  # rows i = n - 1 - k in increasing order
+        i = n - 1 - k
+        for p in range(_wide(indptr[k]), _wide(indptr[k + 1])):
+            c = indices[p]
+            q = out_indptr[c]
+            out_indices[q] = i
+            out_values[q] = values[p]
+            out_indptr[c] = q + 1
+    for c in range(n, 0, -1):
+        out_indptr[c] = out_indptr[c - 1]
+    out_indptr[0] = 0
 
 
 @njit(**_JIT)
