@@ -137,8 +137,8 @@ def main(tree: str, bodies: int, steps: int, run: str | None) -> None:
 
     histogram, gmres = {}, krylov.fgmres
 
-    def counted_fgmres(*args):  # GMRES's iteration counts, -1 when it gave up
-        iterations = gmres(*args)
+    def counted_fgmres(*args, **kwargs):  # GMRES's iteration counts, -1 when it gave up
+        iterations = gmres(*args, **kwargs)
         histogram[iterations] = histogram.get(iterations, 0) + 1
         return iterations
 

@@ -185,3 +185,54 @@ def test_the_ordered_columns_are_scipys(rng):
     expected.sort_indices()
     assert np.array_equal(indptr, expected.indptr) and np.array_equal(indices, expected.indices)
     np.testing.assert_array_equal(matrix.data[gather], expected.data)
+
+
+def test_the_row_stored_solves_are_the_factors_solves(rng):
+    """`_lu_kernels.rows_last_first` (U's nonzeros by rows, the last row first, its exact
+    zeros left out) and back (`columns_from_rows_last_first`), `solve_lu_rows` and
+    `solve_lu_transposed` on them with ``Pr A Pc = L U`` against dense products with A, for
+    random triangular factors and permutations."""
+    from scipy.sparse import csc_array
+
+    from sparsekin.engine import _lu_kernels
+
+    n = 40
+    lower = np.tril(rng.standard_normal((n, n)) * (rng.random((n, n)) < 0.2), -1)
+    upper = np.triu(rng.standard_normal((n, n)) * (rng.random((n, n)) < 0.2), 1)
+    diagonal = rng.uniform(1.0, 2.0, n) * rng.choice([-1.0, 1.0], n)
+    perm_r, perm_c = rng.permutation(n), rng.permutation(n)
+    product = (np.eye(n) + lower) @ (upper + np.diag(diagonal))  # B = Pr A Pc
+    matrix = product[perm_r][:, perm_c]  # row i of A is row perm_r[i] of B, column c is column perm_c[c]
+    # U by columns on a pattern with explicit zeros (a refactorization's structural zeros)
+    pattern = (upper != 0.0) | ((rng.random((n, n)) < 0.1) & (np.triu(np.ones((n, n)), 1) > 0))
+    u_columns = csc_array((upper[pattern], np.nonzero(pattern)), shape=(n, n))
+    assert np.any(u_columns.data == 0.0)
+    out_indptr = np.empty(n + 1, dtype=np.int64)
+    out_indices, out_values = np.empty_like(u_columns.indices), np.empty(u_columns.nnz)
+    _lu_kernels.rows_last_first(u_columns.indptr, u_columns.indices, u_columns.data, out_indptr, out_indices,
+                                out_values)  # fmt: skip
+    end = out_indptr[-1]
+    assert end == np.count_nonzero(upper)
+    rebuilt = np.zeros((n, n))
+    for k in range(n):
+        for p in range(out_indptr[k], out_indptr[k + 1]):
+            rebuilt[n - 1 - k, out_indices[p]] = out_values[p]
+    np.testing.assert_array_equal(rebuilt, upper)
+    for k in range(n):  # each stored row by increasing column
+        assert np.all(np.diff(out_indices[out_indptr[k]:out_indptr[k + 1]]) > 0)
+    u_back = (np.empty(n + 1, dtype=np.int64), np.empty(end, dtype=out_indices.dtype), np.empty(end))
+    _lu_kernels.columns_from_rows_last_first(out_indptr, out_indices[:end], out_values[:end], *u_back)
+    nonzero = csc_array(upper)
+    assert np.array_equal(u_back[0], nonzero.indptr) and np.array_equal(u_back[1], nonzero.indices)
+    np.testing.assert_array_equal(u_back[2], nonzero.data)
+    l_columns = csc_array(lower)
+    lower_factor = (l_columns.indptr.astype(np.int64), l_columns.indices, l_columns.data)
+    by_rows = (np.argsort(perm_r), np.argsort(perm_c), lower_factor,
+               (out_indptr, out_indices[:end], out_values[:end], 1.0 / diagonal))  # fmt: skip
+    by_columns = (perm_r, perm_c, lower_factor, u_back + (1.0 / diagonal,))
+    rhs, work, out, probe = rng.standard_normal(n), np.empty(n), np.empty(n), np.ones(1)
+    for kernel, factors, operator in ((_lu_kernels.solve_lu_rows, by_rows, matrix),
+                                      (_lu_kernels.solve_lu_transposed, by_columns, matrix.T)):  # fmt: skip
+        kernel(factors, rhs, work, out, probe)
+        assert probe[0] == 0.0
+        np.testing.assert_allclose(operator @ out, rhs, rtol=0, atol=1e-10 * np.abs(rhs).max())

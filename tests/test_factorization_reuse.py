@@ -15,7 +15,7 @@ import pytest
 from scipy.sparse import csr_array, random_array
 from scipy.sparse.linalg import splu
 
-from sparsekin.engine.krylov import ReusingSolver, fgmres
+from sparsekin.engine.krylov import ReusingSolver, fgmres, gmres_workspace
 from sparsekin.engine.linalg import RefactorSolver, SuperLUSolver
 
 
@@ -66,6 +66,28 @@ def test_fgmres_takes_one_iteration_for_a_rank_one_change(rng):
     scale = np.abs(changed.toarray()).sum(axis=0).max()
     iterations = fgmres(changed.__matmul__, lambda w, out: np.copyto(out, lu.solve(w)), b, 1e-15, 10, x, scale)
     assert 1 <= iterations <= 2
+
+
+def test_a_reused_workspace_gives_the_same_iterates(rng):
+    """`fgmres` on arrays held from an earlier call (their old contents left in place)
+    gives bit for bit what it gives on fresh ones; a workspace of another size is refused."""
+    matrix = _jacobian(200, rng)
+    lu = splu(matrix.tocsc())
+    changed = _perturbed(matrix, 1e-1, rng)
+    scale = np.abs(changed.toarray()).sum(axis=0).max()
+    workspace = gmres_workspace(200, 30)
+    for array in workspace:
+        array.fill(np.nan)
+    for b in rng.standard_normal((3, 200)):
+        fresh, reused = np.empty(200), np.empty(200)
+        expected = fgmres(changed.__matmul__, lambda v, out: np.copyto(out, lu.solve(v)), b, 1e-15, 30, fresh, scale)
+        iterations = fgmres(changed.__matmul__, lambda v, out: np.copyto(out, lu.solve(v)), b, 1e-15, 30, reused,
+                            scale, workspace=workspace)  # fmt: skip
+        assert iterations == expected >= 2
+        np.testing.assert_array_equal(reused, fresh)
+    with pytest.raises(ValueError, match="200 unknowns and 30 iterations, not 200 and 40"):
+        fgmres(changed.__matmul__, lambda v, out: np.copyto(out, lu.solve(v)), b, 1e-15, 40, reused, scale,
+               workspace=workspace)  # fmt: skip
 
 
 def test_fgmres_gives_up_with_a_poor_preconditioner(rng):

@@ -17,6 +17,10 @@ Symbols (for these kernels only):
   by them, a division per column being on their critical path.
 * ``perm_r``, ``perm_c`` — row ``i`` of ``A`` is row ``perm_r[i]`` of ``B``, column ``c``
   of ``A`` is column ``perm_c[c]`` of ``B``.
+* The solves of `solve_lu_rows` (`sparsekin.engine.dissection.DissectionSolver`'s) take U
+  by rows instead, the last row stored first (`rows_last_first`), and the inverse
+  permutations ``row_of``, ``column_of``; its transposed solves take U back by columns
+  (`columns_from_rows_last_first`) and `solve_lu_transposed`.
 * Right-hand sides and solutions have shape (n,).
 * Index arrays are int32 when the sizes allow it (half the memory traffic of int64,
   which the solves are bound by), int64 otherwise; `analyse_lu_pattern` returns int64
@@ -325,6 +329,102 @@ def solve_lu_transposed(factors, rhs, work, out, probe):
         out[i] = x_i
         total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
     probe[0] = total
+
+
+@njit(**_JIT)
+def rows_last_first(indptr, indices, values, out_indptr, out_indices, out_values):
+    """A compressed-column factor's nonzero entries by rows, the last row stored first.
+
+    Row ``i`` of the factor becomes stored row ``n - 1 - i`` of ``(out_indptr, out_indices,
+    out_values)`` (its entries by increasing column), so that a backward substitution with
+    it reads the arrays front to back (`solve_lu_rows`); exactly zero entries (a
+    refactorization's structural zeros) are left out.  The `out_` arrays are as large as
+    the input's (`out_indptr` shape (n + 1,)) and are filled.
+    """
+    n = indptr.size - 1
+    for k in range(n + 1):
+        out_indptr[k] = 0
+    for p in range(_wide(indptr[n])):  # the entries of each stored row, counted one place on
+        if values[p] != 0.0:
+            out_indptr[n - indices[p]] += 1
+    for k in range(n):  # out_indptr[k]: where stored row k starts
+        out_indptr[k + 1] += out_indptr[k]
+    for j in range(n):  # out_indptr[k] moves to where stored row k ends
+        for p in range(_wide(indptr[j]), _wide(indptr[j + 1])):
+            value = values[p]
+            if value != 0.0:
+                k = n - 1 - indices[p]
+                q = out_indptr[k]
+                out_indices[q] = j
+                out_values[q] = value
+                out_indptr[k] = q + 1
+    for k in range(n, 0, -1):
+        out_indptr[k] = out_indptr[k - 1]
+    out_indptr[0] = 0
+
+
+@njit(**_JIT)
+def solve_lu_rows(factors, rhs, work, out, probe):
+    """Solve ``A x = rhs`` with ``Pr A Pc = L U``, U stored by rows last first: fill `out`.
+
+    `factors` is ``(row_of, column_of, (L's indptr, indices, values), (U's indptr, indices,
+    values, inverse of the diagonal))``: row ``i`` of ``B = L U`` is row ``row_of[i]`` of
+    A, column ``j`` of B column ``column_of[j]`` of A; L strictly lower by columns, U
+    strictly upper by rows stored last first (`rows_last_first`).  Every sweep reads the
+    factors front to back and reaches the solution's entries of later columns only (the
+    separators above in a nested dissection): L by columns subtracts into them, U by rows
+    gathers from them.  Measured on the lattice's factors at 10^6 bodies (30.6 M entries):
+    half the time of `solve_lu` on U by columns, whose backward sweep scatters over
+    earlier rows and reads the arrays back to front.  `rhs`, `work` and `out` have shape
+    (n,); `out` may be `rhs`.  ``probe[0]`` becomes 0 if every entry of the solution is
+    finite, NaN otherwise.
+    """
+    row_of, column_of, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
+    n = rhs.size
+    for i in range(n):  # Pr rhs, gathered (a scattering pass was slower)
+        work[i] = rhs[row_of[i]]
+    for j in range(n):  # L y = Pr rhs, column by column
+        x_j = work[j]
+        for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+            work[l_indices[p]] -= l_values[p] * x_j
+    for k in range(n):  # U z = y, row n - 1 - k stored k-th
+        i = n - 1 - k
+        total = work[i]
+        for p in range(_wide(u_indptr[k]), _wide(u_indptr[k + 1])):
+            total -= u_values[p] * work[u_indices[p]]
+        work[i] = total * u_inverse[i]
+    total = 0.0
+    for j in range(n):  # x = Pc z, scattered (a gathering pass was slower)
+        x_j = work[j]
+        out[column_of[j]] = x_j
+        total += 0.0 * x_j  # stays 0 unless an entry is inf or NaN
+    probe[0] = total
+
+
+@njit(**_JIT)
+def columns_from_rows_last_first(indptr, indices, values, out_indptr, out_indices, out_values):
+    """The strictly upper factor stored by `rows_last_first`, back by columns (rows increasing
+    within each): for `solve_lu_transposed`, whose sweeps read U's columns (on U by rows
+    they were 1.1–2 times slower).  The `out_` arrays are as large as the input's
+    (`out_indptr` shape (n + 1,)) and are filled."""
+    n = indptr.size - 1
+    for c in range(n + 1):
+        out_indptr[c] = 0
+    for p in range(_wide(indptr[n])):
+        out_indptr[indices[p] + 1] += 1
+    for c in range(n):
+        out_indptr[c + 1] += out_indptr[c]
+    for k in range(n - 1, -1, -1):  # rows i = n - 1 - k in increasing order
+        i = n - 1 - k
+        for p in range(_wide(indptr[k]), _wide(indptr[k + 1])):
+            c = indices[p]
+            q = out_indptr[c]
+            out_indices[q] = i
+            out_values[q] = values[p]
+            out_indptr[c] = q + 1
+    for c in range(n, 0, -1):
+        out_indptr[c] = out_indptr[c - 1]
+    out_indptr[0] = 0
 
 
 @njit(**_JIT)

@@ -22,8 +22,8 @@ import numpy as np
 from . import _krylov_kernels as _kernels
 from .linalg import SingularMatrix
 
-__all__ = ["fgmres", "ReusingSolver", "KRYLOV_TOLERANCE", "MAX_KRYLOV_ITERATIONS", "REFACTOR_ITERATIONS",
-           "ROUNDING_DROP"]
+__all__ = ["fgmres", "gmres_workspace", "ReusingSolver", "KRYLOV_TOLERANCE", "MAX_KRYLOV_ITERATIONS",
+           "REFACTOR_ITERATIONS", "ROUNDING_DROP"]
 
 #: A solve is accepted when ``||b - J x||_2 <= KRYLOV_TOLERANCE * (||b||_2 + ||J||_1 ||x||_2)``: a
 #: backward error of a few units of rounding, what a direct LU reaches (measured on the
@@ -45,7 +45,7 @@ REFACTOR_ITERATIONS = 4
 ROUNDING_DROP = 1e-13
 
 
-def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
+def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale, workspace=None):
     """Right-preconditioned (flexible) GMRES from the preconditioned start ``x0 = P^-1 b``.
 
     Parameters
@@ -62,6 +62,12 @@ def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
         Receives ``x``.
     scale : float
         A norm of ``J`` (its largest column sum).
+    workspace : tuple of ndarray, optional
+        `gmres_workspace` ``(n, max_iterations)``'s arrays, reused from one call to the
+        next (default: made for this call).  Its Krylov basis and directions, made afresh,
+        are mapped afresh at every call (above the allocator's mapping threshold): at
+        n = 3·10^6 (10^6 bodies) 21.7 ms to make the basis and fill two of its rows,
+        against 2.6 ms to fill two rows of a held one.
 
     Returns
     -------
@@ -71,7 +77,12 @@ def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
     """
     n = rhs.size
     rhs_norm = _kernels.norm2(rhs)
-    basis = np.empty((max_iterations + 1, n))
+    if workspace is None:
+        workspace = gmres_workspace(n, max_iterations)
+    basis, directions, start, work = workspace
+    if basis.shape[0] < max_iterations + 1 or basis.shape[1] != n:
+        raise ValueError(f"`workspace` is for {basis.shape[1]} unknowns and {basis.shape[0] - 1} iterations, "
+                         f"not {n} and {max_iterations}.")  # fmt: skip
     precondition(rhs, out)
     beta = _kernels.residual_into(rhs, matvec(out), basis[0])
     if not math.isfinite(beta):
@@ -79,13 +90,11 @@ def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
     if beta <= tolerance * (rhs_norm + scale * _kernels.norm2(out)):
         return 0
     basis[0] /= beta
-    directions = np.empty((max_iterations, n))  # P^-1 of the basis vectors (flexible)
     hessenberg = np.zeros((max_iterations + 1, max_iterations))
     cosines, sines = np.zeros(max_iterations), np.zeros(max_iterations)
     g = np.zeros(max_iterations + 1)
     g[0] = beta
-    start = out.copy()
-    work = np.empty(n)
+    np.copyto(start, out)
     for j in range(max_iterations):
         precondition(basis[j], directions[j])
         w = matvec(directions[j])
@@ -113,6 +122,13 @@ def fgmres(matvec, precondition, rhs, tolerance, max_iterations, out, scale):
             if not math.isfinite(true):
                 return -1
     return -1
+
+
+def gmres_workspace(n: int, max_iterations: int) -> tuple:
+    """`fgmres`'s arrays for `n` unknowns and up to `max_iterations` iterations: the Krylov
+    basis (rows), the preconditioned directions (rows: flexible GMRES keeps them), the
+    start and a residual."""
+    return np.empty((max_iterations + 1, n)), np.empty((max_iterations, n)), np.empty(n), np.empty(n)
 
 
 class ReusingSolver:
@@ -205,6 +221,7 @@ class ReusingSolver:
         self._exact = False  # whether that factorization is of `_matrix` itself
         self._stale = False
         self._scale = 1.0
+        self._workspace = None  # `fgmres`'s arrays, made at the first solve (`gmres_workspace`)
 
     @property
     def n_factorizations(self) -> int:
@@ -312,9 +329,13 @@ class ReusingSolver:
         def precondition(v, target):
             inner.solve(v, out=target, transposed=transposed)
 
+        n = rhs.size
+        if self._workspace is None or self._workspace[2].size != n:
+            self._workspace = gmres_workspace(n, self.max_iterations)
+
         def run_gmres():
             return fgmres(operator.__matmul__, precondition, rhs, self.tolerance, self.max_iterations, out,
-                          self._scale)  # fmt: skip
+                          self._scale, workspace=self._workspace)  # fmt: skip
 
         iterations = run_gmres()
         if iterations < 0:  # the held factorization is too far off: refactor, solve directly
