@@ -82,7 +82,7 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
 
     for k in (1, 2):
         advance(k)
-    clock, stopped, done = time.perf_counter(), None, steps
+    clock, cpu, stopped, done = time.perf_counter(), time.process_time(), None, steps
     for k in range(3, steps + 3):
         try:
             advance(k)
@@ -90,8 +90,9 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
             stopped, done = str(error), k - 3
             break
     per_step = (time.perf_counter() - clock) / max(done, 1)
+    cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own CPU time: less moved by load
     result = {"analysis": analysis, "bodies": bodies, "steps": done, "seconds_per_step": per_step,
-              "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
+              "cpu_seconds_per_step": cpu_per_step, "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
     if stopped is not None:
         result |= {"stopped": stopped, "stopped_at_s": stepper.time}
     if analysis == "dynamic":
@@ -124,15 +125,14 @@ def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
 
 
 def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
-    """The dynamic run of this tree and of `tree` (another checkout, its own script and
-    sparsekin) alternately, `rounds` times each, fresh processes: rows with ``against``
-    (`tree`) and ``tree`` ("this" or "other")."""
+    """The dynamic run of this tree and of `tree` (another checkout, its own sparsekin; this
+    script's measurement, the same for both) alternately, `rounds` times each, fresh
+    processes: rows with ``against`` (`tree`) and ``tree`` ("this" or "other")."""
     rows = []
     for round_ in range(rounds):
         for name, root in (("other", tree), ("this", ROOT)):
-            script = str(root / "benchmarks" / "measure_dynamics_chain.py")
             arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps))
-            row = in_subprocess(script, *arguments, tree=root)
+            row = in_subprocess(__file__, *arguments, tree=root)
             rows.append({**row, "against": str(tree), "tree": name, "round": round_})
             print(json.dumps(rows[-1]), flush=True)
     return rows
@@ -143,8 +143,9 @@ def against_markdown(rows: list[dict]) -> str:
     the other, their ratios, and the load (times compare only at similar loads)."""
     import statistics
 
-    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | peak before "
-             "| peak after | after / before | load |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | CPU after / before "
+             "| peak before | peak after | after / before | load |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for bodies in sorted({row["bodies"] for row in rows}):
         commit = [row["commit"] for row in rows if row["bodies"] == bodies][-1]
         of_size = [row for row in rows if row["bodies"] == bodies and row["commit"] == commit]
@@ -154,13 +155,19 @@ def against_markdown(rows: list[dict]) -> str:
         time_, peak = ({name: statistics.median(row[key] for row in by[name]) for name in by}
                        for key in ("seconds_per_step", "peak_memory_mb"))  # fmt: skip
         loads = [row["load_average"] for row in of_size]
+        cpu = ({name: statistics.median(row["cpu_seconds_per_step"] for row in by[name]) for name in by}
+               if all("cpu_seconds_per_step" in row for row in of_size) else None)  # (rows before it was recorded)
+        cpu_ratio = f"{cpu['this'] / cpu['other']:.2f}" if cpu else ""
         lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
-                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {peak['other']:.0f} MB "
+                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {cpu_ratio} "
+                     f"| {peak['other']:.0f} MB "
                      f"| {peak['this']:.0f} MB | {peak['this'] / peak['other']:.2f} "
                      f"| {min(loads):.1f}–{max(loads):.1f} |")  # fmt: skip
     runs = sorted(row["utc"] for row in rows)
     lines.append(f"\nMedians of alternating fresh processes (before: the other tree, e.g. main's; after: this "
-                 f"tree at the commit given); load: the 1-min load average; {runs[0]} to {runs[-1]} UTC.")  # fmt: skip
+                 f"tree at the commit given); CPU: the processes' own CPU time per step (`time.process_time`, "
+                 f"less moved by the load than the wall time); load: the 1-min load average; {runs[0]} to "
+                 f"{runs[-1]} UTC.")  # fmt: skip
     return "\n".join(lines)
 
 

@@ -22,7 +22,8 @@ After each step the velocities are projected on Φq q̇ + Φt = 0 and then the
 accelerations on Φq q̈ = γ (with the iteration matrix's leading block as the metric, as
 in ALI3-P): the position constraints hold to the Newton tolerance by construction, the
 velocity constraints to the same by the projection, so neither drifts, and the
-accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1.  Newton is
+accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1 (on the large
+path both projections share one refinement, their solves paired: `_project_together`).  Newton is
 modified: the factorization of the last step is reused while its corrections contract
 (`CONTRACTION`) fast enough to converge in the corrections left, refactored otherwise.  A step whose
 Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling

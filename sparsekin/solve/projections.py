@@ -4,7 +4,9 @@ the smallest change in the metric of the iteration matrix's leading block (ALI3-
 
 `ConstraintProjections` is the part of `GeneralizedAlphaStepper` that solves them
 (`_project`, on the held factorization with iterative refinement on the matrix at the
-converged state); the stepper chooses their targets, bounds and noise.  It uses the
+converged state; on the large path both in one refinement, `_project_together`, each pass
+solving the two right-hand sides in one pass over the factors); the stepper chooses their
+targets, bounds and noise.  It uses the
 stepper's ``system``, ``solver``, ``assembler``, ``pattern``, ``_floor``, ``_weights``,
 ``_projection_work``, ``_factor`` and ``n_singular_projections``.
 """
