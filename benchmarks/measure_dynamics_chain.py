@@ -176,6 +176,7 @@ def exudyn_row(bodies: int, steps: int) -> dict:
     row = in_subprocess(str(ROOT / "benchmarks" / "peers" / "exudyn_models.py"), "timing", "chain",
                         "--bodies", str(bodies), "--steps", str(steps + 2), "--repeat", "1")  # fmt: skip
     return {"analysis": "exudyn", "bodies": bodies, "steps": steps, "seconds_per_step": row["seconds_per_step"],
+            **{key: row[key] for key in ("cpu_seconds_per_step",) if key in row},
             "start_seconds": row["start_seconds"], "peak_memory_mb": row["peak_memory_mb"],
             "b0_error_m": row["b0_error_m"], "load_average": row["load_average"], "utc": row["utc"],
             "commit": row["commit"]}  # fmt: skip
@@ -197,21 +198,26 @@ def table(accuracy: bool, sizes=SIZES) -> list[dict]:
 
 def markdown(rows: list[dict]) -> str:
     """The table of a run, with the ratios of the same run, then the accuracy runs and the load."""
-    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | peak kinematic "
-              "| peak dynamic | peak Exudyn |")  # fmt: skip
-    lines = [header, "|---|---|---|---|---|---|---|---|---|"]
+    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | CPU: dynamic / "
+              "kinematic | CPU: Exudyn / dynamic | peak kinematic | peak dynamic | peak Exudyn |")  # fmt: skip
+    lines = [header, "|---|---|---|---|---|---|---|---|---|---|---|"]
     timed = [row for row in rows if not row.get("accuracy_run")]
     for bodies in sorted({row["bodies"] for row in timed}):
         by = {row["analysis"]: row for row in timed if row["bodies"] == bodies}
         kin, dyn, exu = (by.get(a, {}).get("seconds_per_step") for a in ("kinematic", "dynamic", "exudyn"))
+        cpu = {a: by.get(a, {}).get("cpu_seconds_per_step") for a in ("kinematic", "dynamic", "exudyn")}
         cells = [f"{bodies}", *(_seconds(t) for t in (kin, dyn)), f"{dyn / kin:.2f}×" if kin and dyn else "",
                  _seconds(exu), f"{exu / dyn:.1f}×" if exu and dyn else "",
+                 f"{cpu['dynamic'] / cpu['kinematic']:.2f}×" if cpu["kinematic"] and cpu["dynamic"] else "",
+                 f"{cpu['exudyn'] / cpu['dynamic']:.1f}×" if cpu["exudyn"] and cpu["dynamic"] else "",
                  *(f"{by[a]['peak_memory_mb']:.0f} MB" if a in by else "" for a in ("kinematic", "dynamic", "exudyn"))]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     for row in rows:
         if row.get("accuracy_run"):
+            cpu = row.get("cpu_seconds_per_step")
             lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps: B0 error "
-                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step")  # fmt: skip
+                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step"
+                         + (f" ({_seconds(cpu)} of CPU)" if cpu else ""))  # fmt: skip
     loads = [row["load_average"] for row in rows if "load_average" in row]
     if loads:
         lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
