@@ -151,7 +151,8 @@ class ConstraintProjections:
                     follows.drift = system.kept(self._acceleration_target(q, v, a, coefficients, drift_out)[0])
                     if gain is None:  # how far the target moves per velocity increment, this step
                         np.subtract(follows.drift, before, out=before)
-                        gain = _dynamics_kernels.weighted_norm(before, weights) / moves.size
+                        moved = _dynamics_kernels.weighted_norm(before, weights)
+                        gain = moved / moves.size if moves.size > 0.0 else math.inf
             restart = False
             for column in active:
                 if column.size <= column.bound or (column.size <= column.noise
