@@ -90,7 +90,7 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
             stopped, done = str(error), k - 3
             break
     per_step = (time.perf_counter() - clock) / max(done, 1)
-    cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own CPU time: less moved by load
+    cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own: less moved by the load
     result = {"analysis": analysis, "bodies": bodies, "steps": done, "seconds_per_step": per_step,
               "cpu_seconds_per_step": cpu_per_step, "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
     if stopped is not None:
@@ -155,8 +155,10 @@ def against_markdown(rows: list[dict]) -> str:
         time_, peak = ({name: statistics.median(row[key] for row in by[name]) for name in by}
                        for key in ("seconds_per_step", "peak_memory_mb"))  # fmt: skip
         loads = [row["load_average"] for row in of_size]
-        cpu = ({name: statistics.median(row["cpu_seconds_per_step"] for row in by[name]) for name in by}
-               if all("cpu_seconds_per_step" in row for row in of_size) else None)  # (rows before it was recorded)
+        recorded = all("cpu_seconds_per_step" in row for row in of_size)  # (not in the rows made before)
+        cpu = None
+        if recorded:
+            cpu = {name: statistics.median(row["cpu_seconds_per_step"] for row in by[name]) for name in by}
         cpu_ratio = f"{cpu['this'] / cpu['other']:.2f}" if cpu else ""
         lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
                      f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {cpu_ratio} "
