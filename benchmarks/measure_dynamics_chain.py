@@ -84,7 +84,7 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
 
     for k in (1, 2):
         advance(k)
-    clock, stopped, done = time.perf_counter(), None, steps
+    clock, cpu, stopped, done = time.perf_counter(), time.process_time(), None, steps
     for k in range(3, steps + 3):
         try:
             advance(k)
@@ -92,8 +92,9 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
             stopped, done = str(error), k - 3
             break
     per_step = (time.perf_counter() - clock) / max(done, 1)
+    cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own: less moved by the load
     result = {"analysis": analysis, "bodies": bodies, "steps": done, "seconds_per_step": per_step,
-              "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
+              "cpu_seconds_per_step": cpu_per_step, "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
     if stopped is not None:
         result |= {"stopped": stopped, "stopped_at_s": stepper.time}
     if analysis == "dynamic":
@@ -126,15 +127,14 @@ def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
 
 
 def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
-    """The dynamic run of this tree and of `tree` (another checkout, its own script and
-    sparsekin) alternately, `rounds` times each, fresh processes: rows with ``against``
-    (`tree`) and ``tree`` ("this" or "other")."""
+    """The dynamic run of this tree and of `tree` (another checkout, its own sparsekin; this
+    script's measurement, the same for both) alternately, `rounds` times each, fresh
+    processes: rows with ``against`` (`tree`) and ``tree`` ("this" or "other")."""
     rows = []
     for round_ in range(rounds):
         for name, root in (("other", tree), ("this", ROOT)):
-            script = str(root / "benchmarks" / "measure_dynamics_chain.py")
             arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps))
-            row = in_subprocess(script, *arguments, tree=root)
+            row = in_subprocess(__file__, *arguments, tree=root)
             rows.append({**row, "against": str(tree), "tree": name, "round": round_})
             print(json.dumps(rows[-1]), flush=True)
     return rows
@@ -145,8 +145,9 @@ def against_markdown(rows: list[dict]) -> str:
     the other, their ratios, and the load (times compare only at similar loads)."""
     import statistics
 
-    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | peak before "
-             "| peak after | after / before | load |", "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | CPU after / before "
+             "| peak before | peak after | after / before | load |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for bodies in sorted({row["bodies"] for row in rows}):
         commit = [row["commit"] for row in rows if row["bodies"] == bodies][-1]
         of_size = [row for row in rows if row["bodies"] == bodies and row["commit"] == commit]
@@ -156,13 +157,21 @@ def against_markdown(rows: list[dict]) -> str:
         time_, peak = ({name: statistics.median(row[key] for row in by[name]) for name in by}
                        for key in ("seconds_per_step", "peak_memory_mb"))  # fmt: skip
         loads = [row["load_average"] for row in of_size]
+        recorded = all("cpu_seconds_per_step" in row for row in of_size)  # (not in the rows made before)
+        cpu = None
+        if recorded:
+            cpu = {name: statistics.median(row["cpu_seconds_per_step"] for row in by[name]) for name in by}
+        cpu_ratio = f"{cpu['this'] / cpu['other']:.2f}" if cpu else ""
         lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
-                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {peak['other']:.0f} MB "
+                     f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {cpu_ratio} "
+                     f"| {peak['other']:.0f} MB "
                      f"| {peak['this']:.0f} MB | {peak['this'] / peak['other']:.2f} "
                      f"| {min(loads):.1f}–{max(loads):.1f} |")  # fmt: skip
     runs = sorted(row["utc"] for row in rows)
     lines.append(f"\nMedians of alternating fresh processes (before: the other tree, e.g. main's; after: this "
-                 f"tree at the commit given); load: the 1-min load average; {runs[0]} to {runs[-1]} UTC.")  # fmt: skip
+                 f"tree at the commit given); CPU: the processes' own CPU time per step (`time.process_time`, "
+                 f"less moved by the load than the wall time); load: the 1-min load average; {runs[0]} to "
+                 f"{runs[-1]} UTC.")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -171,6 +180,7 @@ def exudyn_row(bodies: int, steps: int) -> dict:
     row = in_subprocess(str(ROOT / "benchmarks" / "peers" / "exudyn_models.py"), "timing", "chain",
                         "--bodies", str(bodies), "--steps", str(steps + 2), "--repeat", "1")  # fmt: skip
     return {"analysis": "exudyn", "bodies": bodies, "steps": steps, "seconds_per_step": row["seconds_per_step"],
+            **{key: row[key] for key in ("cpu_seconds_per_step",) if key in row},
             "start_seconds": row["start_seconds"], "peak_memory_mb": row["peak_memory_mb"],
             "b0_error_m": row["b0_error_m"], "load_average": row["load_average"], "utc": row["utc"],
             "commit": row["commit"]}  # fmt: skip
@@ -192,21 +202,26 @@ def table(accuracy: bool, sizes=SIZES) -> list[dict]:
 
 def markdown(rows: list[dict]) -> str:
     """The table of a run, with the ratios of the same run, then the accuracy runs and the load."""
-    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | peak kinematic "
-              "| peak dynamic | peak Exudyn |")  # fmt: skip
-    lines = [header, "|---|---|---|---|---|---|---|---|---|"]
+    header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | CPU: dynamic / "
+              "kinematic | CPU: Exudyn / dynamic | peak kinematic | peak dynamic | peak Exudyn |")  # fmt: skip
+    lines = [header, "|---|---|---|---|---|---|---|---|---|---|---|"]
     timed = [row for row in rows if not row.get("accuracy_run")]
     for bodies in sorted({row["bodies"] for row in timed}):
         by = {row["analysis"]: row for row in timed if row["bodies"] == bodies}
         kin, dyn, exu = (by.get(a, {}).get("seconds_per_step") for a in ("kinematic", "dynamic", "exudyn"))
+        cpu = {a: by.get(a, {}).get("cpu_seconds_per_step") for a in ("kinematic", "dynamic", "exudyn")}
         cells = [f"{bodies}", *(_seconds(t) for t in (kin, dyn)), f"{dyn / kin:.2f}×" if kin and dyn else "",
                  _seconds(exu), f"{exu / dyn:.1f}×" if exu and dyn else "",
+                 f"{cpu['dynamic'] / cpu['kinematic']:.2f}×" if cpu["kinematic"] and cpu["dynamic"] else "",
+                 f"{cpu['exudyn'] / cpu['dynamic']:.1f}×" if cpu["exudyn"] and cpu["dynamic"] else "",
                  *(f"{by[a]['peak_memory_mb']:.0f} MB" if a in by else "" for a in ("kinematic", "dynamic", "exudyn"))]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
     for row in rows:
         if row.get("accuracy_run"):
+            cpu = row.get("cpu_seconds_per_step")
             lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps: B0 error "
-                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step")  # fmt: skip
+                         f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step"
+                         + (f" ({_seconds(cpu)} of CPU)" if cpu else ""))  # fmt: skip
     loads = [row["load_average"] for row in rows if "load_average" in row]
     if loads:
         lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")

@@ -467,21 +467,23 @@ def timing(benchmark: str, n_bodies: int | None, n_steps: int, step: float, repe
     reference = import_reference()
     n_loops = (n_bodies - 1) // 2 if benchmark == "chain" else None
     make = model_maker(benchmark, n_bodies)
-    per_step, start_seconds, build_seconds, unclocked, error = [], [], [], [], None
+    per_step, cpu_per_step, start_seconds, build_seconds, unclocked, error = [], [], [], [], [], None
     for _ in range(repeat):
         start = time.perf_counter()
         model = make()
         build_seconds.append(time.perf_counter() - start)
-        stamps = []
+        stamps, cpu_stamps = [], []
 
-        def stamp(_system, _time, stamps=stamps):
+        def stamp(_system, _time, stamps=stamps, cpu_stamps=cpu_stamps):
             stamps.append(time.perf_counter())
+            cpu_stamps.append(time.process_time())  # the process's CPU time (all its threads)
             return True
 
         model.system.SetPreStepUserFunction(stamp)
         start = time.perf_counter()
         run = simulate(model, step, n_steps * step, step, adaptive=False)
         per_step.append((stamps[-1] - stamps[0]) / (len(stamps) - 1))
+        cpu_per_step.append((cpu_stamps[-1] - cpu_stamps[0]) / (len(stamps) - 1))
         start_seconds.append(stamps[0] - start)
         if benchmark == "chain":
             position, _ = reference.n_four_bar_b0(run.times, n_loops=n_loops)
@@ -497,6 +499,7 @@ def timing(benchmark: str, n_bodies: int | None, n_steps: int, step: float, repe
         "step": step,
         "finished": finished,
         "seconds_per_step": statistics.median(per_step),
+        "cpu_seconds_per_step": statistics.median(cpu_per_step),
         "start_seconds": statistics.median(start_seconds),
         "seconds_per_step_unclocked": statistics.median(unclocked) / n_steps if unclocked else None,
         "repeat": repeat,

@@ -332,6 +332,54 @@ def solve_lu_transposed(factors, rhs, work, out, probe):
 
 
 @njit(**_JIT)
+def solve_lu_transposed_pair(factors, x0, x1, work, probe):
+    """Solve ``A^T y = x0`` and ``A^T z = x1`` in one pass over the factors (as
+    `solve_lu_transposed`, each solution bit for bit the same): `x0` and `x1` are overwritten
+    by y and z; `work`, shape (n,), is the one scratch array (`x0` holds the second system's
+    permuted unknowns meanwhile).
+
+    A triangular solve of a chain is one long chain of dependent additions (each unknown
+    waits for the ones before it); two independent right-hand sides interleaved fill the
+    processor's waiting time: measured 1.17 times one solve on the 10^4-body chain's saddle
+    matrix, not 2.  ``probe[0]`` becomes 0 if every entry of both solutions is finite, NaN
+    otherwise.
+    """
+    perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
+    n = x0.size
+    for i in range(n):
+        work[perm_c[i]] = x0[i]
+    second = x0  # every entry of x0 is read: it holds the second system from here on
+    for i in range(n):
+        second[perm_c[i]] = x1[i]
+    for j in range(n):  # U^T y = Pc^T rhs, both at once
+        total, other = work[j], second[j]
+        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
+            value, k = u_values[p], u_indices[p]
+            total -= value * work[k]
+            other -= value * second[k]
+        work[j] = total * u_inverse[j]
+        second[j] = other * u_inverse[j]
+    for j in range(n - 1, -1, -1):  # L^T z = y
+        total, other = work[j], second[j]
+        for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+            value, k = l_values[p], l_indices[p]
+            total -= value * work[k]
+            other -= value * second[k]
+        work[j] = total
+        second[j] = other
+    total = 0.0
+    for i in range(n):  # x = Pr^T z: the second system's first (x1 is free), then the first's
+        x_i = second[perm_r[i]]
+        x1[i] = x_i
+        total += 0.0 * x_i
+    for i in range(n):
+        x_i = work[perm_r[i]]
+        x0[i] = x_i
+        total += 0.0 * x_i
+    probe[0] = total
+
+
+@njit(**_JIT)
 def rows_last_first(indptr, indices, values, out_indptr, out_indices, out_values):
     """A compressed-column factor's nonzero entries by rows, the last row stored first.
 

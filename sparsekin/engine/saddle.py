@@ -301,6 +301,20 @@ class DynamicSystem:
                                self.assembler.values, self.kept_row, x, out)  # fmt: skip
         return out
 
+    def residuals(self, coordinates, velocities, accelerations, multipliers, a: float, b: float, c: float,
+                  first: tuple, second: tuple | None = None, *, same_state: bool = False) -> None:  # fmt: skip
+        """``out = [0; drift] − S x`` for ``first = (x, drift, out)`` and, if given, `second`
+        (`drift` of the kept equations), S as in `product`, both in one pass over S: the
+        residuals of iterative refinement for the projections.  (``-(0 − v) = v`` exactly:
+        the same numbers as `product` followed by the two subtractions.)"""
+        if not same_state:
+            self._block_count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
+        p = self.pattern
+        x1, drift1, out1 = first if second is None else second
+        kernels.saddle_residuals(self._rows, self._cols, self._vals, self._block_count, self.n, p.indptr, p.indices,
+                                 self.assembler.values, self.kept_row, *first, x1, drift1, out1,
+                                 second is not None)  # fmt: skip
+
     # ------------------------------------------------------------------ energy
     def energies(self, coordinates, velocities) -> tuple[float, float, float]:
         """Kinetic, gravitational potential and elastic energy, J."""

@@ -22,7 +22,8 @@ After each step the velocities are projected on Φq q̇ + Φt = 0 and then the
 accelerations on Φq q̈ = γ (with the iteration matrix's leading block as the metric, as
 in ALI3-P): the position constraints hold to the Newton tolerance by construction, the
 velocity constraints to the same by the projection, so neither drifts, and the
-accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1.  Newton is
+accelerations and multipliers carry no undamped (−1)ⁿ oscillation at ρ∞ = 1 (on the large
+path both projections share one refinement, their solves paired: `_project_together`).  Newton is
 modified: the factorization of the last step is reused while its corrections contract
 (`CONTRACTION`) fast enough to converge in the corrections left, refactored otherwise.  A step whose
 Newton fails is halved (up to `MAX_HALVINGS` times) and the step grows back, doubling
@@ -285,6 +286,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         solution = np.zeros(system.size)
         self._work = (np.zeros(system.size), solution[:n])
         self._projection_work = (solution, self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
+        self._pair_work = None  # `_project_together`'s, made when first needed
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
@@ -506,13 +508,21 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                     self._factored = False  # the held matrix contracts, but too slowly for the corrections left
                 fresh = False
             last = correction
-        self._floor.converged(max(last, NOISE * stall / STALL))
-        self._project_velocities(q, v, lam, coefficients, h)
-        self._floor.step()
-        pseudo = np.empty(n)
+        self._floor.converged(max(last, NOISE * stall / STALL))  # the projections' noise
+        pseudo = np.empty(n)  # ã, from q alone: the acceleration projection moves it with q̈
         _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
                                                beta, pseudo)  # fmt: skip
-        self._project_accelerations(q, v, a, pseudo, lam, coefficients)
+        if self._floor.enabled:  # the large path: both projections in one refinement, paired solves
+            velocity = self._velocity_target(v, coefficients, h)
+            acceleration = self._acceleration_target(q, v, a, coefficients, self._projection_work[3])
+            change = self._project_together(q, v, a, lam, coefficients, velocity, acceleration)
+            self._floor.step()
+        else:
+            self._project_velocities(q, v, lam, coefficients, h)
+            self._floor.step()
+            change = self._project_accelerations(q, v, a, lam, coefficients)
+        if change is not None:
+            self._apply_acceleration_change(a, pseudo, lam, change)
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
@@ -543,7 +553,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._factored = True
 
     def _project_velocities(self, q, v, lam, coefficients, h: float) -> None:
-        """The velocities moved onto Φq v + Φt = 0 along Φq's normals (`_project`).  The
+        """The velocities moved onto Φq v + Φt = 0 along Φq's normals (`_project`,
+        `_velocity_target`)."""
+        drift, bound, noise = self._velocity_target(v, coefficients, h)
+        change = self._project(q, v, lam, coefficients, drift, bound, "velocity", noise)
+        if change is not None:
+            v -= change[: v.size]
+
+    def _velocity_target(self, v, coefficients, h: float) -> tuple:
+        """The velocity projection's drift Φq v + Φt (every equation), bound and noise.  The
         drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
         velocity kick of about 2 d in the next step.  On the large path the refinement also
         stops at a tenth of Newton's velocity noise γ′ · floor (`RoundingFloor`) once the
@@ -551,15 +569,19 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
-        drift = self.system.velocity_drift(v, self._projection_work[2])
-        change = self._project(q, v, lam, coefficients, drift, bound, "velocity", noise)
-        if change is not None:
-            v -= change[: v.size]
+        return self.system.velocity_drift(v, self._projection_work[2]), bound, noise
 
-    def _project_accelerations(self, q, v, a, pseudo, lam, coefficients) -> None:
-        """The accelerations moved onto Φq q̈ = γ at the projected velocities (`_project`),
-        ã by the same change, λ by the projection's multipliers (so that M q̈ + Φqᵀλ keeps
-        its value).  The index-3 accelerations and multipliers carry an oscillation that
+    def _project_accelerations(self, q, v, a, lam, coefficients):
+        """The change that moves the accelerations onto Φq q̈ = γ at the projected velocities
+        (`_project`, `_acceleration_target`), and its multipliers: None if none is needed
+        (`_apply_acceleration_change` applies it to q̈, ã and λ, so that M q̈ + Φqᵀλ keeps
+        its value)."""
+        drift, bound, noise = self._acceleration_target(q, v, a, coefficients, self._projection_work[2])
+        return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
+
+    def _acceleration_target(self, q, v, a, coefficients, out) -> tuple:
+        """The acceleration projection's drift Φq q̈ − γ(q, v) (every equation, into `out`),
+        bound and noise.  The index-3 accelerations and multipliers carry an oscillation that
         ρ∞ = 1 does not damp (with ã = q̈, a_{n+1} = 4 (q_{n+1} − q_n − h q̇_n) / h² − a_n:
         an error in a_n comes back with the sign flipped at every step), which the
         multipliers amplify by 1/σ where Φq loses rank for an instant (σ its smallest
@@ -572,11 +594,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
-        drift = self.system.jacobian_product(a, assembler.acceleration_rhs, self._projection_work[2])
-        change = self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
-        if change is not None:
-            a -= change[: a.size]
-            pseudo -= change[: a.size]
+        return self.system.jacobian_product(a, assembler.acceleration_rhs, out), bound, noise
+
+    def _apply_acceleration_change(self, a, pseudo, lam, change) -> None:
+        """q̈ and ã less the projection's change, λ less its multipliers."""
+        a -= change[: a.size]
+        pseudo -= change[: a.size]
+        if self.system.kept_rows.size == self.pattern.n_equations:
+            lam -= change[a.size :]
+        else:
             lam[self.system.kept_rows] -= change[a.size :]
 
     # ------------------------------------------------------------------ start
