@@ -24,6 +24,11 @@ extrapolated predictor.  For the banded chains above
 path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
 tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
 6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
+On the banded LU the loop factors the iteration matrix afresh at the first Newton iterate of
+every step instead of holding it (modified Newton): a factorization there costs about eight
+banded solves, and a held matrix a few steps old cost more than that in Newton corrections and
+in the projections' refinement (A02 at rtol = 1.5e-10: 4.3 Newton corrections and 14.2 solves a
+step held, 2.05 and 6.1 fresh, 0.75 of the time a step; docs/design-notes.md, "A02 under 5 s").
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
@@ -396,6 +401,8 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     for r in range(lam.size):
         lam[r] = lam0[r]
     _set_time(model, work, t_next)
+    if state[_LU][1].size:  # the banded LU: a fresh factorization at every step (module docstring)
+        counts[_FACTORED] = 0
     last, fresh, rate, settled, stalled = math.inf, False, contraction, False, 0.0
     bound = tolerance * h / gamma_prime  # `step_velocity_bound`: tolerance · h per step
     for iteration in range(max_iterations + 1):
