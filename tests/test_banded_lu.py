@@ -169,7 +169,9 @@ def test_held_pivots_refactor_as_factor_band_bit_for_bit(rng):
     # `factor_saddle` on the banded plan holds the pivots of its last fresh factorization
     # (`refactor_band`: the operations on the entries that can be nonzero only); where partial
     # pivoting picks other rows it factors afresh.  Against `factor_band` on a band of its own:
-    # the same pivots, band, and solutions, bit for bit, in all three cases.
+    # the same pivots and band, bit for bit, in all three cases; the solutions (multiplied by
+    # U's reciprocal diagonal instead of divided) to a stable LU's backward error, and both
+    # solves bit for bit on the same band without the reciprocals.
     matrix = saddle_like(rng, 30)
     size = matrix.shape[0]
     factorization = compiled_factorization(matrix.indptr, matrix.indices)
@@ -195,9 +197,12 @@ def test_held_pivots_refactor_as_factor_band_bit_for_bit(rng):
         x, y = b.copy(), b.copy()
         solve_saddle(factorization, pivots, x)
         solve_band(reference, lower, upper, expected_pivots, factors, order, np.empty(size), y)
-        np.testing.assert_array_equal(x, y)
-        assert backward_error(matrix.toarray() if values is base else csr_array(
-            (values[:-1], matrix.indices, matrix.indptr)).toarray(), x, b) <= BACKWARD_ERROR  # fmt: skip
+        dense = csr_array((values[:-1], matrix.indices, matrix.indptr)).toarray()
+        assert backward_error(dense, x, b) <= BACKWARD_ERROR and backward_error(dense, y, b) <= BACKWARD_ERROR
+        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9 * np.abs(y).max())
+        z = b.copy()
+        solve_band(band, lower, upper, pivots, factorization[6], order, np.empty(size), z)
+        np.testing.assert_array_equal(z, y)
     assert held == [True, True, True]
     # the perturbed values kept the pivots (the held schedule ran), the new ones did not
     assert np.array_equal(seen[0], seen[1]) and not np.array_equal(seen[1], seen[2])

@@ -277,7 +277,7 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
     bound = max(settings[4] * h * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
     if _kept_drift_norm(model, work, v) <= bound:
         return _OK
-    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, False)
     if outcome == _OK:
         solution = work[_SOLUTION]
         for c in range(q.size):
@@ -286,9 +286,10 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
 
 
 @njit(inline="always", **JIT)
-def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients):
+def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled):
     """`GeneralizedAlphaStepper._project_accelerations`:
-    a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound."""
+    a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound
+    (`filled`: the projections' matrix is in ``work[_DATA]`` already, `_refine_projection`)."""
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
     v_constraints, gamma = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS]
@@ -308,7 +309,7 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
     bound = max(settings[4] * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
     if weighted_norm(kept_drift, model[_KEPT_WEIGHTS]) <= bound:
         return _OK
-    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, filled)
     if outcome == _OK:
         solution = work[_SOLUTION]
         for c in range(n):
@@ -320,11 +321,12 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
 
 
 @njit(**JIT)
-def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound):
+def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, filled):
     """The projection's solve ``[Δ; μ]`` into ``work[_SOLUTION]`` (drift on the kept rows in
     ``work[_KEPT_RESIDUAL]``), refined on the held factorization (dense or banded), refactored when the
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
-    a few steps only, and compiles once)."""
+    a few steps only, and compiles once).  The matrix the solution refines to is filled in
+    ``work[_DATA]`` unless `filled`."""
     iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
     coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     n, n_kept = q.size, kept_rows.size
@@ -332,7 +334,8 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
     zeros, goal, solution, residual = work[_ZEROS], work[_GOAL], work[_SOLUTION], work[_REFINED]
     increment, product = work[_INCREMENT], work[_PRODUCT]
     before = weighted_norm(kept_drift, model[_KEPT_WEIGHTS])
-    _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
+    if not filled:
+        _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
     for k in range(size_):
         goal[k] = 0.0 if k < n else kept_drift[k - n]
         solution[k] = 0.0
@@ -464,13 +467,17 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
                 counts[_FACTORED] = 0  # the held matrix contracts, but too slowly for the corrections left
             fresh = False
         last = correction
+    solves = counts[_SOLVES]
     outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
     if outcome != _OK:
         return outcome
+    # on the banded LU, the acceleration projection refines to the velocity projection's matrix
+    # when that one ran (at the velocities before it: they moved by the drift only)
+    filled = counts[_SOLVES] > solves and state[_LU][1].size > 0
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
-    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
+    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled)
     if outcome != _OK:
         return outcome
     control_rules_ = control[0]

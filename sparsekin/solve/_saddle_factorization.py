@@ -119,7 +119,8 @@ def _schedule(flat: np.ndarray, size: int, lower: int, upper: int, held: bool) -
     pointers[3, 0] = -1
     return (flat, pointers, np.zeros(size, dtype=np.int64), np.zeros((2, capacity[0]), dtype=np.int64),
             np.zeros(capacity[1], dtype=np.int64), np.zeros((3, capacity[2]), dtype=np.int64),
-            np.zeros(capacity[3], dtype=np.int64), np.zeros((size if held else 0, 2 * lower + upper + 1), dtype=bool))  # fmt: skip
+            np.zeros(capacity[3], dtype=np.int64), np.zeros((size if held else 0, 2 * lower + upper + 1), dtype=bool),
+            np.zeros(size if held else 0))  # fmt: skip
 
 
 @njit(**JIT)
@@ -135,8 +136,10 @@ def factor_saddle(indptr, indices, values, factorization, pivots):
 @njit(inline="always", **JIT)
 def solve_saddle(factorization, pivots, b):
     """Solve the saddle matrix's system in place in `b` with the held `factorization`."""
-    matrix, order, _, widths, scratch, _, factors, _ = factorization
-    if order.size:
+    matrix, order, _, widths, scratch, _, factors, schedule = factorization
+    if order.size and schedule[1][3, 0] >= 0:  # held pivots: U's diagonal inverted
+        solve_band(matrix, widths[0], widths[1], pivots, factors, order, scratch, b, schedule[8])
+    elif order.size:
         solve_band(matrix, widths[0], widths[1], pivots, factors, order, scratch, b)
     else:
         dense_lu_solve(matrix, pivots, b)
