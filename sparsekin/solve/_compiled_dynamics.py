@@ -24,11 +24,9 @@ extrapolated predictor.  For the banded chains above
 path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
 tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
 6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
-On the banded LU the loop factors the iteration matrix afresh at the first Newton iterate of
-every step instead of holding it (modified Newton): a factorization there costs about eight
-banded solves, and a held matrix a few steps old cost more than that in Newton corrections and
-in the projections' refinement (A02 at rtol = 1.5e-10: 4.3 Newton corrections and 14.2 solves a
-step held, 2.05 and 6.1 fresh, 0.75 of the time a step; docs/design-notes.md, "A02 under 5 s").
+On the banded LU the loop factors the iteration matrix afresh at every step's first Newton
+iterate (A02: 4.3 Newton corrections and 14.2 solves a step on a held matrix, 2.05 and 6.1
+fresh; docs/design-notes.md, "A02 under 5 s").
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
@@ -91,13 +89,16 @@ _OK, _STEP_FAILED, _HAND_BACK, _REJECTED = 0, 1, 2, 3
  _DELTA, _V_CONSTRAINTS, _ACCELERATION_RHS) = range(32)  # fmt: skip
 #: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
 _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
-_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD = range(8)
+_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD, _REFINEMENT_RATE = range(9)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
 #: Positions in the rules (`compiled_start`).
 (_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS,
  _GROWTH_AFTER) = range(8)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
 MAX_BLOCK = 1000
+#: The banded LU's acceleration projection stops at its first solve when the second increment
+#: it predicts is within the bound by this factor (`_refine_projection`).
+PREDICTED_INCREMENT_SAFETY = 10.0
 
 
 def supports_compiled_dynamics(mechanism) -> bool:
@@ -287,9 +288,8 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
 
 @njit(inline="always", **JIT)
 def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled):
-    """`GeneralizedAlphaStepper._project_accelerations`:
-    a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound
-    (`filled`: the projections' matrix is in ``work[_DATA]`` already, `_refine_projection`)."""
+    """`GeneralizedAlphaStepper._project_accelerations`: a and ã ← − Δ, λ ← λ − μ, where
+    Φq a − γ − target'' on the kept rows exceeds the bound (`filled`: `_refine_projection`)."""
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
     v_constraints, gamma = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS]
@@ -326,7 +326,9 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
     ``work[_KEPT_RESIDUAL]``), refined on the held factorization (dense or banded), refactored when the
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
     a few steps only, and compiles once).  The matrix the solution refines to is filled in
-    ``work[_DATA]`` unless `filled`."""
+    ``work[_DATA]`` unless `filled`; then the contraction the velocity projection measured on
+    the same factorization and matrix (``state[_SCALARS][_REFINEMENT_RATE]``) predicts the
+    second increment (A02: the two contractions within 0.98–1.23 of each other)."""
     iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
     coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     n, n_kept = q.size, kept_rows.size
@@ -340,6 +342,9 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         goal[k] = 0.0 if k < n else kept_drift[k - n]
         solution[k] = 0.0
         residual[k] = goal[k]
+    scalars = state[_SCALARS]
+    contraction = scalars[_REFINEMENT_RATE] if filled else 0.0
+    scalars[_REFINEMENT_RATE] = 0.0
     last, fresh, size = math.inf, False, math.inf
     for iteration in range(iterations):
         if not _solve(state, residual, increment):
@@ -347,7 +352,11 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         for k in range(size_):
             solution[k] += increment[k]
         size = weighted_norm(increment[:n], coordinate_weights)
+        if last < math.inf:
+            scalars[_REFINEMENT_RATE] = size / last
         if size <= bound:
+            return _OK
+        if iteration == 0 and contraction > 0.0 and PREDICTED_INCREMENT_SAFETY * contraction * size <= bound:
             return _OK
         slow = not (fresh or _converges_in_time(size, size / last, bound, iterations - iteration - 1))
         if size > refinement * last or slow:
@@ -471,8 +480,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
     if outcome != _OK:
         return outcome
-    # on the banded LU, the acceleration projection refines to the velocity projection's matrix
-    # when that one ran (at the velocities before it: they moved by the drift only)
+    # banded: the acceleration projection refines to the velocity projection's matrix if it ran
     filled = counts[_SOLVES] > solves and state[_LU][1].size > 0
     hh = h * h
     for c in range(n):
@@ -773,7 +781,7 @@ class CompiledDynamicsLoop:
                          np.ascontiguousarray(weights, dtype=float))  # fmt: skip
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0,
-                            python._good])  # fmt: skip
+                            python._good, 0.0])  # fmt: skip
         counts = np.zeros(8, dtype=np.int64)
         self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
                        tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip
