@@ -24,8 +24,8 @@ extrapolated predictor.  For the banded chains above
 path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
 tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
 6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
-On the banded LU the loop factors the iteration matrix afresh at every step's first Newton
-iterate (A02: 4.3 Newton corrections and 14.2 solves a step on a held matrix, 2.05 and 6.1
+On a narrow band (`FRESH_BAND`) the loop factors the iteration matrix afresh at every step's
+first Newton iterate (A02: 4.3 Newton corrections and 14.2 solves a step held, 2.05 and 6.1
 fresh; docs/design-notes.md, "A02 under 5 s").
 
 The start (the drawing assembled, redundant equations, consistent velocities,
@@ -96,9 +96,10 @@ _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _S
  _GROWTH_AFTER) = range(8)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
 MAX_BLOCK = 1000
-#: The banded LU's acceleration projection stops at its first solve when the second increment
-#: it predicts is within the bound by this factor (`_refine_projection`).
+#: The banded acceleration projection's predicted second increment within bound / this: not solved.
 PREDICTED_INCREMENT_SAFETY = 10.0
+#: Bands of kl + ku up to this are factored at every step (N-four-bars: 10-18; lattices: 34-58).
+FRESH_BAND = 20
 
 
 def supports_compiled_dynamics(mechanism) -> bool:
@@ -413,7 +414,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     for r in range(lam.size):
         lam[r] = lam0[r]
     _set_time(model, work, t_next)
-    if state[_LU][1].size:  # the banded LU: a fresh factorization at every step (module docstring)
+    if state[_LU][1].size and state[_LU][3].sum() <= FRESH_BAND:  # a narrow band: factored at every step
         counts[_FACTORED] = 0
     last, fresh, rate, settled, stalled = math.inf, False, contraction, False, 0.0
     bound = tolerance * h / gamma_prime  # `step_velocity_bound`: tolerance · h per step
@@ -480,8 +481,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
     if outcome != _OK:
         return outcome
-    # banded: the acceleration projection refines to the velocity projection's matrix if it ran
-    filled = counts[_SOLVES] > solves and state[_LU][1].size > 0
+    filled = counts[_SOLVES] > solves and state[_LU][1].size > 0  # banded: that projection's matrix
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
