@@ -21,7 +21,14 @@ from sparsekin.engine._banded_kernels import (
     factor_band,
     solve_band,
 )
-from sparsekin.solve._saddle_factorization import band_slots, bandwidths, saddle_band_order
+from sparsekin.solve._saddle_factorization import (
+    band_slots,
+    bandwidths,
+    compiled_factorization,
+    factor_saddle,
+    saddle_band_order,
+    solve_saddle,
+)
 
 #: ‖A x − b‖ / (‖A‖ ‖x‖ + ‖b‖) of a stable LU solve, with room for growth at these sizes.
 BACKWARD_ERROR = 1e-13
@@ -156,3 +163,47 @@ def test_band_slots_refuse_a_pattern_outside_the_band():
         band_slots(pattern.indptr, pattern.indices, order, 0, 1)
     np.testing.assert_array_equal(band_slots(pattern.indptr, pattern.indices, order, 0, 2),
                                   [[2, 0, 2, 2], [0, 2, 1, 2]])  # fmt: skip
+
+
+def test_held_pivots_refactor_as_factor_band_bit_for_bit(rng):
+    # `factor_saddle` on the banded plan holds the pivots of its last fresh factorization
+    # (`refactor_band`: the operations on the entries that can be nonzero only); where partial
+    # pivoting picks other rows it factors afresh.  Against `factor_band` on a band of its own:
+    # the same pivots and band, bit for bit, in all three cases; the solutions (multiplied by
+    # U's reciprocal diagonal instead of divided) to a stable LU's backward error, and both
+    # solves bit for bit on the same band without the reciprocals.
+    matrix = saddle_like(rng, 30)
+    size = matrix.shape[0]
+    factorization = compiled_factorization(matrix.indptr, matrix.indices)
+    band, order, slots, (lower, upper) = factorization[0], factorization[1], factorization[2], factorization[3]
+    schedule = factorization[7]
+    assert order.size and schedule[5].shape[1] > 0 and np.shares_memory(schedule[0], band)
+    reference = np.zeros_like(band, order="F")
+    pivots, expected_pivots = np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64)
+    extent, capacity = np.empty((2, size), dtype=np.int64), size * (lower + upper)
+    factors = (np.empty((2, size + 1), dtype=np.int64), np.empty((2, capacity), dtype=np.int64),
+               np.empty((2, capacity)))  # fmt: skip
+    base = matrix.data.copy()
+    held, seen = [], []
+    for values in (base, base * (1.0 + 1e-6 * rng.standard_normal(base.size)), saddle_like(rng, 30).data):
+        values = np.append(values, 7.0)
+        assert factor_saddle(matrix.indptr, matrix.indices, values, factorization, pivots)
+        held.append(schedule[1][3, 0] >= 0)
+        seen.append(pivots.copy())
+        assert factor_band(values, slots, reference, lower, upper, expected_pivots, extent, factors)
+        np.testing.assert_array_equal(pivots, expected_pivots)
+        np.testing.assert_array_equal(band, reference)
+        b = rng.standard_normal(size)
+        x, y = b.copy(), b.copy()
+        solve_saddle(factorization, pivots, x)
+        solve_band(reference, lower, upper, expected_pivots, factors, order, np.empty(size), y)
+        dense = csr_array((values[:-1], matrix.indices, matrix.indptr)).toarray()
+        assert backward_error(dense, x, b) <= BACKWARD_ERROR and backward_error(dense, y, b) <= BACKWARD_ERROR
+        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9 * np.abs(y).max())
+        z = b.copy()
+        solve_band(band, lower, upper, pivots, factorization[6], order, np.empty(size), z)
+        np.testing.assert_array_equal(z, y)
+    assert held == [True, True, True]
+    # the perturbed values kept the pivots (the held schedule ran), the new ones did not
+    assert np.array_equal(seen[0], seen[1]) and not np.array_equal(seen[1], seen[2])
+    assert not factor_saddle(matrix.indptr, matrix.indices, np.zeros(base.size + 1), factorization, pivots)

@@ -27,6 +27,8 @@ from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds, plan_compiled_factorization, plan_saddle_solver
 from sparsekin.testset import n_four_bar, task5
 
+from dynamics_reference import n_four_bar_b0
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 TOLERANCE = 1e-10
 PYTHON = Thresholds(compiled_saddle_max_size=0)
@@ -81,14 +83,28 @@ def test_a02s_saddle_is_a_narrow_band_and_takes_the_banded_lu():
 
 
 def test_n_four_bar_through_a_singular_crossing_on_the_banded_lu(compiled_loops):
-    # the first flat crossing of N = 4 comes near t = 0.8 s; the Python stepper on its dense LU
+    # the first flat crossing of N = 4 comes at t = 0.72 s; the Python stepper on its dense LU.
+    # The banded loop factors afresh at every step (the Python stepper holds its matrix), so
+    # the two Newton iterations stop at other iterates: up to the crossing they agree to the
+    # Newton tolerance; at the crossing the Python stepper halves a few steps where the fresh
+    # matrix does not, and from there both are held to the exact answer (the reduced ODE):
+    # the banded loop's B0 no further off it than the Python stepper's, within 5 %.
     times = np.linspace(0.0, 1.2, 25)
-    python = run(n_four_bar(4), times, 1e-3, PYTHON, forces=None, points=None)
-    compiled = run(n_four_bar(4), times, 1e-3, BANDED, forces=None, points=None)
+    before = times < 0.7  # the crossing comes at 0.72 s
+    python = run(n_four_bar(4), times, 1e-3, PYTHON, forces=None, points="all")
+    compiled = run(n_four_bar(4), times, 1e-3, BANDED, forces=None, points="all")
     (loop,) = compiled_loops
     assert banded(loop) and not loop.fell_back and loop.n_compiled == times.size - 1
     assert python.linear_solver == "dense"
-    assert_same_run(python, compiled, 1e-3, rounds=10.0)
+    assert compiled.n_subdivisions == 0
+    bound = 10.0 * TOLERANCE * float(np.max(np.abs(python.coordinates)))
+    np.testing.assert_allclose(compiled.coordinates[before], python.coordinates[before], rtol=0.0, atol=bound)
+    np.testing.assert_allclose(compiled.velocities[before], python.velocities[before], rtol=0.0, atol=bound)
+    position, velocity = n_four_bar_b0(times, n_loops=4)
+    for name, exact in (("position", position), ("velocity", velocity)):
+        errors = [np.abs(getattr(result.point("B0"), name) - exact).max() for result in (python, compiled)]
+        assert errors[1] <= 1.05 * errors[0], (name, errors)
+    np.testing.assert_allclose(compiled.drift_tracks, python.drift_tracks, rtol=0.0, atol=TOLERANCE * 1e-2)
 
 
 def test_n_four_bar_on_the_banded_lu_is_the_refactorizations(compiled_loops):

@@ -24,6 +24,9 @@ extrapolated predictor.  For the banded chains above
 path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
 tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
 6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
+On a narrow band (`FRESH_BAND`) the loop factors the iteration matrix afresh at every step's
+first Newton iterate (A02: 4.3 Newton corrections and 14.2 solves a step held, 2.05 and 6.1
+fresh; docs/design-notes.md, "A02 under 5 s").
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
@@ -86,13 +89,17 @@ _OK, _STEP_FAILED, _HAND_BACK, _REJECTED = 0, 1, 2, 3
  _DELTA, _V_CONSTRAINTS, _ACCELERATION_RHS) = range(32)  # fmt: skip
 #: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
 _Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
-_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD = range(8)
+_TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD, _REFINEMENT_RATE = range(9)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
 #: Positions in the rules (`compiled_start`).
 (_ROUNDING, _STALL, _NOISE, _CONTRACTION, _PROJECTION_ITERATIONS, _REFINEMENT_CONTRACTION, _MAX_HALVINGS,
  _GROWTH_AFTER) = range(8)  # fmt: skip
 #: Most samples in one call (a Ctrl-C waits for the call to end).
 MAX_BLOCK = 1000
+#: The banded acceleration projection's predicted second increment within bound / this: not solved.
+PREDICTED_INCREMENT_SAFETY = 10.0
+#: Bands of kl + ku up to this are factored at every step (N-four-bars: 10-18; lattices: 34-58).
+FRESH_BAND = 20
 
 
 def supports_compiled_dynamics(mechanism) -> bool:
@@ -272,7 +279,7 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
     bound = max(settings[4] * h * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
     if _kept_drift_norm(model, work, v) <= bound:
         return _OK
-    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, False)
     if outcome == _OK:
         solution = work[_SOLUTION]
         for c in range(q.size):
@@ -281,9 +288,9 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
 
 
 @njit(inline="always", **JIT)
-def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients):
-    """`GeneralizedAlphaStepper._project_accelerations`:
-    a and ã ← − Δ, λ ← λ − μ, where Φq a − γ − target'' on the kept rows exceeds the bound."""
+def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled):
+    """`GeneralizedAlphaStepper._project_accelerations`: a and ã ← − Δ, λ ← λ − μ, where
+    Φq a − γ − target'' on the kept rows exceeds the bound (`filled`: `_refine_projection`)."""
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
     v_constraints, gamma = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS]
@@ -303,7 +310,7 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
     bound = max(settings[4] * scale, rules_[_ROUNDING] * rules_[_NOISE] * scale)
     if weighted_norm(kept_drift, model[_KEPT_WEIGHTS]) <= bound:
         return _OK
-    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound)
+    outcome = _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, filled)
     if outcome == _OK:
         solution = work[_SOLUTION]
         for c in range(n):
@@ -315,11 +322,14 @@ def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo
 
 
 @njit(**JIT)
-def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound):
+def _refine_projection(model, work, state, settings, rules_, q, v, lam, coefficients, bound, filled):
     """The projection's solve ``[Δ; μ]`` into ``work[_SOLUTION]`` (drift on the kept rows in
     ``work[_KEPT_RESIDUAL]``), refined on the held factorization (dense or banded), refactored when the
     refinement stalls (`GeneralizedAlphaStepper._project`; a function of its own: it runs at
-    a few steps only, and compiles once)."""
+    a few steps only, and compiles once).  The matrix the solution refines to is filled in
+    ``work[_DATA]`` unless `filled`; then the contraction the velocity projection measured on
+    the same factorization and matrix (``state[_SCALARS][_REFINEMENT_RATE]``) predicts the
+    second increment (A02: the two contractions within 0.98–1.23 of each other)."""
     iterations, refinement = rules_[_PROJECTION_ITERATIONS], rules_[_REFINEMENT_CONTRACTION]
     coordinate_weights, kept_drift, kept_rows = model[_COORDINATE_WEIGHTS], work[_KEPT_RESIDUAL], model[_KEPT_ROWS]
     n, n_kept = q.size, kept_rows.size
@@ -327,11 +337,15 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
     zeros, goal, solution, residual = work[_ZEROS], work[_GOAL], work[_SOLUTION], work[_REFINED]
     increment, product = work[_INCREMENT], work[_PRODUCT]
     before = weighted_norm(kept_drift, model[_KEPT_WEIGHTS])
-    _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
+    if not filled:
+        _fill_matrix(model, work, q, v, zeros, lam, coefficients, 0.0)
     for k in range(size_):
         goal[k] = 0.0 if k < n else kept_drift[k - n]
         solution[k] = 0.0
         residual[k] = goal[k]
+    scalars = state[_SCALARS]
+    contraction = scalars[_REFINEMENT_RATE] if filled else 0.0
+    scalars[_REFINEMENT_RATE] = 0.0
     last, fresh, size = math.inf, False, math.inf
     for iteration in range(iterations):
         if not _solve(state, residual, increment):
@@ -339,7 +353,11 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
         for k in range(size_):
             solution[k] += increment[k]
         size = weighted_norm(increment[:n], coordinate_weights)
+        if last < math.inf:
+            scalars[_REFINEMENT_RATE] = size / last
         if size <= bound:
+            return _OK
+        if iteration == 0 and contraction > 0.0 and PREDICTED_INCREMENT_SAFETY * contraction * size <= bound:
             return _OK
         slow = not (fresh or _converges_in_time(size, size / last, bound, iterations - iteration - 1))
         if size > refinement * last or slow:
@@ -396,6 +414,8 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     for r in range(lam.size):
         lam[r] = lam0[r]
     _set_time(model, work, t_next)
+    if state[_LU][1].size and state[_LU][3].sum() <= FRESH_BAND:  # a narrow band: factored at every step
+        counts[_FACTORED] = 0
     last, fresh, rate, settled, stalled = math.inf, False, contraction, False, 0.0
     bound = tolerance * h / gamma_prime  # `step_velocity_bound`: tolerance · h per step
     for iteration in range(max_iterations + 1):
@@ -457,13 +477,15 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
                 counts[_FACTORED] = 0  # the held matrix contracts, but too slowly for the corrections left
             fresh = False
         last = correction
+    solves = counts[_SOLVES]
     outcome = _project_velocities(model, work, state, settings, rules_, q, v, lam, coefficients, h)
     if outcome != _OK:
         return outcome
+    filled = counts[_SOLVES] > solves and state[_LU][1].size > 0  # banded: that projection's matrix
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
-    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients)
+    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled)
     if outcome != _OK:
         return outcome
     control_rules_ = control[0]
@@ -760,7 +782,7 @@ class CompiledDynamicsLoop:
                          np.ascontiguousarray(weights, dtype=float))  # fmt: skip
         start = python.state
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0,
-                            python._good])  # fmt: skip
+                            python._good, 0.0])  # fmt: skip
         counts = np.zeros(8, dtype=np.int64)
         self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
                        tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip

@@ -32,12 +32,17 @@ from scipy.sparse import csr_array
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .._jit import JIT
-from ..engine._banded_kernels import factor_band, solve_band
+from ..engine._banded_kernels import factor_band_held, solve_band
 from ..engine._lu_kernels import dense_lu_solve
 from ._compiled import _factor
 from .policy import Thresholds, plan_compiled_factorization
 
-__all__ = ["band_slots", "bandwidths", "compiled_factorization", "factor_saddle", "saddle_band_order", "solve_saddle"]
+#: The banded LU holds its pivots (`sparsekin.engine._banded_kernels.refactor_band`: only the
+#: operations on entries that can be nonzero) up to this bound on its updates, size · kl · (kl + ku)
+#: (three int64 each: 12 MB here; A02: 78 570).
+MAX_SCHEDULED_UPDATES = 500_000
+
+__all__ = ["MAX_SCHEDULED_UPDATES", "band_slots", "bandwidths", "compiled_factorization", "factor_saddle", "saddle_band_order", "solve_saddle"]
 
 
 def bandwidths(indptr: np.ndarray, indices: np.ndarray, order: np.ndarray) -> tuple[int, int]:
@@ -94,30 +99,47 @@ def compiled_factorization(indptr: np.ndarray, indices: np.ndarray, thresholds: 
     if kind == "dense":
         no_order, none = np.zeros(0, dtype=np.int64), np.zeros((2, 0), dtype=np.int64)
         return (np.zeros((size, size), order="F"), no_order, none, np.zeros(2, dtype=np.int64), np.zeros(size), none,
-                (none, none, np.zeros((2, 0))))  # fmt: skip
+                (none, none, np.zeros((2, 0))), _schedule(np.zeros(0), 0, 0, 0, 0))  # fmt: skip
     capacity = size * (lower + upper)
     factors = (np.zeros((2, size + 1), dtype=np.int64), np.zeros((2, capacity), dtype=np.int64),
                np.zeros((2, capacity)))  # fmt: skip
-    return (np.zeros((2 * lower + upper + 1, size), order="F"), order,
-            band_slots(indptr, indices, order, lower, upper), np.array([lower, upper], dtype=np.int64),
-            np.zeros(size), np.zeros((2, size), dtype=np.int64), factors)  # fmt: skip
+    band = np.zeros((2 * lower + upper + 1, size), order="F")
+    held = size * lower * (lower + upper) <= MAX_SCHEDULED_UPDATES
+    return (band, order, band_slots(indptr, indices, order, lower, upper), np.array([lower, upper], dtype=np.int64),
+            np.zeros(size), np.zeros((2, size), dtype=np.int64), factors,
+            _schedule(band.ravel(order="F"), size, lower, upper, held))  # fmt: skip
+
+
+def _schedule(flat: np.ndarray, size: int, lower: int, upper: int, held: bool) -> tuple:
+    """The held pivots' schedule of a band of `size` columns (`sparsekin.engine._banded_kernels`,
+    ``schedule``; `flat` a view of the band), its lists empty unless `held`."""
+    width = lower + upper
+    capacity = (size * (width + 1), size * lower, size * lower * width, size * width) if held else (0, 0, 0, 0)
+    pointers = np.zeros((4, size + 1), dtype=np.int64)
+    pointers[3, 0] = -1
+    return (flat, pointers, np.zeros(size, dtype=np.int64), np.zeros((2, capacity[0]), dtype=np.int64),
+            np.zeros(capacity[1], dtype=np.int64), np.zeros((3, capacity[2]), dtype=np.int64),
+            np.zeros(capacity[3], dtype=np.int64), np.zeros((size if held else 0, 2 * lower + upper + 1), dtype=bool),
+            np.zeros(size if held else 0))  # fmt: skip
 
 
 @njit(**JIT)
 def factor_saddle(indptr, indices, values, factorization, pivots):
     """Refill the held `factorization` from the saddle matrix's CSR values and factor it;
     False if a pivot fails (singular, or not finite)."""
-    matrix, order, band_slot, widths, _, extent, factors = factorization
+    matrix, order, band_slot, widths, _, extent, factors, schedule = factorization
     if order.size:
-        return factor_band(values, band_slot, matrix, widths[0], widths[1], pivots, extent, factors)
+        return factor_band_held(values, band_slot, matrix, widths[0], widths[1], pivots, extent, factors, schedule)
     return _factor(indptr, indices, values, matrix, pivots)
 
 
 @njit(inline="always", **JIT)
 def solve_saddle(factorization, pivots, b):
     """Solve the saddle matrix's system in place in `b` with the held `factorization`."""
-    matrix, order, _, widths, scratch, _, factors = factorization
-    if order.size:
+    matrix, order, _, widths, scratch, _, factors, schedule = factorization
+    if order.size and schedule[1][3, 0] >= 0:  # held pivots: U's diagonal inverted
+        solve_band(matrix, widths[0], widths[1], pivots, factors, order, scratch, b, schedule[8])
+    elif order.size:
         solve_band(matrix, widths[0], widths[1], pivots, factors, order, scratch, b)
     else:
         dense_lu_solve(matrix, pivots, b)
