@@ -767,8 +767,7 @@ class CompiledDynamicsLoop:
         assembler, loads, kept = system.assembler, system.loads, system.kept_rows
         actuators = actuator_kernel_arrays(loads.actuators, loads.n_laws, pattern.n_bodies)
         saddle = system.saddle
-        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights,
-                       pattern.target.astype(float),
+        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights, pattern.target.astype(float),
                        pattern.driven_row, python.discretization.driver_laws.table, kept.astype(np.int64),
                        system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
                        loads.arrays, loads.laws, actuators, system.triplet_slots(), saddle.indptr,
