@@ -767,11 +767,11 @@ class CompiledDynamicsLoop:
         assembler, loads, kept = system.assembler, system.loads, system.kept_rows
         actuators = actuator_kernel_arrays(loads.actuators, loads.n_laws, pattern.n_bodies)
         saddle = system.saddle
-        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights, pattern.target.astype(float),
-                       pattern.driven_row, python.discretization.driver_laws.table, kept.astype(np.int64),
-                       system.kept_row, np.ascontiguousarray(assembler.weights[kept]), pattern.coordinate_weights,
-                       loads.arrays, loads.laws, actuators, system.triplet_slots(), saddle.indptr,
-                       saddle.indices)  # fmt: skip
+        self._model = (pattern.primitives, pattern.indptr, pattern.indices, assembler.weights,
+                       pattern.target.astype(float), pattern.driven_row, python.discretization.driver_laws.table,
+                       kept.astype(np.int64), system.kept_row, np.ascontiguousarray(assembler.weights[kept]),
+                       pattern.coordinate_weights, loads.arrays, loads.laws, actuators, system.triplet_slots(),
+                       saddle.indptr, saddle.indices)  # fmt: skip
         n, m = pattern.n_coordinates, python.state.multipliers.size
         self._work = _work_arrays(self._model, n, int(loads.n_laws))
         self._settings, self._rules, (power, damping, balance0) = compiled_start(python)
@@ -785,10 +785,9 @@ class CompiledDynamicsLoop:
         counts = np.zeros(8, dtype=np.int64)
         self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
                        tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip
-        # a dense factorization is held column-major (`compiled_factorization`): the
-        # column-oriented substitutions of `dense_lu_solve`
-        # (a dozen per step on A03) then run along contiguous memory (41 unknowns: 1.8 µs a
-        # solve against 2.4 row-major; the factorization the same within 5 %)
+        # a dense factorization is held column-major (`compiled_factorization`): the column-oriented
+        # substitutions of `dense_lu_solve` (a dozen per step on A03) then run along contiguous memory
+        # (41 unknowns: 1.8 µs a solve against 2.4 row-major; the factorization the same within 5 %)
         self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
                        start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
                        factorization, np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
