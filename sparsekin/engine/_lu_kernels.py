@@ -142,6 +142,52 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
     return l_indptr, l_indices[: l_indptr[n]].copy(), u_indptr, u_indices[: u_indptr[n]].copy()
 
 
+@njit(inline="always", **_JIT)
+def _eliminate_column(j, lower, upper, work, max_l, max_u, probe):
+    """Column j of the left-looking LU, B's column j scattered in `work`: U's entries (in
+    topological order) and the updates they make, the pivot, L's entries; `work` zero
+    again after it.  Returns the running ``(max |L|, max |U|, probe, pivot good)``; a pivot
+    that is zero or not finite leaves L's column unfilled (and `work` zero)."""
+    l_indptr, l_indices, l_values = lower
+    u_indptr, u_indices, u_values, u_inverse = upper
+    for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
+        k = u_indices[p]
+        x_k = work[k]
+        work[k] = 0.0
+        u_values[p] = x_k
+        max_u = max(max_u, abs(x_k))
+        probe += 0.0 * x_k  # stays 0 unless an entry of L or U is inf or NaN
+        for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
+            work[l_indices[q]] -= l_values[q] * x_k
+    pivot = work[j]
+    work[j] = 0.0
+    if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
+        for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+            work[l_indices[q]] = 0.0
+        return max_l, max_u, probe, False
+    max_u = max(max_u, abs(pivot))
+    inverse = 1.0 / pivot
+    u_inverse[j] = inverse
+    for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
+        i = l_indices[q]
+        entry = work[i] * inverse
+        work[i] = 0.0
+        l_values[q] = entry
+        max_l = max(max_l, abs(entry))
+        probe += 0.0 * entry
+    return max_l, max_u, probe, True
+
+
+@njit(inline="always", **_JIT)
+def _record_factor_stats(stats, max_l, max_u, max_b, probe):
+    """`refactor_lu`'s `stats` after its columns (the bad column recorded by then)."""
+    # |pivot| / max(|pivot|, max |candidate|) over the columns is 1 / max(1, max |L|).
+    stats[STAT_MIN_PIVOT_RATIO] = 1.0 / max_l
+    stats[STAT_MAX_ABS_U] = max_u
+    stats[STAT_MAX_ABS_B] = max_b
+    stats[STAT_NON_FINITE] = probe
+
+
 @njit(**_JIT)
 def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     """Numeric left-looking LU of B on the fixed patterns: fill L, U and `stats`.
@@ -156,13 +202,11 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     ``stats[STAT_NON_FINITE]`` NaN.
     """
     b_indptr, b_rows, offsets = b_pattern
-    l_indptr, l_indices, l_values = lower
-    u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
-    probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
+    probe = 0.0
     stats[STAT_BAD_COLUMN] = -1.0
     for j in range(n):
         if in_factor_order:
@@ -176,37 +220,11 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
                 value = values[p + shift]
                 work[b_rows[p]] += value
                 max_b = max(max_b, abs(value))
-        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
-            k = u_indices[p]
-            x_k = work[k]
-            work[k] = 0.0
-            u_values[p] = x_k
-            max_u = max(max_u, abs(x_k))
-            probe += 0.0 * x_k
-            for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
-                work[l_indices[q]] -= l_values[q] * x_k
-        pivot = work[j]
-        work[j] = 0.0
-        if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
-            for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-                work[l_indices[q]] = 0.0
+        max_l, max_u, probe, good = _eliminate_column(j, lower, upper, work, max_l, max_u, probe)
+        if not good:
             stats[STAT_BAD_COLUMN] = j
             break
-        max_u = max(max_u, abs(pivot))
-        inverse = 1.0 / pivot
-        u_inverse[j] = inverse
-        for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            i = l_indices[q]
-            entry = work[i] * inverse
-            work[i] = 0.0
-            l_values[q] = entry
-            max_l = max(max_l, abs(entry))
-            probe += 0.0 * entry
-    # |pivot| / max(|pivot|, max |candidate|) over the columns is 1 / max(1, max |L|).
-    stats[STAT_MIN_PIVOT_RATIO] = 1.0 / max_l
-    stats[STAT_MAX_ABS_U] = max_u
-    stats[STAT_MAX_ABS_B] = max_b
-    stats[STAT_NON_FINITE] = probe
+    _record_factor_stats(stats, max_l, max_u, max_b, probe)
 
 
 @njit(**_JIT)
@@ -219,13 +237,11 @@ def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper,
     chain's saddle), for a solver that refactors rarely (`RefactorSolver`'s ``lean``)."""
     b_indptr, offsets = b_pattern[0], b_pattern[2]
     indices, perm_r = rows
-    l_indptr, l_indices, l_values = lower
-    u_indptr, u_indices, u_values, u_inverse = upper
     n = b_indptr.size - 1
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
-    probe = 0.0  # stays 0 unless an entry of L or U is inf or NaN
+    probe = 0.0
     stats[STAT_BAD_COLUMN] = -1.0
     for j in range(n):
         shift = offsets[j]
@@ -239,37 +255,11 @@ def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper,
                 value = values[p]
                 work[perm_r[indices[p]]] += value
                 max_b = max(max_b, abs(value))
-        for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
-            k = u_indices[p]
-            x_k = work[k]
-            work[k] = 0.0
-            u_values[p] = x_k
-            max_u = max(max_u, abs(x_k))
-            probe += 0.0 * x_k
-            for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
-                work[l_indices[q]] -= l_values[q] * x_k
-        pivot = work[j]
-        work[j] = 0.0
-        if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
-            for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-                work[l_indices[q]] = 0.0
+        max_l, max_u, probe, good = _eliminate_column(j, lower, upper, work, max_l, max_u, probe)
+        if not good:
             stats[STAT_BAD_COLUMN] = j
             break
-        max_u = max(max_u, abs(pivot))
-        inverse = 1.0 / pivot
-        u_inverse[j] = inverse
-        for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            i = l_indices[q]
-            entry = work[i] * inverse
-            work[i] = 0.0
-            l_values[q] = entry
-            max_l = max(max_l, abs(entry))
-            probe += 0.0 * entry
-    # |pivot| / max(|pivot|, max |candidate|) over the columns is 1 / max(1, max |L|).
-    stats[STAT_MIN_PIVOT_RATIO] = 1.0 / max_l
-    stats[STAT_MAX_ABS_U] = max_u
-    stats[STAT_MAX_ABS_B] = max_b
-    stats[STAT_NON_FINITE] = probe
+    _record_factor_stats(stats, max_l, max_u, max_b, probe)
 
 
 @njit(**_JIT)
