@@ -485,7 +485,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             else:
                 self._floor.predicted(extrapolate, correction)
             left = rate / (1.0 - rate) * correction if rate < 1.0 else math.inf
-            settled = left <= (max(bound, floor) if self._floor.enabled else bound) or correction <= floor
+            settled = left <= self._floor.settling(bound, floor) or correction <= floor
             if not settled and rate > CONTRACTION and iteration > 0:
                 if correction <= (stall if fresh else self._floor.noise(NOISE * stall / STALL)):
                     # at the rounding floor of the (ill-conditioned) matrix: the ratio of two

@@ -172,6 +172,12 @@ class RoundingFloor:
         else:
             self._paid, self._since_trial, self._constant = False, self._since_trial + 1, correction
 
+    def settling(self, bound: float, floor: float) -> float:
+        """The error Newton may leave in q (weighted): the tolerance's share `bound`, or on
+        the large path the rounding `floor` of q if larger (the error its contraction
+        predicts below that, a further correction only reaches the rounding of q)."""
+        return max(bound, floor) if self.enabled else bound
+
     def converged(self, correction: float) -> None:
         """Newton's last correction in this step, `correction` (weighted)."""
         self._newton = correction
