@@ -1,6 +1,6 @@
 """The solves' compact factors (`sparsekin.engine._compact_lu_kernels`): `RefactorSolver`
-solves with L and U without their exact zeros, compacted in place after each numeric
-factorization.  Checked against the solves of `_lu_kernels` on the structural factors of
+solves with L and U without their exact zeros, compacted in place after
+`COMPACT_AFTER_SOLVES` solves of a factorization (set to 0 here: from the first solve).  Checked against the solves of `_lu_kernels` on the structural factors of
 the same elimination (the same solution: only products with exact zeros are left out) and
 against `spsolve`; the in-place compaction must not disturb the next refactorization."""
 
@@ -12,10 +12,15 @@ from scipy.sparse import csr_array, diags_array
 from scipy.sparse import random_array as sparse_random
 from scipy.sparse.linalg import spsolve
 
-from sparsekin.engine import _compact_lu_kernels, _lu_kernels
+from sparsekin.engine import _compact_lu_kernels, _lu_kernels, linalg
 from sparsekin.engine.linalg import RefactorSolver
 from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 from sparsekin.testset import n_four_bar
+
+
+@pytest.fixture
+def compact_at_once(monkeypatch):
+    monkeypatch.setattr(linalg, "COMPACT_AFTER_SOLVES", 0)
 
 
 def structural_factors(solver: RefactorSolver, jacobian: csr_array) -> tuple:
@@ -53,6 +58,7 @@ def check_against_structural(solver: RefactorSolver, jacobian: csr_array, rng) -
 
 def compacted_entries(solver: RefactorSolver) -> tuple[int, int]:
     """Entries of L and U off the diagonal: compact, structural."""
+    assert solver._compacted
     compact = int(solver._l_compact[0][-1]) + int(solver._u_compact[0][-1])
     return compact, int(solver._l_indptr[-1]) + int(solver._u_indptr[-1])
 
@@ -92,7 +98,7 @@ def test_compact_in_place_keeps_the_nonzeros_in_order():
 
 
 @pytest.mark.parametrize("lean", [False, True])
-def test_chain_saddle_solves_as_the_structural_factors(lean, rng):
+def test_chain_saddle_solves_as_the_structural_factors(lean, rng, compact_at_once):
     """The N-four-bar chain's iteration matrices, refactored one after the other on the
     compacted factors of the last: each solve equals the structural factors'."""
     matrices = chain_saddle_matrices(6, 4)
@@ -105,7 +111,7 @@ def test_chain_saddle_solves_as_the_structural_factors(lean, rng):
     assert solver.n_refactorizations >= len(matrices) - 1
 
 
-def test_random_matrices_refactored_and_fallen_back(rng):
+def test_random_matrices_refactored_and_fallen_back(rng, compact_at_once):
     """Random integer matrices on one pattern, new values each time (a refactorization on
     the compacted arrays), then values that trip the guard (a fresh factorization)."""
     matrix = small_integer_matrix(60, rng)
@@ -127,3 +133,19 @@ def test_random_matrices_refactored_and_fallen_back(rng):
     solver.factor(scaled)
     assert solver.n_fallbacks == 1
     check_against_structural(solver, scaled, rng)
+
+
+def test_compacted_after_some_solves_the_same_solutions(rng):
+    """With the default threshold: the first solves read the structural factors, the later
+    ones the compact factors, all with the same solution; a new factorization starts over."""
+    matrix = chain_saddle_matrices(6, 1)[0]
+    solver = RefactorSolver(lean=True)
+    solver.factor(matrix)
+    b = rng.standard_normal(matrix.shape[0])
+    first = solver.solve(b)
+    for k in range(linalg.COMPACT_AFTER_SOLVES + 2):
+        np.testing.assert_array_equal(solver.solve(b), first)
+        assert solver._compacted == (k + 2 > linalg.COMPACT_AFTER_SOLVES)  # solves so far: k + 2
+    solver.factor(matrix)
+    assert not solver._compacted
+    np.testing.assert_array_equal(solver.solve(b), first)

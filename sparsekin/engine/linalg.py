@@ -62,6 +62,10 @@ _ORDERING = "COLAMD"
 COORDINATES_PER_BODY = 3
 #: The column orderings of `SuperLUSolver` and of `RefactorSolver`'s fresh factorizations.
 ORDERINGS = ("colamd", "metis")
+#: `RefactorSolver` solves a factorization without its exact zeros after this many solves: the
+#: compaction costs ~0.8 solve and saves ~0.13 of each (docs/design-notes.md, "Compact factors"):
+#: not for a kinematic step's 2 solves, for dynamics' held iteration matrix (100 and more).
+COMPACT_AFTER_SOLVES = 8
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
 
@@ -288,8 +292,9 @@ class RefactorSolver:
     Every later `factor` with the same pattern refactors numerically on those patterns;
     if a pivot turns zero, non-finite or smaller than `min_pivot_ratio` times the largest
     candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver falls
-    back to a fresh SuperLU factorization with new pivoting and a new analysis.  The solves
-    read the factors without their exact zeros (`sparsekin.engine._compact_lu_kernels`).
+    back to a fresh SuperLU factorization with new pivoting and a new analysis.  A factorization
+    solved more than `COMPACT_AFTER_SOLVES` times is solved without its exact zeros
+    (`sparsekin.engine._compact_lu_kernels`).
 
     Parameters
     ----------
@@ -504,7 +509,7 @@ class RefactorSolver:
         rhs, out = _checked_rhs(rhs, self._n, out)
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
         kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
-        factors = self._compact_factors()
+        factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
         self._work_is_zero = False
         finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
@@ -530,7 +535,7 @@ class RefactorSolver:
             _checked_rhs(array, self._n, array)
         if first.ndim != 1 or second.ndim != 1:
             raise ValueError(f"`first` and `second` must have shape ({self._n},).")
-        factors = self._compact_factors()
+        factors = self._solve_factors(2)
         self._work_is_zero = False
         _lu_kernels.solve_lu_transposed_pair(factors, first, second, self._work, self._probe)
         self.n_solves += 2
@@ -675,11 +680,9 @@ class RefactorSolver:
         self._work_is_zero = True
 
     def _allocate_values(self) -> None:
-        """The factors' values on the structural patterns, and the rows and column pointers of
-        the compact factors the solves read (the values compacted in place, `_compact_factors`)."""
+        """The factors' values on the structural patterns."""
         self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
-        self._l_compact = (np.zeros_like(self._l_indptr), np.empty_like(self._l_indices))
-        self._u_compact = (np.zeros_like(self._u_indptr), np.empty_like(self._u_indices))
+        self._l_compact = self._u_compact = None  # made by the first compaction (`_solve_factors`)
 
     def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
@@ -702,16 +705,24 @@ class RefactorSolver:
             self.pivot_ratio = 0.0
             return False
         self.pivot_ratio = ratio
-        _compact_lu_kernels.compact_in_place(self._l_indptr, self._l_indices, self._l_values, *self._l_compact)
-        _compact_lu_kernels.compact_in_place(self._u_indptr, self._u_indices, self._u_values, *self._u_compact)
+        self._solves_since_factor, self._compacted = 0, False
         return True
 
-    def _compact_factors(self) -> tuple:
-        """The factors as the solves read them: L and U without their exact zeros (a quarter
-        of the structural entries of a chain's saddle matrix; `_compact_lu_kernels`), the
-        same solutions with fewer entries to read."""
-        return (self._perm_r, self._perm_c, (*self._l_compact, self._l_values),
-                (*self._u_compact, self._u_values, self._u_inverse))  # fmt: skip
+    def _solve_factors(self, n_rhs: int) -> tuple:
+        """The factors as the next `n_rhs` solves read them: the structural ones up to
+        `COMPACT_AFTER_SOLVES` solves of a factorization, then L and U without their exact
+        zeros, compacted in place (`_compact_lu_kernels`; the same solutions)."""
+        self._solves_since_factor += n_rhs
+        if not self._compacted and self._solves_since_factor > COMPACT_AFTER_SOLVES:
+            if self._l_compact is None:
+                self._l_compact = (np.zeros_like(self._l_indptr), np.empty_like(self._l_indices))
+                self._u_compact = (np.zeros_like(self._u_indptr), np.empty_like(self._u_indices))
+            _compact_lu_kernels.compact_in_place(self._l_indptr, self._l_indices, self._l_values, *self._l_compact)
+            _compact_lu_kernels.compact_in_place(self._u_indptr, self._u_indices, self._u_values, *self._u_compact)
+            self._compacted = True
+        lower, upper = (self._l_compact, self._u_compact) if self._compacted else (
+            (self._l_indptr, self._l_indices), (self._u_indptr, self._u_indices))
+        return (self._perm_r, self._perm_c, (*lower, self._l_values), (*upper, self._u_values, self._u_inverse))
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth
