@@ -1,5 +1,5 @@
-"""The solves' compact factors (`sparsekin.engine._compact_lu_kernels`): `RefactorSolver`
-solves with L and U without their exact zeros, compacted in place after
+"""The solves' compact factors (`sparsekin.engine.compact_factors`, `_compact_lu_kernels`):
+`RefactorSolver` solves with L and U without their exact zeros, compacted in place after
 `COMPACT_AFTER_SOLVES` solves of a factorization (set to 0 here: from the first solve).  Checked against the solves of `_lu_kernels` on the structural factors of
 the same elimination (the same solution: only products with exact zeros are left out) and
 against `spsolve`; the in-place compaction must not disturb the next refactorization."""
@@ -12,7 +12,7 @@ from scipy.sparse import csr_array, diags_array
 from scipy.sparse import random_array as sparse_random
 from scipy.sparse.linalg import spsolve
 
-from sparsekin.engine import _compact_lu_kernels, _lu_kernels, linalg
+from sparsekin.engine import _compact_lu_kernels, _lu_kernels, compact_factors
 from sparsekin.engine.linalg import RefactorSolver
 from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 from sparsekin.testset import n_four_bar
@@ -20,7 +20,7 @@ from sparsekin.testset import n_four_bar
 
 @pytest.fixture
 def compact_at_once(monkeypatch):
-    monkeypatch.setattr(linalg, "COMPACT_AFTER_SOLVES", 0)
+    monkeypatch.setattr(compact_factors, "COMPACT_AFTER_SOLVES", 0)
 
 
 def structural_factors(solver: RefactorSolver, jacobian: csr_array) -> tuple:
@@ -59,7 +59,7 @@ def check_against_structural(solver: RefactorSolver, jacobian: csr_array, rng) -
 def compacted_entries(solver: RefactorSolver) -> tuple[int, int]:
     """Entries of L and U off the diagonal: compact, structural."""
     assert solver._compacted
-    compact = int(solver._l_compact[0][-1]) + int(solver._u_compact[0][-1])
+    compact = sum(int(counts.sum()) for counts, _ in solver._compact)
     return compact, int(solver._l_indptr[-1]) + int(solver._u_indptr[-1])
 
 
@@ -89,12 +89,29 @@ def test_compact_in_place_keeps_the_nonzeros_in_order():
     indptr = np.array([0, 3, 3, 6], dtype=np.int32)
     indices = np.array([4, 1, 2, 5, 0, 3], dtype=np.int32)
     values = np.array([0.0, 2.0, -0.0, np.nan, 3.0, 0.0])
-    out_indptr, out_indices = np.full(4, -1, dtype=np.int32), np.full(6, -1, dtype=np.int32)
-    _compact_lu_kernels.compact_in_place(indptr, indices, values, out_indptr, out_indices)
-    np.testing.assert_array_equal(out_indptr, [0, 1, 1, 3])
-    np.testing.assert_array_equal(out_indices[:3], [1, 5, 0])
+    counts, offsets = np.full(3, 9, dtype=np.uint8), np.full(6, 9, dtype=np.int8)
+    _compact_lu_kernels.compact_in_place(indptr, indices, values, counts, offsets)
+    np.testing.assert_array_equal(counts, [1, 0, 2])
+    np.testing.assert_array_equal(offsets[:3], [1, 3, -2])  # rows 1 (column 0), 5 and 0 (column 2)
     np.testing.assert_array_equal(values[:3], [2.0, np.nan, 3.0])  # NaN kept
     np.testing.assert_array_equal(indices, [4, 1, 2, 5, 0, 3])  # the pattern untouched
+
+
+def test_offsets_fit_a_byte():
+    indptr = np.array([0, 1, 1], dtype=np.int64)
+    assert _compact_lu_kernels.offsets_fit(indptr, np.array([127], dtype=np.int64))
+    assert not _compact_lu_kernels.offsets_fit(indptr, np.array([128], dtype=np.int64))
+    many = np.array([0, 256], dtype=np.int64)  # a column of 256 entries
+    assert not _compact_lu_kernels.offsets_fit(many, np.zeros(256, dtype=np.int64))
+
+
+def test_far_pattern_is_not_compacted(rng, compact_at_once):
+    """Rows more than 127 from the diagonal: the structural factors, as main's."""
+    matrix = small_integer_matrix(400, rng)
+    solver = RefactorSolver()
+    solver.factor(matrix)
+    check_against_structural(solver, matrix, rng)
+    assert solver._compact is False and not solver._compacted
 
 
 @pytest.mark.parametrize("lean", [False, True])
@@ -143,9 +160,9 @@ def test_compacted_after_some_solves_the_same_solutions(rng):
     solver.factor(matrix)
     b = rng.standard_normal(matrix.shape[0])
     first = solver.solve(b)
-    for k in range(linalg.COMPACT_AFTER_SOLVES + 2):
+    for k in range(compact_factors.COMPACT_AFTER_SOLVES + 2):
         np.testing.assert_array_equal(solver.solve(b), first)
-        assert solver._compacted == (k + 2 > linalg.COMPACT_AFTER_SOLVES)  # solves so far: k + 2
+        assert solver._compacted == (k + 2 > compact_factors.COMPACT_AFTER_SOLVES)  # solves so far: k + 2
     solver.factor(matrix)
     assert not solver._compacted
     np.testing.assert_array_equal(solver.solve(b), first)

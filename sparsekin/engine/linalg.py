@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from . import _compact_lu_kernels, _lu_kernels
+from . import _compact_lu_kernels, _lu_kernels, compact_factors
 
 if TYPE_CHECKING:
     from scipy.sparse import csc_array, csr_array
@@ -62,10 +62,6 @@ _ORDERING = "COLAMD"
 COORDINATES_PER_BODY = 3
 #: The column orderings of `SuperLUSolver` and of `RefactorSolver`'s fresh factorizations.
 ORDERINGS = ("colamd", "metis")
-#: `RefactorSolver` solves a factorization without its exact zeros after this many solves: the
-#: compaction costs ~0.8 solve and saves ~0.13 of each (docs/design-notes.md, "Compact factors"):
-#: not for a kinematic step's 2 solves, for dynamics' held iteration matrix (100 and more).
-COMPACT_AFTER_SOLVES = 8
 _NOT_FACTORED = "no factorization: call `factor` first (the last one failed or none was made)."
 
 
@@ -293,8 +289,7 @@ class RefactorSolver:
     if a pivot turns zero, non-finite or smaller than `min_pivot_ratio` times the largest
     candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver falls
     back to a fresh SuperLU factorization with new pivoting and a new analysis.  A factorization
-    solved more than `COMPACT_AFTER_SOLVES` times is solved without its exact zeros
-    (`sparsekin.engine._compact_lu_kernels`).
+    solved often is solved without its exact zeros (`sparsekin.engine.compact_factors`).
 
     Parameters
     ----------
@@ -508,8 +503,8 @@ class RefactorSolver:
             raise RuntimeError(_NOT_FACTORED)
         rhs, out = _checked_rhs(rhs, self._n, out)
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
-        kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
-        factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
+        kernels, factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
+        kernel = kernels.solve_lu if transposed else kernels.solve_lu_transposed
         self._work_is_zero = False
         finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
@@ -535,9 +530,9 @@ class RefactorSolver:
             _checked_rhs(array, self._n, array)
         if first.ndim != 1 or second.ndim != 1:
             raise ValueError(f"`first` and `second` must have shape ({self._n},).")
-        factors = self._solve_factors(2)
+        kernels, factors = self._solve_factors(2)
         self._work_is_zero = False
-        _lu_kernels.solve_lu_transposed_pair(factors, first, second, self._work, self._probe)
+        kernels.solve_lu_transposed_pair(factors, first, second, self._work, self._probe)
         self.n_solves += 2
         if self._probe[0] != 0.0:
             raise SingularMatrix("the solution is not finite")
@@ -599,7 +594,7 @@ class RefactorSolver:
         # they made the peak of a long chain's run at its flat crossing, where the guard
         # sends refactorizations here); their patterns stay, for a refactorization after a
         # failure here
-        self._l_values = self._u_values = self._l_compact = self._u_compact = None
+        self._l_values = self._u_values = self._compact = None
         try:
             if self.ordering == "metis":
                 lu, perm_c = self._splu_in_column_order(matrix)
@@ -656,7 +651,7 @@ class RefactorSolver:
         self._perm_r = perm_r.astype(index)
         # the last pattern's, freed before the new one is made
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
-        self._l_values = self._u_values = self._l_compact = self._u_compact = None
+        self._l_values = self._u_values = self._compact = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
         # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain);
         # `lean` does, and holds them for the analysis only
@@ -682,7 +677,7 @@ class RefactorSolver:
     def _allocate_values(self) -> None:
         """The factors' values on the structural patterns."""
         self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
-        self._l_compact = self._u_compact = None  # made by the first compaction (`_solve_factors`)
+        self._compact = None  # the compact factors' counts and offsets, made when first compacted
 
     def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
@@ -709,20 +704,20 @@ class RefactorSolver:
         return True
 
     def _solve_factors(self, n_rhs: int) -> tuple:
-        """The factors as the next `n_rhs` solves read them: the structural ones up to
-        `COMPACT_AFTER_SOLVES` solves of a factorization, then L and U without their exact
-        zeros, compacted in place (`_compact_lu_kernels`; the same solutions)."""
+        """The kernels and factors of the next `n_rhs` solves: the structural factors, or after
+        `~sparsekin.engine.compact_factors.COMPACT_AFTER_SOLVES` solves of a factorization L
+        and U without their exact zeros, compacted in place (the same solutions)."""
         self._solves_since_factor += n_rhs
-        if not self._compacted and self._solves_since_factor > COMPACT_AFTER_SOLVES:
-            if self._l_compact is None:
-                self._l_compact = (np.zeros_like(self._l_indptr), np.empty_like(self._l_indices))
-                self._u_compact = (np.zeros_like(self._u_indptr), np.empty_like(self._u_indices))
-            _compact_lu_kernels.compact_in_place(self._l_indptr, self._l_indices, self._l_values, *self._l_compact)
-            _compact_lu_kernels.compact_in_place(self._u_indptr, self._u_indices, self._u_values, *self._u_compact)
-            self._compacted = True
-        lower, upper = (self._l_compact, self._u_compact) if self._compacted else (
-            (self._l_indptr, self._l_indices), (self._u_indptr, self._u_indices))
-        return (self._perm_r, self._perm_c, (*lower, self._l_values), (*upper, self._u_values, self._u_inverse))
+        if (not self._compacted and self._compact is not False
+                and self._solves_since_factor > compact_factors.COMPACT_AFTER_SOLVES):  # fmt: skip
+            self._compact = compact_factors.compacted((self._l_indptr, self._l_indices, self._l_values),
+                                                      (self._u_indptr, self._u_indices, self._u_values), self._compact)
+            self._compacted = self._compact is not False
+        if self._compacted:
+            return _compact_lu_kernels, (self._perm_r, self._perm_c, (*self._compact[0], self._l_values),
+                                         (*self._compact[1], self._u_values, self._u_inverse))  # fmt: skip
+        return _lu_kernels, (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
+                             (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth
