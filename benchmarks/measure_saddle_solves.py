@@ -20,7 +20,9 @@ calls per round, the median over rounds:
   the one it writes: no chain of dependent additions at all, the bound of any reordering
   that only breaks dependencies;
 * ``empty_columns`` — the plain kernel with every column empty: the permutations and the
-  per-column work alone.
+  per-column work alone;
+* ``stream`` — a sum over the structural factors' values and indices: reading them from
+  memory, no solve.
 
 Command::
 
@@ -180,6 +182,17 @@ def solve_without_dependency(factors, rhs, work, other, out):
         out[i] = work[perm_r[i]]
 
 
+@njit(cache=True)
+def stream(factors):
+    """Every value and index of L and U read once, in order."""
+    total, rows = 0.0, 0
+    for indices, values in ((factors[2][1], factors[2][2]), (factors[3][1], factors[3][2])):
+        for p in range(values.size):
+            total += values[p]
+            rows += indices[p]
+    return total + rows
+
+
 def measure(bodies: int, rounds: int = 5, calls: int = 15) -> dict:
     from scipy.sparse import csr_array
 
@@ -212,6 +225,7 @@ def measure(bodies: int, rounds: int = 5, calls: int = 15) -> dict:
         "split_plain": lambda: _lu_kernels.solve_lu_transposed(split_factors, b, work, out, probe),
         "no_dependency": lambda: solve_without_dependency(plain, b, work, other, out),
         "empty_columns": lambda: _lu_kernels.solve_lu_transposed(empty, b, work, out, probe),
+        "stream": lambda: stream(plain),
     }
     agreement = {}
     for name in ("compact", "split"):
