@@ -67,6 +67,13 @@ def compact_in_place(indptr, indices, values, counts, offsets):
 
 
 @njit(inline="always", **_JIT)
+def _row(j, offset):
+    """Row ``j + offset`` as an unsigned index: numba checks a signed index for a negative
+    (wrapping) value at every access, which made the paired solve 12 % slower (10^4 chain)."""
+    return np.uint64(j + _wide(offset))
+
+
+@njit(inline="always", **_JIT)
 def _finish(work, permutation, out):
     """``out[i] = work[permutation[i]]``; 0 if every entry is finite, NaN otherwise."""
     total = 0.0
@@ -90,7 +97,7 @@ def solve_lu(factors, rhs, work, out, probe):
         x_j = work[j]
         end = p + _wide(l_counts[j])
         while p < end:
-            work[j + _wide(l_offsets[p])] -= l_values[p] * x_j
+            work[_row(j, l_offsets[p])] -= l_values[p] * x_j
             p += 1
     p = 0
     for j in range(n):
@@ -100,7 +107,7 @@ def solve_lu(factors, rhs, work, out, probe):
         x_j = work[j] * u_inverse[j]
         work[j] = x_j
         for q in range(start, p):
-            work[j + _wide(u_offsets[q])] -= u_values[q] * x_j
+            work[_row(j, u_offsets[q])] -= u_values[q] * x_j
         p = start
     probe[0] = _finish(work, perm_c, out)  # x = Pc z
 
@@ -113,7 +120,7 @@ def _forward_upper(work, u_counts, u_offsets, u_values, u_inverse):
         total = work[j]
         end = p + _wide(u_counts[j])
         while p < end:
-            total -= u_values[p] * work[j + _wide(u_offsets[p])]
+            total -= u_values[p] * work[_row(j, u_offsets[p])]
             p += 1
         work[j] = total * u_inverse[j]
 
@@ -128,7 +135,7 @@ def _backward_lower(work, l_counts, l_offsets, l_values):
         total = work[j]
         start = p - _wide(l_counts[j])
         for q in range(start, p):
-            total -= l_values[q] * work[j + _wide(l_offsets[q])]
+            total -= l_values[q] * work[_row(j, l_offsets[q])]
         work[j] = total
         p = start
 
@@ -162,7 +169,7 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
         total, other = work[j], second[j]
         end = p + _wide(u_counts[j])
         while p < end:
-            value, k = u_values[p], j + _wide(u_offsets[p])
+            value, k = u_values[p], _row(j, u_offsets[p])
             total -= value * work[k]
             other -= value * second[k]
             p += 1
@@ -175,7 +182,7 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
         total, other = work[j], second[j]
         start = p - _wide(l_counts[j])
         for q in range(start, p):
-            value, k = l_values[q], j + _wide(l_offsets[q])
+            value, k = l_values[q], _row(j, l_offsets[q])
             total -= value * work[k]
             other -= value * second[k]
         work[j] = total
