@@ -48,6 +48,10 @@ from numba import njit
 from .._jit import JIT as _JIT
 
 _wide = np.int64  # a loop bound read from an int32 array, counted in int64 (module docstring)
+#: An index read from an array, made unsigned: numba checks a signed index for a negative
+#: (wrapping) value at every access; unsigned, the solves of the 10^4-body chain's saddle
+#: took 0.92 of the time (docs/design-notes.md, "Compact factors").  Same arithmetic.
+_index = np.uint64
 
 #: Layout of the `stats` array filled by `refactor_lu`.
 #: (`sparsekin.engine.linalg` unpacks it in this order.)
@@ -152,24 +156,24 @@ def _eliminate_column(j, lower, upper, work, max_l, max_u, probe):
     u_indptr, u_indices, u_values, u_inverse = upper
     for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):  # in topological order
         k = u_indices[p]
-        x_k = work[k]
-        work[k] = 0.0
+        x_k = work[_index(k)]
+        work[_index(k)] = 0.0
         u_values[p] = x_k
         max_u = max(max_u, abs(x_k))
         probe += 0.0 * x_k  # stays 0 unless an entry of L or U is inf or NaN
         for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
-            work[l_indices[q]] -= l_values[q] * x_k
+            work[_index(l_indices[q])] -= l_values[q] * x_k
     pivot = work[j]
     work[j] = 0.0
     if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
         for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            work[l_indices[q]] = 0.0
+            work[_index(l_indices[q])] = 0.0
         return max_l, max_u, probe, False
     max_u = max(max_u, abs(pivot))
     inverse = 1.0 / pivot
     u_inverse[j] = inverse
     for q in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-        i = l_indices[q]
+        i = _index(l_indices[q])
         entry = work[i] * inverse
         work[i] = 0.0
         l_values[q] = entry
@@ -212,13 +216,13 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
         if in_factor_order:
             for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
                 value = values[p]
-                work[b_rows[p]] += value  # repeated entries add up
+                work[_index(b_rows[p])] += value  # repeated entries add up
                 max_b = max(max_b, abs(value))
         else:
             shift = offsets[j]
             for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
                 value = values[p + shift]
-                work[b_rows[p]] += value
+                work[_index(b_rows[p])] += value
                 max_b = max(max_b, abs(value))
         max_l, max_u, probe, good = _eliminate_column(j, lower, upper, work, max_l, max_u, probe)
         if not good:
@@ -248,12 +252,12 @@ def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper,
         if in_factor_order:
             for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
                 value = values[p]
-                work[perm_r[indices[p + shift]]] += value  # repeated entries add up
+                work[_index(perm_r[_index(indices[p + shift])])] += value  # repeated entries add up
                 max_b = max(max_b, abs(value))
         else:
             for p in range(_wide(b_indptr[j]) + shift, _wide(b_indptr[j + 1]) + shift):
                 value = values[p]
-                work[perm_r[indices[p]]] += value
+                work[_index(perm_r[_index(indices[p])])] += value
                 max_b = max(max_b, abs(value))
         max_l, max_u, probe, good = _eliminate_column(j, lower, upper, work, max_l, max_u, probe)
         if not good:
@@ -273,19 +277,19 @@ def solve_lu(factors, rhs, work, out, probe):
     perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = rhs.size
     for i in range(n):
-        work[perm_r[i]] = rhs[i]
+        work[_index(perm_r[i])] = rhs[i]
     for j in range(n):  # L y = Pr rhs, column by column
         x_j = work[j]
         for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            work[l_indices[p]] -= l_values[p] * x_j
+            work[_index(l_indices[p])] -= l_values[p] * x_j
     for j in range(n - 1, -1, -1):  # U z = y
         x_j = work[j] * u_inverse[j]
         work[j] = x_j
         for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
-            work[u_indices[p]] -= u_values[p] * x_j
+            work[_index(u_indices[p])] -= u_values[p] * x_j
     total = 0.0
     for i in range(n):  # x = Pc z
-        x_i = work[perm_c[i]]
+        x_i = work[_index(perm_c[i])]
         out[i] = x_i
         total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
     probe[0] = total
@@ -302,20 +306,20 @@ def solve_lu_transposed(factors, rhs, work, out, probe):
     perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = rhs.size
     for i in range(n):
-        work[perm_c[i]] = rhs[i]
+        work[_index(perm_c[i])] = rhs[i]
     for j in range(n):  # U^T y = Pc^T rhs: dot products with the columns of U
         total = work[j]
         for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
-            total -= u_values[p] * work[u_indices[p]]
+            total -= u_values[p] * work[_index(u_indices[p])]
         work[j] = total * u_inverse[j]
     for j in range(n - 1, -1, -1):  # L^T z = y
         total = work[j]
         for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            total -= l_values[p] * work[l_indices[p]]
+            total -= l_values[p] * work[_index(l_indices[p])]
         work[j] = total
     total = 0.0
     for i in range(n):  # x = Pr^T z
-        x_i = work[perm_r[i]]
+        x_i = work[_index(perm_r[i])]
         out[i] = x_i
         total += 0.0 * x_i  # stays 0 unless an entry is inf or NaN
     probe[0] = total
@@ -337,14 +341,14 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
     perm_r, perm_c, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = x0.size
     for i in range(n):
-        work[perm_c[i]] = x0[i]
+        work[_index(perm_c[i])] = x0[i]
     second = x0  # every entry of x0 is read: it holds the second system from here on
     for i in range(n):
-        second[perm_c[i]] = x1[i]
+        second[_index(perm_c[i])] = x1[i]
     for j in range(n):  # U^T y = Pc^T rhs, both at once
         total, other = work[j], second[j]
         for p in range(_wide(u_indptr[j]), _wide(u_indptr[j + 1])):
-            value, k = u_values[p], u_indices[p]
+            value, k = u_values[p], _index(u_indices[p])
             total -= value * work[k]
             other -= value * second[k]
         work[j] = total * u_inverse[j]
@@ -352,18 +356,18 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
     for j in range(n - 1, -1, -1):  # L^T z = y
         total, other = work[j], second[j]
         for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            value, k = l_values[p], l_indices[p]
+            value, k = l_values[p], _index(l_indices[p])
             total -= value * work[k]
             other -= value * second[k]
         work[j] = total
         second[j] = other
     total = 0.0
     for i in range(n):  # x = Pr^T z: the second system's first (x1 is free), then the first's
-        x_i = second[perm_r[i]]
+        x_i = second[_index(perm_r[i])]
         x1[i] = x_i
         total += 0.0 * x_i
     for i in range(n):
-        x_i = work[perm_r[i]]
+        x_i = work[_index(perm_r[i])]
         x0[i] = x_i
         total += 0.0 * x_i
     probe[0] = total
@@ -420,21 +424,21 @@ def solve_lu_rows(factors, rhs, work, out, probe):
     row_of, column_of, (l_indptr, l_indices, l_values), (u_indptr, u_indices, u_values, u_inverse) = factors
     n = rhs.size
     for i in range(n):  # Pr rhs, gathered (a scattering pass was slower)
-        work[i] = rhs[row_of[i]]
+        work[i] = rhs[_index(row_of[i])]
     for j in range(n):  # L y = Pr rhs, column by column
         x_j = work[j]
         for p in range(_wide(l_indptr[j]), _wide(l_indptr[j + 1])):
-            work[l_indices[p]] -= l_values[p] * x_j
+            work[_index(l_indices[p])] -= l_values[p] * x_j
     for k in range(n):  # U z = y, row n - 1 - k stored k-th
         i = n - 1 - k
         total = work[i]
         for p in range(_wide(u_indptr[k]), _wide(u_indptr[k + 1])):
-            total -= u_values[p] * work[u_indices[p]]
+            total -= u_values[p] * work[_index(u_indices[p])]
         work[i] = total * u_inverse[i]
     total = 0.0
     for j in range(n):  # x = Pc z, scattered (a gathering pass was slower)
         x_j = work[j]
-        out[column_of[j]] = x_j
+        out[_index(column_of[j])] = x_j
         total += 0.0 * x_j  # stays 0 unless an entry is inf or NaN
     probe[0] = total
 

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from . import _lu_kernels
+from . import _compact_lu_kernels, _lu_kernels, compact_factors
 
 if TYPE_CHECKING:
     from scipy.sparse import csc_array, csr_array
@@ -288,7 +288,8 @@ class RefactorSolver:
     Every later `factor` with the same pattern refactors numerically on those patterns;
     if a pivot turns zero, non-finite or smaller than `min_pivot_ratio` times the largest
     candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver falls
-    back to a fresh SuperLU factorization with new pivoting and a new analysis.
+    back to a fresh SuperLU factorization with new pivoting and a new analysis.  A factorization
+    solved often is solved without its exact zeros (`sparsekin.engine.compact_factors`).
 
     Parameters
     ----------
@@ -502,9 +503,8 @@ class RefactorSolver:
             raise RuntimeError(_NOT_FACTORED)
         rhs, out = _checked_rhs(rhs, self._n, out)
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
-        kernel = _lu_kernels.solve_lu if transposed else _lu_kernels.solve_lu_transposed
-        factors = (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
-                   (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
+        kernels, factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
+        kernel = kernels.solve_lu if transposed else kernels.solve_lu_transposed
         self._work_is_zero = False
         finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
@@ -530,10 +530,9 @@ class RefactorSolver:
             _checked_rhs(array, self._n, array)
         if first.ndim != 1 or second.ndim != 1:
             raise ValueError(f"`first` and `second` must have shape ({self._n},).")
-        factors = (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
-                   (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
+        kernels, factors = self._solve_factors(2)
         self._work_is_zero = False
-        _lu_kernels.solve_lu_transposed_pair(factors, first, second, self._work, self._probe)
+        kernels.solve_lu_transposed_pair(factors, first, second, self._work, self._probe)
         self.n_solves += 2
         if self._probe[0] != 0.0:
             raise SingularMatrix("the solution is not finite")
@@ -595,7 +594,7 @@ class RefactorSolver:
         # they made the peak of a long chain's run at its flat crossing, where the guard
         # sends refactorizations here); their patterns stay, for a refactorization after a
         # failure here
-        self._l_values = self._u_values = None
+        self._l_values = self._u_values = self._compact = None
         try:
             if self.ordering == "metis":
                 lu, perm_c = self._splu_in_column_order(matrix)
@@ -604,7 +603,7 @@ class RefactorSolver:
                 perm_c = lu.perm_c.astype(np.int64)
         except RuntimeError as error:  # "Factor is exactly singular"
             if self._l_indices is not None:
-                self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
+                self._allocate_values()
             raise SingularMatrix(str(error)) from error
         perm_r = lu.perm_r.astype(np.int64)
         capacity = lu.nnz
@@ -652,7 +651,7 @@ class RefactorSolver:
         self._perm_r = perm_r.astype(index)
         # the last pattern's, freed before the new one is made
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
-        self._l_values = self._u_values = None
+        self._l_values = self._u_values = self._compact = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
         # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain);
         # `lean` does, and holds them for the analysis only
@@ -668,13 +667,17 @@ class RefactorSolver:
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
         del l_indptr, u_indptr
-        self._l_values = np.zeros(self._l_indices.size)
-        self._u_values = np.zeros(self._u_indices.size)
+        self._allocate_values()
         self._u_inverse = np.zeros(n)
         # the refactorization's accumulator (zero between its columns) and the solves'
         # scratch, one array: `_numeric` zeroes it after the solves have used it
         self._work = np.zeros(n)
         self._work_is_zero = True
+
+    def _allocate_values(self) -> None:
+        """The factors' values on the structural patterns."""
+        self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
+        self._compact = None  # the compact factors' counts and offsets, made when first compacted
 
     def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
@@ -697,7 +700,24 @@ class RefactorSolver:
             self.pivot_ratio = 0.0
             return False
         self.pivot_ratio = ratio
+        self._solves_since_factor, self._compacted = 0, False
         return True
+
+    def _solve_factors(self, n_rhs: int) -> tuple:
+        """The kernels and factors of the next `n_rhs` solves: the structural factors, or after
+        `~sparsekin.engine.compact_factors.COMPACT_AFTER_SOLVES` solves of a factorization L
+        and U without their exact zeros, compacted in place (the same solutions)."""
+        self._solves_since_factor += n_rhs
+        if (not self._compacted and self._compact is not False
+                and self._solves_since_factor > compact_factors.COMPACT_AFTER_SOLVES):  # fmt: skip
+            self._compact = compact_factors.compacted((self._l_indptr, self._l_indices, self._l_values),
+                                                      (self._u_indptr, self._u_indices, self._u_values), self._compact)
+            self._compacted = self._compact is not False
+        if self._compacted:
+            return _compact_lu_kernels, (self._perm_r, self._perm_c, (*self._compact[0], self._l_values),
+                                         (*self._compact[1], self._u_values, self._u_inverse))  # fmt: skip
+        return _lu_kernels, (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
+                             (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth

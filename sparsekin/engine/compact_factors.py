@@ -1,0 +1,44 @@
+"""When and how `sparsekin.engine.linalg.RefactorSolver` solves without its factors' zeros.
+
+The compaction (`sparsekin.engine._compact_lu_kernels`) costs about 0.8 of a solve and saves
+about 0.13 of each solve after it (the 10^4-body chain's saddle matrix; docs/design-notes.md,
+"Compact factors"): a factorization is compacted at its solve after `COMPACT_AFTER_SOLVES`,
+which a kinematic step's (one refactorization, two solves) never reaches and forward
+dynamics' held iteration matrix (a hundred solves and more) always does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._compact_lu_kernels import compact_in_place, offsets_fit
+
+__all__ = ["COMPACT_AFTER_SOLVES", "compacted"]
+
+#: Solves of one factorization on its structural factors before it is compacted.
+COMPACT_AFTER_SOLVES = 8
+
+
+def compacted(lower: tuple, upper: tuple, arrays):
+    """Compact L's and U's values in place, ``lower`` and ``upper`` each ``(indptr, indices,
+    values)`` on the structural pattern.
+
+    Parameters
+    ----------
+    arrays : tuple or None
+        The arrays this function returned for the same pattern before, or None.
+
+    Returns
+    -------
+    ((l_counts, l_offsets), (u_counts, u_offsets)) or False
+        The compact factors' counts and offsets (filled), or False, the values untouched,
+        if the pattern's offsets or counts do not fit in a byte (`offsets_fit`).
+    """
+    if arrays is None:
+        if not all(offsets_fit(indptr, indices) for indptr, indices, _ in (lower, upper)):
+            return False
+        arrays = tuple((np.zeros(indptr.size - 1, dtype=np.uint8), np.zeros(indices.size, dtype=np.int8))
+                       for indptr, indices, _ in (lower, upper))  # fmt: skip
+    for (indptr, indices, values), (counts, offsets) in zip((lower, upper), arrays):
+        compact_in_place(indptr, indices, values, counts, offsets)
+    return arrays

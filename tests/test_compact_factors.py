@@ -1,0 +1,168 @@
+"""The solves' compact factors (`sparsekin.engine.compact_factors`, `_compact_lu_kernels`):
+`RefactorSolver` solves with L and U without their exact zeros, compacted in place after
+`COMPACT_AFTER_SOLVES` solves of a factorization (set to 0 here: from the first solve).  Checked against the solves of `_lu_kernels` on the structural factors of
+the same elimination (the same solution: only products with exact zeros are left out) and
+against `spsolve`; the in-place compaction must not disturb the next refactorization."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.sparse import csr_array, diags_array
+from scipy.sparse import random_array as sparse_random
+from scipy.sparse.linalg import spsolve
+
+from sparsekin.engine import _compact_lu_kernels, _lu_kernels, compact_factors
+from sparsekin.engine.linalg import RefactorSolver
+from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+from sparsekin.testset import n_four_bar
+
+
+@pytest.fixture
+def compact_at_once(monkeypatch):
+    monkeypatch.setattr(compact_factors, "COMPACT_AFTER_SOLVES", 0)
+
+
+def structural_factors(solver: RefactorSolver, jacobian: csr_array) -> tuple:
+    """The factors of `solver`'s analysis refactored afresh on its structural patterns (their
+    zeros kept), as `_lu_kernels`' solves read them."""
+    lower = (solver._l_indptr, solver._l_indices, np.zeros(solver._l_indices.size))
+    upper = (solver._u_indptr, solver._u_indices, np.zeros(solver._u_indices.size), np.zeros(solver._n))
+    b_rows = np.empty(jacobian.nnz, dtype=solver._b_indptr.dtype)
+    _lu_kernels.fill_column_rows(solver._indices, solver._offsets, solver._b_indptr, solver._perm_r, b_rows)
+    stats = np.zeros(_lu_kernels.N_STATS)
+    _lu_kernels.refactor_lu(jacobian.data, False, (solver._b_indptr, b_rows, solver._offsets), lower, upper,
+                            np.zeros(solver._n), stats)  # fmt: skip
+    assert stats[_lu_kernels.STAT_BAD_COLUMN] == -1.0
+    return (solver._perm_r, solver._perm_c, lower, upper)
+
+
+def check_against_structural(solver: RefactorSolver, jacobian: csr_array, rng) -> None:
+    """Every solve of `solver` equals the structural factors' (bit for bit, to the sign of
+    a zero) and agrees with `spsolve`."""
+    n = jacobian.shape[0]
+    factors = structural_factors(solver, jacobian)
+    b, c = rng.standard_normal(n), rng.standard_normal(n)
+    for kernel, transposed in ((_lu_kernels.solve_lu_transposed, False), (_lu_kernels.solve_lu, True)):
+        expected = np.empty(n)
+        kernel(factors, b, np.zeros(n), expected, np.zeros(1))
+        np.testing.assert_array_equal(solver.solve(b, transposed=transposed), expected)
+        matrix = jacobian.T if transposed else jacobian
+        reference = spsolve(matrix.tocsc(), b)
+        np.testing.assert_allclose(expected, reference, rtol=0, atol=1e-10 * np.abs(reference).max())
+    first, second = b.copy(), c.copy()
+    solver.solve_pair(first, second)
+    np.testing.assert_array_equal(first, solver.solve(b))
+    np.testing.assert_array_equal(second, solver.solve(c))
+
+
+def compacted_entries(solver: RefactorSolver) -> tuple[int, int]:
+    """Entries of L and U off the diagonal: compact, structural."""
+    assert solver._compacted
+    compact = sum(int(counts.sum()) for counts, _ in solver._compact)
+    return compact, int(solver._l_indptr[-1]) + int(solver._u_indptr[-1])
+
+
+def chain_saddle_matrices(loops: int, steps: int) -> list[csr_array]:
+    """The iteration matrices the dynamics of an N-four-bar chain factors (copies)."""
+    stepper = GeneralizedAlphaStepper(n_four_bar(loops), 1e-3, linear_solver="refactor")
+    matrices = []
+    stepper.start(0.0)
+    factor = stepper.solver.factor
+    stepper.solver.factor = lambda matrix: (matrices.append(matrix.copy()), factor(matrix))
+    for k in range(1, steps + 1):
+        stepper.advance(k * 1e-3)
+    return matrices
+
+
+def small_integer_matrix(n: int, rng) -> csr_array:
+    """Random sparse matrix of small integers plus a dominant diagonal: its elimination meets
+    exact cancellations, whose zeros stay in the structural factors."""
+    pattern = sparse_random((n, n), density=4.0 / n, rng=rng, format="csr")
+    pattern.data = rng.integers(-2, 3, pattern.nnz).astype(float)
+    matrix = csr_array(pattern + diags_array(np.full(n, 8.0)))
+    matrix.sort_indices()
+    return matrix
+
+
+def test_compact_in_place_keeps_the_nonzeros_in_order():
+    indptr = np.array([0, 3, 3, 6], dtype=np.int32)
+    indices = np.array([4, 1, 2, 5, 0, 3], dtype=np.int32)
+    values = np.array([0.0, 2.0, -0.0, np.nan, 3.0, 0.0])
+    counts, offsets = np.full(3, 9, dtype=np.uint8), np.full(6, 9, dtype=np.int8)
+    _compact_lu_kernels.compact_in_place(indptr, indices, values, counts, offsets)
+    np.testing.assert_array_equal(counts, [1, 0, 2])
+    np.testing.assert_array_equal(offsets[:3], [1, 3, -2])  # rows 1 (column 0), 5 and 0 (column 2)
+    np.testing.assert_array_equal(values[:3], [2.0, np.nan, 3.0])  # NaN kept
+    np.testing.assert_array_equal(indices, [4, 1, 2, 5, 0, 3])  # the pattern untouched
+
+
+def test_offsets_fit_a_byte():
+    indptr = np.array([0, 1, 1], dtype=np.int64)
+    assert _compact_lu_kernels.offsets_fit(indptr, np.array([127], dtype=np.int64))
+    assert not _compact_lu_kernels.offsets_fit(indptr, np.array([128], dtype=np.int64))
+    many = np.array([0, 256], dtype=np.int64)  # a column of 256 entries
+    assert not _compact_lu_kernels.offsets_fit(many, np.zeros(256, dtype=np.int64))
+
+
+def test_far_pattern_is_not_compacted(rng, compact_at_once):
+    """Rows more than 127 from the diagonal: the structural factors, as main's."""
+    matrix = small_integer_matrix(400, rng)
+    solver = RefactorSolver()
+    solver.factor(matrix)
+    check_against_structural(solver, matrix, rng)
+    assert solver._compact is False and not solver._compacted
+
+
+@pytest.mark.parametrize("lean", [False, True])
+def test_chain_saddle_solves_as_the_structural_factors(lean, rng, compact_at_once):
+    """The N-four-bar chain's iteration matrices, refactored one after the other on the
+    compacted factors of the last: each solve equals the structural factors'."""
+    matrices = chain_saddle_matrices(6, 4)
+    solver = RefactorSolver(lean=lean)
+    for matrix in matrices:
+        solver.factor(matrix)
+        check_against_structural(solver, matrix, rng)
+    compact, structural = compacted_entries(solver)
+    assert compact < 0.9 * structural  # the chain's factors hold zeros: not a vacuous test
+    assert solver.n_refactorizations >= len(matrices) - 1
+
+
+def test_random_matrices_refactored_and_fallen_back(rng, compact_at_once):
+    """Random integer matrices on one pattern, new values each time (a refactorization on
+    the compacted arrays), then values that trip the guard (a fresh factorization)."""
+    matrix = small_integer_matrix(60, rng)
+    solver = RefactorSolver()
+    solver.factor(matrix)
+    check_against_structural(solver, matrix, rng)
+    for _ in range(3):
+        matrix.data = rng.integers(-2, 3, matrix.nnz).astype(float)
+        matrix.data[matrix.indices == np.repeat(np.arange(60), np.diff(matrix.indptr))] = 8.0
+        solver.factor(matrix)
+        check_against_structural(solver, matrix, rng)
+    assert compacted_entries(solver)[0] < compacted_entries(solver)[1]
+    fresh = RefactorSolver()
+    fresh.factor(matrix)  # the same values factored by a solver that never compacted
+    b = rng.standard_normal(60)
+    np.testing.assert_array_equal(solver.solve(b), fresh.solve(b))
+    scaled = matrix.copy()
+    scaled.data *= (10.0 ** rng.uniform(-6.0, 6.0, 60))[scaled.indices]
+    solver.factor(scaled)
+    assert solver.n_fallbacks == 1
+    check_against_structural(solver, scaled, rng)
+
+
+def test_compacted_after_some_solves_the_same_solutions(rng):
+    """With the default threshold: the first solves read the structural factors, the later
+    ones the compact factors, all with the same solution; a new factorization starts over."""
+    matrix = chain_saddle_matrices(6, 1)[0]
+    solver = RefactorSolver(lean=True)
+    solver.factor(matrix)
+    b = rng.standard_normal(matrix.shape[0])
+    first = solver.solve(b)
+    for k in range(compact_factors.COMPACT_AFTER_SOLVES + 2):
+        np.testing.assert_array_equal(solver.solve(b), first)
+        assert solver._compacted == (k + 2 > compact_factors.COMPACT_AFTER_SOLVES)  # solves so far: k + 2
+    solver.factor(matrix)
+    assert not solver._compacted
+    np.testing.assert_array_equal(solver.solve(b), first)
