@@ -573,8 +573,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         """The velocity projection's drift Φq v + Φt (every equation), bound and noise.  The
         drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
         velocity kick of about 2 d in the next step.  On the large path the refinement also
-        stops at a hundredth of Newton's velocity noise γ′ · floor (`RoundingFloor`) once
-        the drift is within the bound."""
+        stops at a fraction (`PROJECTION_NOISE`) of Newton's velocity noise γ′ · floor
+        (`RoundingFloor`) once the drift is within the bound."""
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
