@@ -21,6 +21,7 @@ import pytest
 import sparsekin as sk
 from sparsekin.engine.discretization import discretize
 from sparsekin.engine.saddle import DynamicSystem
+from sparsekin.solve._compiled_dynamics import _LU
 from sparsekin.solve._saddle_factorization import compiled_factorization, saddle_band_order
 from sparsekin.solve.dynamics import GeneralizedAlpha, run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
@@ -38,7 +39,7 @@ BANDED = Thresholds(min_banded_saddle_size=20)
 
 def banded(loop) -> bool:
     """Whether `loop` held a banded factorization (a banded order)."""
-    return loop._state is not None and loop._state[6][1].size > 0
+    return loop._state is not None and loop._state[_LU][1].size > 0
 
 
 def run(mechanism, times, max_step, thresholds, **request):

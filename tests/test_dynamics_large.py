@@ -28,8 +28,8 @@ from sparsekin.engine.saddle import DynamicSystem
 from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
-from sparsekin.solve.rounding_floor import (EXTRAPOLATION_GAIN, FLOOR_STEPS, RATE_STEPS, REFINEMENT_MARGIN,
-                                            RoundingFloor)
+from sparsekin.solve.rounding_floor import (EXTRAPOLATION_GAIN, FLOOR_STEPS, PROJECTION_NOISE, RATE_STEPS,
+                                            REFINEMENT_MARGIN, RoundingFloor)
 from sparsekin.testset import n_four_bar
 
 
@@ -153,7 +153,7 @@ def test_refinement_skipped_only_on_a_measured_contraction_grown_with_age():
     dense.refined("velocity", 1e-12)
     assert dense.projection_noise(1e3) == 0.0 and not dense.skips_refinement("velocity", 1e-12, noise)
     floor.measured(4e-10, fresh=True)
-    assert floor.projection_noise(2e3) == pytest.approx(0.1 * 2e3 * 4e-10)
+    assert floor.projection_noise(2e3) == pytest.approx(PROJECTION_NOISE * 2e3 * 4e-10)
 
 
 def test_predictor_extrapolates_while_it_pays():

@@ -560,15 +560,16 @@ def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
 # ---------------------------------------------------------------------- generalized-α's vector updates
 # (sparsekin.solve.dynamics: the same expressions, in the same order, as NumPy's, fused)
 @njit(**JIT)
-def predict(coordinates, velocities, accelerations, pseudo, alpha_m, alpha_f, gamma, beta, h, q, v, a, previous,
-            ratio):  # fmt: skip
-    """The predictor of a step of size h: ``a`` = the last accelerations, extrapolated
-    ``q̈_n + ratio (q̈_n − previous)`` (`previous` those of the step before, `ratio` this
-    step's size over that one's) unless `ratio` is 0, ã from them, and q, v by the
+def predict(coordinates, velocities, accelerations, pseudo, alpha_m, alpha_f, gamma, beta, h, q, v, a, start,
+            previous, ratio):  # fmt: skip
+    """The predictor of a step of size h: ``a`` = Newton's last accelerations `start`
+    (before their projection), extrapolated ``start + ratio (start − previous)``
+    (`previous` those of the step before, `ratio` this step's size over that one's) unless
+    `ratio` is 0, ã from them and the last (projected) `accelerations`, and q, v by the
     generalized-α formulas."""
     hh = h * h
     for k in range(q.size):
-        a[k] = accelerations[k] + ratio * (accelerations[k] - previous[k]) if ratio != 0.0 else accelerations[k]
+        a[k] = start[k] + ratio * (start[k] - previous[k]) if ratio != 0.0 else start[k]
         predicted = ((1.0 - alpha_f) * a[k] + alpha_f * accelerations[k] - alpha_m * pseudo[k]) / (1.0 - alpha_m)
         q[k] = coordinates[k] + h * velocities[k] + hh * ((0.5 - beta) * pseudo[k] + beta * predicted)
         v[k] = velocities[k] + h * ((1.0 - gamma) * pseudo[k] + gamma * predicted)

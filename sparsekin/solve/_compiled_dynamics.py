@@ -17,24 +17,23 @@ functions `sparsekin.engine.saddle.DynamicSystem` calls) and the force columns o
 `sparsekin.engine._force_kernels`, with the rules and constants of
 `sparsekin.solve.dynamics`; only the linear algebra is its own (LAPACK or the sparse
 refactorization there, these LUs here: the two paths agree to rounding, not bit for bit).
-The rules are those of the Python stepper's dense path at every size: the (2, 2)
-regularization on from the first step, no measured rounding floor (`RoundingFloor`), no
-extrapolated predictor.  For the banded chains above
-`sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE` unknowns the Python stepper runs its large
-path's rules instead (`RoundingFloor` enabled), so there the two paths agree to Newton's
-tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40, fixed 1 ms: B0 7.11e-4 against
-6.95e-4 m off the exact answer, 20 026 against 20 018 steps; tests/test_compiled_banded.py).
-On a narrow band (`FRESH_BAND`) the loop factors the iteration matrix afresh at every step's
-first Newton iterate (A02: 4.3 Newton corrections and 14.2 solves a step held, 2.05 and 6.1
-fresh; docs/design-notes.md, "A02 under 5 s").
+The rules are those of the Python stepper's dense path at every size: the (2, 2) regularization
+on from the first step, no measured rounding floor (`RoundingFloor`), no extrapolated predictor.
+For the banded chains above `sparsekin.solve.policy.SADDLE_DENSE_MAX_SIZE` unknowns the Python
+stepper runs its large path's rules instead (`RoundingFloor` enabled), so there the two paths
+agree to Newton's tolerance and the integrator's error, not to rounding (IFToMM A02, N = 40,
+fixed 1 ms: B0 7.11e-4 against 6.95e-4 m off the exact answer, 20 026 against 20 018 steps;
+tests/test_compiled_banded.py). On a narrow band (`FRESH_BAND`) the loop factors the iteration
+matrix afresh at every step's first Newton iterate (A02: 4.3 Newton corrections and 14.2 solves
+a step held, 2.05 and 6.1 fresh; docs/design-notes.md, "A02 under 5 s").
 
 The start (the drawing assembled, redundant equations, consistent velocities,
 accelerations and multipliers) is the Python stepper's, run once.  Contract, as for the
 compiled kinematics (`sparsekin.solve._compiled`): the loop stops at the first sample it
 cannot solve — a step failed after `MAX_HALVINGS` halvings, or a solve the Python path
 would raise on — and returns the samples solved before it; the Python stepper then goes
-on from the last of them (its state handed over, `resume`) and
-fails at that sample again with the detailed error if it must.
+on from the last of them (its state handed over, `resume`) and fails at that sample again with the
+detailed error if it must.
 
 Supported: everything `solve_dynamics` integrates whose laws are all built in
 (`sparsekin.solve._compiled.supports_compiled`'s laws; actuators included).  Other
@@ -87,8 +86,8 @@ _OK, _STEP_FAILED, _HAND_BACK, _REJECTED = 0, 1, 2, 3
  _LAW_VALUES, _Q_GROUND, _V_GROUND, _A_GROUND, _TURNS, _APPLIED, _DATA, _ROWS, _COLS, _VALS, _SCRATCH,
  _ACTUATOR_WEIGHTS, _DRIFT, _ZEROS, _GOAL, _SOLUTION, _REFINED, _INCREMENT, _PRODUCT, _FORCE, _RHS,
  _DELTA, _V_CONSTRAINTS, _ACCELERATION_RHS) = range(32)  # fmt: skip
-#: the state: q, q̇, q̈, ã, λ, the scalars, the held factorization, the counts
-_Q, _V, _A, _PSEUDO, _LAM, _SCALARS, _LU, _PIVOTS, _COUNTS = range(9)
+#: the state: q, q̇, q̈, ã, λ, Newton's q̈ (before its projection), the scalars, the held LU, the counts
+_Q, _V, _A, _PSEUDO, _LAM, _START, _SCALARS, _LU, _PIVOTS, _COUNTS = range(10)
 _TIME, _STEP, _WORK, _DISSIPATED, _POWER, _DAMPING, _BALANCE0, _GOOD, _REFINEMENT_RATE = range(9)
 _STEPS, _SUBDIVISIONS, _NEWTON, _STALLS, _FACTORIZATIONS, _SOLVES, _FACTORED, _SINGULAR_PROJECTIONS = range(8)
 #: Positions in the rules (`compiled_start`).
@@ -138,12 +137,13 @@ def compiled_start(stepper) -> tuple[tuple, tuple, tuple]:
     return settings, constants, (*stepper._power, stepper._balance0)
 
 
-def resume(stepper, q, v, a, pseudo, lam, t: float, step: float, work: float, dissipated: float, power) -> None:
+def resume(stepper, arrays, t: float, step: float, work: float, dissipated: float, power) -> None:
     """``stepper`` (a `GeneralizedAlphaStepper`) goes on from the state the compiled loop
-    reached: q, q̇, q̈, ã, λ at time `t` with the next `step`, the `work` and `dissipated`
-    energy so far and ``power = (power, dissipated power)`` there; its held factorization is
-    dropped, its sample published again."""
-    stepper._state = type(stepper.state)(float(t), q, v, a, pseudo, lam, float(step), float(work), float(dissipated))
+    reached: ``arrays = (q, q̇, q̈, ã, λ, Newton's q̈)`` at time `t` with the next `step`, the
+    `work` and `dissipated` energy so far and ``power = (power, dissipated power)`` there; its
+    held factorization is dropped, its sample published again."""
+    q, v, a, pseudo, lam, newton = arrays
+    stepper._state = type(stepper.state)(t, q, v, a, pseudo, lam, step, work, dissipated, newton)
     stepper._power = tuple(power)
     stepper._factored = False
     stepper._publish()
@@ -288,15 +288,16 @@ def _project_velocities(model, work, state, settings, rules_, q, v, lam, coeffic
 
 
 @njit(inline="always", **JIT)
-def _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled):
-    """`GeneralizedAlphaStepper._project_accelerations`: a and ã ← − Δ, λ ← λ − μ, where
-    Φq a − γ − target'' on the kept rows exceeds the bound (`filled`: `_refine_projection`)."""
+def _project_accelerations(model, work, state, settings, rules_, after, coefficients, filled):
+    """`GeneralizedAlphaStepper._project_accelerations`: a and ã ← − Δ, λ ← λ − μ (Newton's q̈
+    kept), where Φq a − γ − target'' exceeds the bound on the kept rows (`filled`: `_refine_projection`)."""
+    q, v, a, pseudo, lam, start = after
     kept_rows, coordinate_weights = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS]
     n, n_kept = q.size, kept_rows.size
     v_constraints, gamma = work[_V_CONSTRAINTS], work[_ACCELERATION_RHS]
     drift, kept_drift = work[_DRIFT], work[_KEPT_RESIDUAL]
     for c in range(n):
-        v_constraints[c] = v[c]
+        v_constraints[c], start[c] = v[c], a[c]
     acceleration_rhs(model[_PRIMITIVES], work[_Q_CONSTRAINTS], v_constraints, work[_TURNS_CONSTRAINTS], gamma)
     driven_row, driver_values = model[_DRIVEN_ROW], work[_DRIVER_VALUES]
     for d in range(driven_row.size):
@@ -392,13 +393,13 @@ def _refine_projection(model, work, state, settings, rules_, q, v, lam, coeffici
 @njit(inline="always", **JIT)
 def _step(model, work, state, settings, rules_, h, t_next, after, control):
     """One generalized-α step of size `h` from the state into `after` ``(q, v, a, pseudo,
-    lam)`` (`GeneralizedAlphaStepper._step`); returns `_OK`, `_STEP_FAILED`, `_HAND_BACK`
+    lam, start)`` (`GeneralizedAlphaStepper._step`); returns `_OK`, `_STEP_FAILED`, `_HAND_BACK`
     or, with an rtol in `control` (`_advance_samples`), `_REJECTED`."""
     alpha_m, alpha_f, gamma, beta, tolerance, max_iterations = settings[:6]
     rounding, stall_factor, noise, contraction = rules_[0], rules_[1], rules_[2], rules_[3]
-    q0, v0, a0, p0, lam0 = state[_Q], state[_V], state[_A], state[_PSEUDO], state[_LAM]
+    q0, v0, a0, p0, lam0, s0 = state[_Q], state[_V], state[_A], state[_PSEUDO], state[_LAM], state[_START]
     scalars, counts = state[_SCALARS], state[_COUNTS]
-    q, v, a, pseudo, lam = after
+    q, v, a, pseudo, lam, _ = after
     kept_rows, coordinate_weights, residual = model[_KEPT_ROWS], model[_COORDINATE_WEIGHTS], work[_RESIDUAL]
     n, n_kept = q.size, kept_rows.size
     force, rhs, delta = work[_FORCE], work[_RHS], work[_DELTA]
@@ -406,8 +407,8 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     gamma_prime = gamma / (h * beta)
     coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
     half_minus_beta = 0.5 - beta
-    for c in range(n):  # predictor: the accelerations of the last step
-        a[c] = a0[c]
+    for c in range(n):  # predictor: Newton's accelerations of the last step
+        a[c] = s0[c]
         predicted = ((1.0 - alpha_f) * a[c] + alpha_f * a0[c] - alpha_m * p0[c]) / (1.0 - alpha_m)
         q[c] = q0[c] + h * v0[c] + h * h * (half_minus_beta * p0[c] + beta * predicted)
         v[c] = v0[c] + h * ((1.0 - gamma) * p0[c] + gamma * predicted)
@@ -485,7 +486,7 @@ def _step(model, work, state, settings, rules_, h, t_next, after, control):
     hh = h * h
     for c in range(n):
         pseudo[c] = (q[c] - q0[c] - h * v0[c] - hh * half_minus_beta * p0[c]) / (hh * beta)
-    outcome = _project_accelerations(model, work, state, settings, rules_, q, v, a, pseudo, lam, coefficients, filled)
+    outcome = _project_accelerations(model, work, state, settings, rules_, after, coefficients, filled)
     if outcome != _OK:
         return outcome
     control_rules_ = control[0]
@@ -531,9 +532,10 @@ def _publish(model, work, state, k, out, forces):
 
 @njit(inline="always", **JIT)
 def _copy_state(source, target):
-    """q, q̇, q̈, ã and λ (the first five arrays) of `source` into `target`."""
+    """q, q̇, q̈, ã, λ and Newton's q̈ (the first six arrays) of `source` into `target`."""
     for c in range(source[0].size):
         target[0][c], target[1][c], target[2][c], target[3][c] = source[0][c], source[1][c], source[2][c], source[3][c]
+        target[5][c] = source[5][c]
     for r in range(source[4].size):
         target[4][r] = source[4][r]
 
@@ -608,7 +610,7 @@ def _advance_samples(model, state, work, spare, settings, rules_, control, times
     ``forces[2]``) at ``times[k]``; returns the samples solved.  At a sample it cannot
     solve it stops with the state of the sample before (see the module docstring).
     `work` is `_work_arrays`; `spare` is ``(after, saved, saved_scalars)``: the state after
-    a step and at the sample before (q, q̇, q̈, ã, λ each), and that sample's scalars.
+    a step and at the sample before (q, q̇, q̈, ã, λ, Newton's q̈ each), and that sample's scalars.
     `control` is ``(rules, values, saved_values, scratch, weights)`` of the step-size controller
     (`sparsekin.solve._error_control_kernels`): with an rtol in its rules, the steps are
     error-controlled (`_advance_controlled`), else of the largest size, halved on a failure.
@@ -729,9 +731,9 @@ class CompiledDynamicsLoop:
         self.n_compiled += solved
         if solved < count:
             self.fell_back = True
-            q, v, a, pseudo, lam, scalars = (array.copy() for array in self._state[:6])
-            resume(python, q, v, a, pseudo, lam, scalars[_TIME], scalars[_STEP], scalars[_WORK], scalars[_DISSIPATED],
-                   (scalars[_POWER], scalars[_DAMPING]))  # fmt: skip
+            scalars = [float(value) for value in self._state[_SCALARS]]
+            resume(python, tuple(array.copy() for array in self._state[:6]), scalars[_TIME], scalars[_STEP],
+                   scalars[_WORK], scalars[_DISSIPATED], (scalars[_POWER], scalars[_DAMPING]))  # fmt: skip
             python._good = int(scalars[_GOOD])
             if solved == 0:
                 return self._steps.advance_block(times)
@@ -783,14 +785,13 @@ class CompiledDynamicsLoop:
         scalars = np.array([start.time, start.step, start.work, start.dissipated, power, damping, balance0,
                             python._good, 0.0])  # fmt: skip
         counts = np.zeros(8, dtype=np.int64)
-        self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m)),
-                       tuple(np.zeros(size) for size in (n, n, n, n, m)), np.zeros(scalars.size))  # fmt: skip
-        # a dense factorization is held column-major (`compiled_factorization`): the column-oriented
-        # substitutions of `dense_lu_solve` (a dozen per step on A03) then run along contiguous memory
-        # (41 unknowns: 1.8 µs a solve against 2.4 row-major; the factorization the same within 5 %)
-        self._state = (start.coordinates.copy(), start.velocities.copy(), start.accelerations.copy(),
-                       start.pseudo_accelerations.copy(), start.multipliers.copy(), scalars,
-                       factorization, np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
+        self._spare = (tuple(np.zeros(size) for size in (n, n, n, n, m, n)),
+                       tuple(np.zeros(size) for size in (n, n, n, n, m, n)), np.zeros(scalars.size))  # fmt: skip
+        # start[1:6]: q, q̇, q̈, ã, λ.  A dense factorization is held column-major (`compiled_factorization`):
+        # the column-oriented substitutions of `dense_lu_solve` (a dozen per step on A03) then run along
+        # contiguous memory (41 unknowns: 1.8 µs a solve against 2.4 row-major; the factorization within 5 %)
+        self._state = (*(array.copy() for array in (*start[1:6], start.newton_start)), scalars, factorization,
+                       np.zeros(system.size, dtype=np.int64), counts)  # fmt: skip
         rows = self._chunk
         self._out = (np.zeros((rows, n)), np.zeros((rows, n)), np.zeros((rows, n)), np.zeros(rows, dtype=np.int64),
                      np.zeros((rows, 6)), np.zeros((rows, 2)))  # fmt: skip

@@ -157,6 +157,9 @@ class DynamicState(NamedTuple):
     work, dissipated : float
         Work of the loads, actuators and drivers, and energy dissipated by dampers, since
         the start, J.
+    newton_accelerations : ndarray, shape (n_coordinates,), optional
+        q̈ as Newton solved the step, before the acceleration projection (None: the same as
+        `accelerations`): the next step's Newton starts from them.
     """
 
     time: float
@@ -168,6 +171,12 @@ class DynamicState(NamedTuple):
     step: float
     work: float
     dissipated: float
+    newton_accelerations: np.ndarray | None = None
+
+    @property
+    def newton_start(self) -> np.ndarray:
+        """The q̈ the next step's Newton starts from: `newton_accelerations`, else `accelerations`."""
+        return self.accelerations if self.newton_accelerations is None else self.newton_accelerations
 
 
 class GeneralizedAlphaStepper(ConstraintProjections):
@@ -437,9 +446,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         q, v, a = np.empty(n), np.empty(n), np.empty(n)
         extrapolate = (self._previous is not None and h <= EXTRAPOLATION_RATIO * self._previous[1]
                        and self._floor.extrapolates())  # fmt: skip
-        previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (state.accelerations, 0.0)
+        start = state.newton_start
+        previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (start, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
-                                  alpha_m, alpha_f, gamma, beta, h, q, v, a, previous, ratio)  # fmt: skip
+                                  alpha_m, alpha_f, gamma, beta, h, q, v, a, start, previous, ratio)  # fmt: skip
         lam = state.multipliers.copy()
         system.set_time(t_next)
         self._floor.step_begins()
@@ -521,8 +531,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             self._project_velocities(q, v, lam, coefficients, h)
             self._floor.step()
             change = self._project_accelerations(q, v, a, lam, coefficients)
-        if change is not None:
-            self._apply_acceleration_change(a, pseudo, lam, change)
+        newton = a if change is None else self._apply_acceleration_change(a, pseudo, lam, change)
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
@@ -531,8 +540,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
-        self._previous = (state.accelerations, h)  # the step's start: the next one extrapolates from it
-        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated)
+        self._previous = (start, h)  # the step's start: the next one extrapolates from it
+        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
         """Newton's last test, once its corrections have settled: the constraints' residual
@@ -564,8 +573,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         """The velocity projection's drift Φq v + Φt (every equation), bound and noise.  The
         drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
         velocity kick of about 2 d in the next step.  On the large path the refinement also
-        stops at a tenth of Newton's velocity noise γ′ · floor (`RoundingFloor`) once the
-        drift is within the bound."""
+        stops at a fraction (`PROJECTION_NOISE`) of Newton's velocity noise γ′ · floor
+        (`RoundingFloor`) once the drift is within the bound."""
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
@@ -596,14 +605,17 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
         return self.system.jacobian_product(a, assembler.acceleration_rhs, out), bound, noise
 
-    def _apply_acceleration_change(self, a, pseudo, lam, change) -> None:
-        """q̈ and ã less the projection's change, λ less its multipliers."""
+    def _apply_acceleration_change(self, a, pseudo, lam, change) -> np.ndarray:
+        """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈
+        (a copy of `a` before: the next step's Newton starts from it)."""
+        newton = a.copy()
         a -= change[: a.size]
         pseudo -= change[: a.size]
         if self.system.kept_rows.size == self.pattern.n_equations:
             lam -= change[a.size :]
         else:
             lam[self.system.kept_rows] -= change[a.size :]
+        return newton
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:

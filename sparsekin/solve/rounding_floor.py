@@ -17,8 +17,10 @@ FLOOR_STEPS = 100
 #: A held matrix's correction within this multiple of the measured floor is noise.
 FLOOR_MARGIN = 4.0
 #: The projections stop refining once their increment is below this fraction of Newton's
-#: noise γ′ · floor (velocities) or β′ · floor (accelerations), the drift at the tolerance.
-PROJECTION_NOISE = 0.1
+#: noise γ′ · floor (velocities) or β′ · floor (accelerations), the drift at the tolerance
+#: (0.1 until the sixth session: the refinement it left off cost a 10^5-body chain's B0 2 %
+#: once Newton started from its own last accelerations; docs/design-notes.md).
+PROJECTION_NOISE = 0.03
 #: A projection skips its refinement when the contraction measured on the held matrix
 #: predicts a next increment below this fraction of the projection's noise bound ...
 REFINEMENT_MARGIN = 0.01
@@ -183,7 +185,7 @@ class RoundingFloor:
         self._newton = correction
 
     def projection_noise(self, rate: float) -> float:
-        """A tenth (`PROJECTION_NOISE`) of the noise Newton leaves in the velocities
+        """A fraction `PROJECTION_NOISE` of the noise Newton leaves in the velocities
         (`rate` γ′) or accelerations (`rate` β′): `rate` times the measured floor or
         Newton's last correction in this step (`converged`), the larger (large path only,
         else 0: refine to the bound).
