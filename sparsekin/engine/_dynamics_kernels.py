@@ -478,6 +478,48 @@ def drift_left_norm(indptr, indices, values, kept_row, x, drift, weights):
 
 
 @njit(**JIT)
+def drift_left_norms(indptr, indices, values, kept_row, first, first_drift, second, second_drift, weights):
+    """`drift_left_norm` of ``(first, first_drift)`` and of ``(second, second_drift)`` in one
+    pass over J, each bit for bit its own call: the two projections' tests after a paired
+    solve (`sparsekin.solve.projections`)."""
+    norm0, norm1, probe0, probe1 = 0.0, 0.0, 0.0, 0.0
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        total0, total1 = 0.0, 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            value, column = values[s], indices[s]
+            total0 += value * first[column]
+            total1 += value * second[column]
+        left0 = abs(first_drift[kept] - total0) * weights[r]
+        left1 = abs(second_drift[kept] - total1) * weights[r]
+        probe0 += 0.0 * left0
+        probe1 += 0.0 * left1
+        norm0 = max(norm0, left0)
+        norm1 = max(norm1, left1)
+    return norm0 if probe0 == 0.0 else math.nan, norm1 if probe1 == 0.0 else math.nan
+
+
+@njit(**JIT)
+def fill_drift_pair(indptr, indices, values, first, first_target, first_out, second, second_target, second_out,
+                    second_product):  # fmt: skip
+    """``first_out = J first − first_target`` and ``second_out = J second − second_target``
+    for a CSR J in one pass, each bit for bit `fill_row_products` and the subtraction; and
+    ``second_product = J second`` (the projections' targets: Φq q̇ + Φt and Φq q̈ − γ, and Φq q̈
+    for a later γ)."""
+    for r in range(indptr.size - 1):
+        total0, total1 = 0.0, 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            value, column = values[s], indices[s]
+            total0 += value * first[column]
+            total1 += value * second[column]
+        first_out[r] = total0 - first_target[r]
+        second_out[r] = total1 - second_target[r]
+        second_product[r] = total1
+
+
+@njit(**JIT)
 def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, cols, vals, start):
     """Φq and Φqᵀ of the kept rows (``kept_row[r]``: the row's index among them, −1 if
     left out) at rows/columns ``first + kept_row[r]``; 2 entries per Jacobian entry."""
@@ -520,17 +562,31 @@ def saddle_residuals(rows, cols, vals, count, n, indptr, indices, values, kept_r
     """``out0 = [0; drift0] − S x0`` and, when `both`, ``out1 = [0; drift1] − S x1`` in one
     pass over S (as `saddle_product`: the coordinate block's first `count` triplets and the
     CSR Jacobian; `drift0`, `drift1` of the kept rows): the residuals of the two projections'
-    iterative refinement (`sparsekin.solve.projections`)."""
+    iterative refinement (`sparsekin.solve.projections`).  A run of triplets on one row (a
+    body's mass block: three) is summed in registers and stored once, the same subtractions
+    in the same order: no wait on a store to load the next."""
     for k in range(out0.size):
         out0[k] = 0.0
         if both:
             out1[k] = 0.0
+    current, total0, total1 = -1, 0.0, 0.0
     for e in range(count):
         row, col = rows[e], cols[e]
         if row < n and col < n:
-            out0[row] -= vals[e] * x0[col]
+            if row != current:
+                if current >= 0:
+                    out0[current] = total0
+                    if both:
+                        out1[current] = total1
+                current, total0 = row, out0[row]
+                total1 = out1[row] if both else 0.0
+            total0 -= vals[e] * x0[col]
             if both:
-                out1[row] -= vals[e] * x1[col]
+                total1 -= vals[e] * x1[col]
+    if current >= 0:
+        out0[current] = total0
+        if both:
+            out1[current] = total1
     for r in range(indptr.size - 1):
         kept = kept_row[r]
         if kept < 0:

@@ -12,6 +12,8 @@ functions, so the two paths evaluate the same arithmetic in the same order:
   inertial forces;
 * `motion_powers` — the power of the loads, actuators and drivers, and that dissipated.
 
+`newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call.
+
 Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` with the
 ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
 indptr, indices, values, value, zeros, ones, rates)`` of
@@ -22,6 +24,8 @@ whose reference counts at every call cost more than a small model's arithmetic.
 """
 
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
@@ -117,3 +121,57 @@ def motion_powers(loads, actuators, q, qd, turns, law_values, multipliers, drive
         drivers += multipliers[driven_row[k]] * velocity_rhs[driven_row[k]]
     power -= drivers
     return power, damping_power(loads.spring, loads.torsion, qd, q, turns)
+
+
+@njit(**JIT)
+def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers, scale, residual, kept_rows,
+                     all_kept, applied, rhs):  # fmt: skip
+    """Newton's right-hand side ``rhs = [scale · (M q̈ + h − Q + Φqᵀλ); −Φ of the kept
+    rows]`` in one call; whether its first n entries are finite.
+
+    The same operations in the same order as `DynamicSystem.residual` (`load_motion`,
+    `fill_motion_forces`, the negation, Φqᵀλ) followed by `newton_rhs`, bit for bit, without
+    the force array between them, and without copying q and the turns where the
+    constraints' last fill was at q: the forces then read the fill's own (equal) arrays.
+    `motion` is ``(coordinates, velocities, accelerations, q, qd, qdd, filled,
+    filled_turns, turns)`` as for `load_motion`; `jacobian` ``(indptr, indices, values)``
+    of Φq; `applied` (n_coordinates + 3) scratch."""
+    coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns = motion
+    n = coordinates.size
+    same = True
+    for k in range(n):
+        qd[k] = velocities[k]
+        qdd[k] = accelerations[k]
+        same = same and filled[k] == coordinates[k]
+    for k in range(n, filled.size):
+        same = same and filled[k] == q[k]
+    if same:
+        at, turned = filled, filled_turns
+    else:
+        at, turned = q, turns
+        for k in range(n):
+            q[k] = coordinates[k]
+        for b in range(turns.shape[0]):
+            angle = q[3 * b + 2]
+            turns[b, 0] = math.cos(angle)
+            turns[b, 1] = math.sin(angle)
+    fill_applied_forces(loads, at, qd, qdd, turned, law_values, True, applied)
+    out = rhs[:n]
+    if actuators[1].size > 1:  # actuator rows: Q gains F ∇s before the negation, as `fill_motion_forces`
+        for k in range(n):
+            out[k] = applied[k]
+        _actuator_gradients(actuators, at, turned)
+        add_transposed_product(actuators[1], actuators[2], actuators[3], law_values, out)
+        for k in range(n):
+            out[k] = -out[k]
+    else:
+        for k in range(n):
+            out[k] = -applied[k]
+    add_transposed_product(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
+    probe = 0.0
+    for k in range(n):
+        probe += 0.0 * out[k]
+        out[k] = out[k] * scale
+    for k in range(rhs.size - n):
+        rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
+    return probe == 0.0
