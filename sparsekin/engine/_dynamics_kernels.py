@@ -656,29 +656,47 @@ def fill_rounding_probe(row_weights, rounding, n, out):
         out[n + k] = sign * rounding / row_weights[k]
 
 
+@njit(inline="always", **JIT)
+def _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k):
+    """Entry k of `newton_update`: ``(|δq| w, |q| w)`` after the update."""
+    d = delta[k]
+    q[k] += d
+    v[k] += gamma_prime * d
+    a[k] += beta_prime * d
+    return abs(d) * weights[k], abs(q[k]) * weights[k]
+
+
 @njit(**JIT)
 def newton_update(delta, gamma_prime, beta_prime, kept_rows, all_kept, weights, q, v, a, multipliers):
     """``q += δq``, ``v += γ′ δq``, ``a += β′ δq``, ``λ_kept += β′ δλ``; returns the weighted
-    norms (`weighted_norm`) of δq and of the new q, in the same pass."""
+    norms (`weighted_norm`) of δq and of the new q, in the same pass.  Four lanes of running
+    maxima and finiteness probes, as `weighted_norm` (a maximum and a sum of zeros do not
+    depend on the order: the same results without a serial chain through every entry)."""
     n = q.size
-    correction, size, probe = 0.0, 0.0, 0.0
-    for k in range(n):
-        d = delta[k]
-        q[k] += d
-        v[k] += gamma_prime * d
-        a[k] += beta_prime * d
-        weighted = abs(d) * weights[k]
-        probe += 0.0 * weighted
-        correction = max(correction, weighted)
-        weighted = abs(q[k]) * weights[k]
-        probe += 0.0 * weighted
-        size = max(size, weighted)
+    c0 = c1 = c2 = c3 = s0 = s1 = s2 = s3 = 0.0
+    p0 = p1 = p2 = p3 = 0.0
+    end = n - n % 4
+    for k in range(0, end, 4):
+        d0, q0 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k)
+        d1, q1 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 1)
+        d2, q2 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 2)
+        d3, q3 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 3)
+        p0 += 0.0 * d0 + 0.0 * q0
+        p1 += 0.0 * d1 + 0.0 * q1
+        p2 += 0.0 * d2 + 0.0 * q2
+        p3 += 0.0 * d3 + 0.0 * q3
+        c0, c1, c2, c3 = max(c0, d0), max(c1, d1), max(c2, d2), max(c3, d3)
+        s0, s1, s2, s3 = max(s0, q0), max(s1, q1), max(s2, q2), max(s3, q3)
+    for k in range(end, n):
+        d0, q0 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k)
+        p0 += 0.0 * d0 + 0.0 * q0
+        c0, s0 = max(c0, d0), max(s0, q0)
     for k in range(delta.size - n):
         row = k if all_kept else kept_rows[k]
         multipliers[row] += beta_prime * delta[n + k]
-    if probe != 0.0:
+    if p0 + p1 + p2 + p3 != 0.0:
         return math.nan, math.nan
-    return correction, size
+    return max(max(c0, c1), max(c2, c3)), max(max(s0, s1), max(s2, s3))
 
 
 @njit(**JIT)

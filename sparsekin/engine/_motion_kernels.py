@@ -168,10 +168,14 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
         for k in range(n):
             out[k] = -applied[k]
     add_transposed_product(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
-    probe = 0.0
-    for k in range(n):
-        probe += 0.0 * out[k]
+    p0 = p1 = 0.0  # two lanes: a sum of zeros (NaN if any entry is not finite) in any order
+    for k in range(0, n - n % 2, 2):
+        p0 += 0.0 * out[k]
+        p1 += 0.0 * out[k + 1]
+        out[k], out[k + 1] = out[k] * scale, out[k + 1] * scale
+    for k in range(n - n % 2, n):
+        p0 += 0.0 * out[k]
         out[k] = out[k] * scale
     for k in range(rhs.size - n):
         rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
-    return probe == 0.0
+    return p0 + p1 == 0.0
