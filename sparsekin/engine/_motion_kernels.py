@@ -88,9 +88,12 @@ def fill_saddle_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_va
 
 @njit(inline="always", **JIT)
 def _actuator_gradients(actuators, q, turns):
-    """∇s of every actuator at `q` (into ``actuators[3]``)."""
+    """∇s of every actuator at `q` (into ``actuators[3]``; `turns` made again at `q`).  Nothing
+    without an actuator's entry: every caller's `turns` are at `q` already (the refill would
+    write the same cos and sin, a pass over the bodies' angles for nothing)."""
     primitives, indptr, indices, values, value, zeros, ones, rates = actuators
-    residual_jacobian(primitives, q, turns, zeros, ones, value, values)
+    if indptr[indptr.size - 1] > 0:
+        residual_jacobian(primitives, q, turns, zeros, ones, value, values)
 
 
 @njit(inline="always", **JIT)
@@ -157,7 +160,7 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
             turns[b, 1] = math.sin(angle)
     fill_applied_forces(loads, at, qd, qdd, turned, law_values, True, applied)
     out = rhs[:n]
-    if actuators[1].size > 1:  # actuator rows: Q gains F ∇s before the negation, as `fill_motion_forces`
+    if actuators[1][actuators[1].size - 1] > 0:  # actuators: Q gains F ∇s first, as in `fill_motion_forces`
         for k in range(n):
             out[k] = applied[k]
         _actuator_gradients(actuators, at, turned)

@@ -110,8 +110,9 @@ class ConstraintProjections:
         multipliers ``[Δ; μ]`` (None if none is needed).
 
         `velocity` and `acceleration` are the targets ``(drift, bound, noise)`` of
-        `_paired_targets` (which keeps Φq q̈ for the acceleration drifts at moved velocities).  The acceleration target γ(q, v)
-        depends on the projected velocities: its first solve takes the drift at the
+        `_paired_targets` (which keeps Φq q̈ for the acceleration drifts at moved
+        velocities).  The acceleration target γ(q, v) depends on the projected
+        velocities: its first solve takes the drift at the
         velocities before their projection, and every later test and residual the drift
         at the velocities moved so far (made again after each velocity increment; an
         acceleration projection found done is tested again at the new target).  Each
