@@ -428,7 +428,13 @@ def test_projections_together_land_on_both_constraints():
 
     v1, a1, lam1 = v0.copy(), a0.copy(), lam.copy()
     velocity = stepper._velocity_target(v1, coefficients, h)
-    acceleration = stepper._acceleration_target(q, v1, a1, coefficients, stepper._projection_work[3])
+    velocity = (velocity[0].copy(), *velocity[1:])
+    acceleration = stepper._acceleration_target(q, v1, a1, coefficients, np.zeros(stepper.pattern.n_equations))
+    # the targets as the stepper makes them (both drifts in one pass): the same numbers
+    paired = stepper._paired_targets(q, v1, a1, coefficients, h)
+    for one, other in zip((velocity, acceleration), paired):
+        assert np.array_equal(one[0], other[0]) and one[1:] == other[1:]
+    velocity, acceleration = paired
     bounds, noises = (velocity[1], acceleration[1]), (velocity[2], acceleration[2])
     stepper._apply_acceleration_change(a1, a1.copy(), lam1, stepper._project_together(
         q, v1, a1, lam1, coefficients, velocity, acceleration))  # fmt: skip

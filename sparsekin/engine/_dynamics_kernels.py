@@ -478,6 +478,48 @@ def drift_left_norm(indptr, indices, values, kept_row, x, drift, weights):
 
 
 @njit(**JIT)
+def drift_left_norms(indptr, indices, values, kept_row, first, first_drift, second, second_drift, weights):
+    """`drift_left_norm` of ``(first, first_drift)`` and of ``(second, second_drift)`` in one
+    pass over J, each bit for bit its own call: the two projections' tests after a paired
+    solve (`sparsekin.solve.projections`)."""
+    norm0, norm1, probe0, probe1 = 0.0, 0.0, 0.0, 0.0
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        total0, total1 = 0.0, 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            value, column = values[s], indices[s]
+            total0 += value * first[column]
+            total1 += value * second[column]
+        left0 = abs(first_drift[kept] - total0) * weights[r]
+        left1 = abs(second_drift[kept] - total1) * weights[r]
+        probe0 += 0.0 * left0
+        probe1 += 0.0 * left1
+        norm0 = max(norm0, left0)
+        norm1 = max(norm1, left1)
+    return norm0 if probe0 == 0.0 else math.nan, norm1 if probe1 == 0.0 else math.nan
+
+
+@njit(**JIT)
+def fill_drift_pair(indptr, indices, values, first, first_target, first_out, second, second_target, second_out,
+                    second_product):  # fmt: skip
+    """``first_out = J first − first_target`` and ``second_out = J second − second_target``
+    for a CSR J in one pass, each bit for bit `fill_row_products` and the subtraction; and
+    ``second_product = J second`` (the projections' targets: Φq q̇ + Φt and Φq q̈ − γ, and Φq q̈
+    for a later γ)."""
+    for r in range(indptr.size - 1):
+        total0, total1 = 0.0, 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            value, column = values[s], indices[s]
+            total0 += value * first[column]
+            total1 += value * second[column]
+        first_out[r] = total0 - first_target[r]
+        second_out[r] = total1 - second_target[r]
+        second_product[r] = total1
+
+
+@njit(**JIT)
 def fill_multiplier_triplets(indptr, indices, values, kept_row, first, rows, cols, vals, start):
     """Φq and Φqᵀ of the kept rows (``kept_row[r]``: the row's index among them, −1 if
     left out) at rows/columns ``first + kept_row[r]``; 2 entries per Jacobian entry."""
@@ -520,17 +562,31 @@ def saddle_residuals(rows, cols, vals, count, n, indptr, indices, values, kept_r
     """``out0 = [0; drift0] − S x0`` and, when `both`, ``out1 = [0; drift1] − S x1`` in one
     pass over S (as `saddle_product`: the coordinate block's first `count` triplets and the
     CSR Jacobian; `drift0`, `drift1` of the kept rows): the residuals of the two projections'
-    iterative refinement (`sparsekin.solve.projections`)."""
+    iterative refinement (`sparsekin.solve.projections`).  A run of triplets on one row (a
+    body's mass block: three) is summed in registers and stored once, the same subtractions
+    in the same order: no wait on a store to load the next."""
     for k in range(out0.size):
         out0[k] = 0.0
         if both:
             out1[k] = 0.0
+    current, total0, total1 = -1, 0.0, 0.0
     for e in range(count):
         row, col = rows[e], cols[e]
         if row < n and col < n:
-            out0[row] -= vals[e] * x0[col]
+            if row != current:
+                if current >= 0:
+                    out0[current] = total0
+                    if both:
+                        out1[current] = total1
+                current, total0 = row, out0[row]
+                total1 = out1[row] if both else 0.0
+            total0 -= vals[e] * x0[col]
             if both:
-                out1[row] -= vals[e] * x1[col]
+                total1 -= vals[e] * x1[col]
+    if current >= 0:
+        out0[current] = total0
+        if both:
+            out1[current] = total1
     for r in range(indptr.size - 1):
         kept = kept_row[r]
         if kept < 0:
@@ -601,29 +657,47 @@ def fill_rounding_probe(row_weights, rounding, n, out):
         out[n + k] = sign * rounding / row_weights[k]
 
 
+@njit(inline="always", **JIT)
+def _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k):
+    """Entry k of `newton_update`: ``(|δq| w, |q| w)`` after the update."""
+    d = delta[k]
+    q[k] += d
+    v[k] += gamma_prime * d
+    a[k] += beta_prime * d
+    return abs(d) * weights[k], abs(q[k]) * weights[k]
+
+
 @njit(**JIT)
 def newton_update(delta, gamma_prime, beta_prime, kept_rows, all_kept, weights, q, v, a, multipliers):
     """``q += δq``, ``v += γ′ δq``, ``a += β′ δq``, ``λ_kept += β′ δλ``; returns the weighted
-    norms (`weighted_norm`) of δq and of the new q, in the same pass."""
+    norms (`weighted_norm`) of δq and of the new q, in the same pass.  Four lanes of running
+    maxima and finiteness probes, as `weighted_norm` (a maximum and a sum of zeros do not
+    depend on the order: the same results without a serial chain through every entry)."""
     n = q.size
-    correction, size, probe = 0.0, 0.0, 0.0
-    for k in range(n):
-        d = delta[k]
-        q[k] += d
-        v[k] += gamma_prime * d
-        a[k] += beta_prime * d
-        weighted = abs(d) * weights[k]
-        probe += 0.0 * weighted
-        correction = max(correction, weighted)
-        weighted = abs(q[k]) * weights[k]
-        probe += 0.0 * weighted
-        size = max(size, weighted)
+    c0 = c1 = c2 = c3 = s0 = s1 = s2 = s3 = 0.0
+    p0 = p1 = p2 = p3 = 0.0
+    end = n - n % 4
+    for k in range(0, end, 4):
+        d0, q0 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k)
+        d1, q1 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 1)
+        d2, q2 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 2)
+        d3, q3 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k + 3)
+        p0 += 0.0 * d0 + 0.0 * q0
+        p1 += 0.0 * d1 + 0.0 * q1
+        p2 += 0.0 * d2 + 0.0 * q2
+        p3 += 0.0 * d3 + 0.0 * q3
+        c0, c1, c2, c3 = max(c0, d0), max(c1, d1), max(c2, d2), max(c3, d3)
+        s0, s1, s2, s3 = max(s0, q0), max(s1, q1), max(s2, q2), max(s3, q3)
+    for k in range(end, n):
+        d0, q0 = _updated(delta, gamma_prime, beta_prime, weights, q, v, a, k)
+        p0 += 0.0 * d0 + 0.0 * q0
+        c0, s0 = max(c0, d0), max(s0, q0)
     for k in range(delta.size - n):
         row = k if all_kept else kept_rows[k]
         multipliers[row] += beta_prime * delta[n + k]
-    if probe != 0.0:
+    if p0 + p1 + p2 + p3 != 0.0:
         return math.nan, math.nan
-    return correction, size
+    return max(max(c0, c1), max(c2, c3)), max(max(s0, s1), max(s2, s3))
 
 
 @njit(**JIT)

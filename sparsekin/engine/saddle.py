@@ -239,6 +239,18 @@ class DynamicSystem:
         kernels.add_transposed_product(p.indptr, p.indices, values, multipliers, out)
         return out
 
+    def newton_rhs(self, coordinates, velocities, accelerations, multipliers, scale: float, rhs: np.ndarray) -> bool:
+        """``rhs = [scale · residual; −Phi of the kept rows]`` (`residual`; Phi and Phi_q from
+        the last `fill_constraints`) in one call (`_motion_kernels.newton_rhs_fused`: the
+        same numbers, no force array between); whether its first n entries are finite."""
+        filled, _, turns = self.assembler.filled_motion()
+        motion = (coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns, self._turns)
+        p, kept = self.pattern, self.kept_rows
+        return _motion_kernels.newton_rhs_fused(self.loads.arrays, self._actuator_arrays, motion, self.law_values,
+                                                (p.indptr, p.indices, self.assembler.values), multipliers, scale,
+                                                self.assembler.residual, kept, kept.size == p.n_equations,
+                                                self._applied, rhs)  # fmt: skip
+
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
         self._load(coordinates, velocities, accelerations)

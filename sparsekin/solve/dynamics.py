@@ -289,12 +289,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         kept = self._kept_rows(t)
         self.system = system = DynamicSystem(self.discretization, kept)
         self.solver = self._make_solver(system)
-        # Newton's rhs (its correction solved in place) and force (the first n of the projections'
-        # solution: they follow Newton and zero it first); the projections': solution, residual
-        # (Newton's rhs), drift, drift left, zeros
-        solution = np.zeros(system.size)
-        self._work = (np.zeros(system.size), solution[:n])
-        self._projection_work = (solution, self._work[0], np.zeros(m), np.zeros(m), np.zeros(n))
+        # Newton's rhs (its correction solved in place; `DynamicSystem.newton_rhs` fills it); the
+        # projections': solution, residual (Newton's rhs), drift, drift left, zeros
+        self._rhs = np.zeros(system.size)
+        self._projection_work = (np.zeros(system.size), self._rhs, np.zeros(m), np.zeros(m), np.zeros(n))
         self._pair_work = None  # `_project_together`'s, made when first needed
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
@@ -441,8 +439,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         beta_prime = (1.0 - alpha_m) / (h * h * beta * (1.0 - alpha_f))
         gamma_prime = gamma / (h * beta)
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
-        # predictor: the accelerations of the last step, extrapolated from the one before where
-        # that paid (`RoundingFloor.extrapolates`) (new arrays: the state keeps them)
+        # predictor: Newton's accelerations of the last step (before their projection),
+        # extrapolated from the one before where that paid (`RoundingFloor.extrapolates`)
+        # (new arrays: the state keeps them)
         q, v, a = np.empty(n), np.empty(n), np.empty(n)
         extrapolate = (self._previous is not None and h <= EXTRAPOLATION_RATIO * self._previous[1]
                        and self._floor.extrapolates())  # fmt: skip
@@ -454,7 +453,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         system.set_time(t_next)
         self._floor.step_begins()
         weights = self._weights
-        rhs, force = self._work
+        rhs = self._rhs
         all_kept = kept.size == self.pattern.n_equations
         last, fresh, rate, settled, stalled = math.inf, False, CONTRACTION, False, 0.0
         # Converged: the error left in q by the last correction and the constraint residual,
@@ -473,9 +472,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
-            system.residual(q, v, a, lam, force)
-            finite = _dynamics_kernels.newton_rhs(force, -1.0 / beta_prime, system.assembler.residual, kept, all_kept,
-                                                  rhs)  # fmt: skip
+            finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs)  # (the residual scaled, −Φ)
             if not (math.isfinite(phi_norm) and finite):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
@@ -523,8 +520,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
                                                beta, pseudo)  # fmt: skip
         if self._floor.enabled:  # the large path: both projections in one refinement, paired solves
-            velocity = self._velocity_target(v, coefficients, h)
-            acceleration = self._acceleration_target(q, v, a, coefficients, self._projection_work[3])
+            velocity, acceleration = self._paired_targets(q, v, a, coefficients, h)
             change = self._project_together(q, v, a, lam, coefficients, velocity, acceleration)
             self._floor.step()
         else:
@@ -569,16 +565,17 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         if change is not None:
             v -= change[: v.size]
 
-    def _velocity_target(self, v, coefficients, h: float) -> tuple:
+    def _velocity_target(self, v, coefficients, h: float, drift: bool = True) -> tuple:
         """The velocity projection's drift Φq v + Φt (every equation), bound and noise.  The
         drift left is at most ``tolerance · h · max(1, ‖v‖)``: a drift d comes back as a
         velocity kick of about 2 d in the next step.  On the large path the refinement also
         stops at a fraction (`PROJECTION_NOISE`) of Newton's velocity noise γ′ · floor
-        (`RoundingFloor`) once the drift is within the bound."""
+        (`RoundingFloor`) once the drift is within the bound.  (Without `drift`: None in its
+        place.)"""
         scale = max(1.0, _dynamics_kernels.weighted_norm(v, self._weights))
         bound = max(step_velocity_bound(self.tolerance, h) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(coefficients[1] / coefficients[2])  # γ′ = (γ′/β′) / (1/β′)
-        return self.system.velocity_drift(v, self._projection_work[2]), bound, noise
+        return self.system.velocity_drift(v, self._projection_work[2]) if drift else None, bound, noise
 
     def _project_accelerations(self, q, v, a, lam, coefficients):
         """The change that moves the accelerations onto Φq q̈ = γ at the projected velocities
@@ -597,13 +594,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         singular value): Newton then failed at the N-four-bar's flat crossings.  ALI3-P
         projects the accelerations for the same reason.  The drift left is at most
         ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
-        the next step, tolerance · h per second like the others."""
+        the next step, tolerance · h per second like the others.  (With `out` None: γ made,
+        None in the drift's place.)"""
         assembler = self.assembler
         assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
-        return self.system.jacobian_product(a, assembler.acceleration_rhs, out), bound, noise
+        drift = None if out is None else self.system.jacobian_product(a, assembler.acceleration_rhs, out)
+        return drift, bound, noise
 
     def _apply_acceleration_change(self, a, pseudo, lam, change) -> np.ndarray:
         """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈

@@ -109,9 +109,10 @@ class ConstraintProjections:
         the velocities are moved in place; returns the accelerations' change and
         multipliers ``[Δ; μ]`` (None if none is needed).
 
-        `velocity` and `acceleration` are the targets ``(drift, bound, noise)``
-        (`_velocity_target`, `_acceleration_target`).  The acceleration target γ(q, v)
-        depends on the projected velocities: its first solve takes the drift at the
+        `velocity` and `acceleration` are the targets ``(drift, bound, noise)`` of
+        `_paired_targets` (which keeps Φq q̈ for the acceleration drifts at moved
+        velocities).  The acceleration target γ(q, v) depends on the projected
+        velocities: its first solve takes the drift at the
         velocities before their projection, and every later test and residual the drift
         at the velocities moved so far (made again after each velocity increment; an
         acceleration projection found done is tested again at the new target).  Each
@@ -124,11 +125,9 @@ class ConstraintProjections:
         refinement's noise of 4e-6."""
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
-        if self._pair_work is None:  # the accelerations' solution and residual (made at the first call)
-            self._pair_work = (np.zeros(system.size), np.zeros(system.size))
         zeros, drift_out = self._projection_work[4], self._projection_work[3]
         moves = _Column("velocity", *velocity, self._projection_work[0], self._projection_work[1], weights, system)
-        follows = _Column("acceleration", *acceleration, *self._pair_work, weights, system)
+        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system)
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain = False, False, None
         for iteration in range(PROJECTION_ITERATIONS):
@@ -148,20 +147,20 @@ class ConstraintProjections:
                 if gain is None or gain * moves.size > TARGET_MARGIN * follows.bound:
                     before = follows.residual[: follows.drift.size]  # (its increment is in its solution)
                     before[:] = follows.drift
-                    follows.drift = system.kept(self._acceleration_target(q, v, a, coefficients, drift_out)[0])
+                    follows.drift = system.kept(self._moved_acceleration_drift(q, v, drift_out))
                     if gain is None:  # how far the target moves per velocity increment, this step
                         np.subtract(follows.drift, before, out=before)
                         moved = _dynamics_kernels.weighted_norm(before, weights)
                         gain = moved / moves.size if moves.size > 0.0 else math.inf
-            restart = False
+            restart, lefts = False, self._paired_drift_lefts(active)
             for column in active:
                 if column.size <= column.bound or (column.size <= column.noise
-                                                   and self._drift_left(column.drift, column.solution) <= column.bound):  # fmt: skip
+                                                   and self._column_left(lefts, column) <= column.bound):  # fmt: skip
                     if math.isfinite(column.last):
                         self._floor.refined(column.what, column.size / column.last)
                     column.active, column.done = False, True
                 elif (column.first and self._floor.skips_refinement(column.what, column.size, column.noise)
-                        and self._drift_left(column.drift, column.solution) <= column.bound):  # fmt: skip
+                        and self._column_left(lefts, column) <= column.bound):  # fmt: skip
                     column.active, column.done = False, True
                 elif column.size > REFINEMENT_CONTRACTION * column.last or not (fresh or _converges_in_time(
                         column.size, column.size / column.last, column.bound,
@@ -181,7 +180,7 @@ class ConstraintProjections:
                 if not moves.done:
                     v += moves.solution[:n]
                     moves.start()
-                    follows.drift = system.kept(self._acceleration_target(q, v, a, coefficients, drift_out)[0])
+                    follows.drift = system.kept(self._moved_acceleration_drift(q, v, drift_out))
                     follows.start()
                 elif not follows.done:
                     follows.start()
@@ -202,6 +201,48 @@ class ConstraintProjections:
                 continue
             raise _StepFailed(f"the {column.what} projection does not converge (increment {column.size:.3g})")
         return follows.solution if follows.started else None
+
+    def _paired_targets(self, q, v, a, coefficients, h: float) -> tuple:
+        """`_velocity_target` and `_acceleration_target` of the large path (``(drift, bound,
+        noise)`` each), both drifts in one pass over Φq (`fill_drift_pair`: the same numbers),
+        Φq q̈ kept for the acceleration drifts at moved velocities (`_moved_acceleration_drift`)."""
+        if self._pair_work is None:  # the accelerations' solution and residual, and Φq q̈ (made at the first call)
+            size, m = self.system.size, self.pattern.n_equations
+            self._pair_work = (np.zeros(size), np.zeros(size), np.zeros(m))
+        velocity = self._velocity_target(v, coefficients, h, drift=False)
+        acceleration = self._acceleration_target(q, v, a, coefficients, None)  # γ at (q, v), bound, noise
+        p, assembler, work = self.pattern, self.assembler, self._projection_work
+        _dynamics_kernels.fill_drift_pair(p.indptr, p.indices, assembler.values, v, assembler.velocity_rhs, work[2],
+                                          a, assembler.acceleration_rhs, work[3], self._pair_work[2])  # fmt: skip
+        return (work[2], *velocity[1:]), (work[3], *acceleration[1:])
+
+    def _moved_acceleration_drift(self, q, v, out):
+        """The acceleration drift Φq q̈ − γ(q, v) of `_project_together` at the velocities `v`
+        moved so far (every equation, into `out`): γ made again, Φq q̈ that of `_paired_targets`
+        (q̈ and Φq have not changed since)."""
+        self.assembler.fill_acceleration_rhs(q, v)
+        return np.subtract(self._pair_work[2], self.assembler.acceleration_rhs, out=out)
+
+    def _paired_drift_lefts(self, active) -> dict:
+        """The drift left (`_drift_left`) of each active column of `_project_together`, by
+        name, where both will test it in this pass (their increments above the bound, and
+        within the noise or skipping the refinement): one pass over Φq for both
+        (`drift_left_norms`, the same numbers); else none (`_column_left` makes them)."""
+        tested = [column for column in active if column.size > column.bound and (column.size <= column.noise or (
+            column.first and self._floor.skips_refinement(column.what, column.size, column.noise)))]  # fmt: skip
+        if len(tested) < 2:
+            return {}
+        (first, second), system, p = tested, self.system, self.pattern
+        lefts = _dynamics_kernels.drift_left_norms(p.indptr, p.indices, self.assembler.values, system.kept_row,
+                                                   first.solution[: system.n], first.drift, second.solution[: system.n],
+                                                   second.drift, self.assembler.weights)  # fmt: skip
+        return {first.what: lefts[0], second.what: lefts[1]}
+
+    def _column_left(self, lefts: dict, column) -> float:
+        """The drift `column` leaves: from `lefts` (`_paired_drift_lefts`), else made and kept there."""
+        if column.what not in lefts:
+            lefts[column.what] = self._drift_left(column.drift, column.solution)
+        return lefts[column.what]
 
     def _projection_matrix(self, q, v, lam, coefficients):
         """The matrix the projections solve with, at the converged state (`_project`)."""
