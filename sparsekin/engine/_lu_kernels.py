@@ -161,6 +161,7 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     """
     _left_looking_lu(values, in_factor_order, b_pattern, None, lower, upper, work, stats)
 
+
 @njit(**_JIT)
 def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats):
     """`refactor_lu` without B's row indices held: ``rows`` is ``(indices, perm_r)``, the CSR
