@@ -25,12 +25,10 @@ solve gives the structural factors' solution (``w - 0 * x`` is ``w``, to the sig
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from .._jit import JIT as _JIT
-
-_wide = np.int64  # a loop bound or an offset read from a narrow array, counted in int64
+from ._lu_kernels import _index, _wide  # (an offset read from a narrow array is widened by `_wide` too)
 
 MAX_OFFSET = 127  # int8
 MAX_COUNT = 255  # uint8
@@ -68,9 +66,9 @@ def compact_in_place(indptr, indices, values, counts, offsets):
 
 @njit(inline="always", **_JIT)
 def _row(j, offset):
-    """Row ``j + offset`` as an unsigned index: numba checks a signed index for a negative
-    (wrapping) value at every access, which made the paired solve 12 % slower (10^4 chain)."""
-    return np.uint64(j + _wide(offset))
+    """Row ``j + offset`` as an unsigned index (`_lu_kernels._index`: the paired solve was 12 %
+    slower with a signed one, 10^4 chain)."""
+    return _index(j + _wide(offset))
 
 
 @njit(inline="always", **_JIT)
