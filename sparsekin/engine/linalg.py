@@ -10,7 +10,8 @@ of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocat
 * `RefactorSolver` — a first SuperLU factorization fixes the ordering and the pivot
   sequence; every later `factor` is a numeric refactorization on the fixed structural
   patterns of L and U (numba kernels in `sparsekin.engine._lu_kernels`), guarded: when the fixed
-  pivots turn bad it falls back to a fresh SuperLU factorization with new pivoting.
+  pivots turn bad it chooses new row pivots on the same column order
+  (`sparsekin.engine._pivoting_kernels`).
 * `sparsekin.engine.dense.DenseSolver` — LAPACK's LU with partial pivoting on a dense
   copy, for small models that the compiled loop cannot run (see the dense kernels of
   `sparsekin.engine._lu_kernels` for compiled loops; docs/design-notes.md compares the paths).
@@ -324,7 +325,7 @@ class RefactorSolver:
         column order after the guard), then the structural analysis.
     n_refactorizations : int
         Numeric refactorizations attempted on the fixed pattern (including those the guard
-        rejected, each of which is followed by a fresh factorization).
+        rejected, each of which is followed by new pivots: a fresh factorization).
     n_fallbacks : int
         Refactorizations the guard rejected (each followed by new pivots).
     n_solves : int
@@ -608,9 +609,9 @@ class RefactorSolver:
         )
         self._work_is_zero = True
         if bad_column < 0:
-            self.n_factorizations += 1
             self._analyse(perm_r, self._perm_c, l_entries, u_entries)
             if self._numeric(values, in_factor_order):
+                self.n_factorizations += 1
                 return
         del perm_r
         self._analyse(held_perm_r, self._perm_c, l_capacity, u_capacity)
