@@ -24,11 +24,14 @@ Commands::
     python3 benchmarks/measure_dynamics_chain.py table --accuracy  # + 100 steps at 10^5, both
     python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001 --steps 20
     python3 benchmarks/measure_dynamics_chain.py against /tmp/base --bodies 100001 --rounds 3
+    python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 100001 --steps 102 --step 0.98e-3
 
 (the third: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
 on the shared machine first; the last: the dynamic run of this tree and of another
 checkout, e.g. ``git archive main | tar -x -C /tmp/base``, alternately in fresh
-processes, each with its own sparsekin).  Each measurement prints one JSON line;
+processes, each with its own sparsekin; the last: a shorter step, for a comparison with
+Exudyn at equal accuracy over the accuracy run's horizon, (steps + 2) steps).  Each
+measurement prints one JSON line;
 ``table`` prints them and a Markdown table with the ratios of the same run.
 """
 
@@ -54,8 +57,9 @@ def peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
-    """Time per step of `analysis` ("kinematic" or "dynamic") on the chain of `bodies`."""
+def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP) -> dict:
+    """Time per step of `analysis` ("kinematic" or "dynamic") on the chain of `bodies`, steps of
+    `step` seconds (`STEP` but for an equal-accuracy comparison)."""
     import numpy as np
 
     from sparsekin.testset import four_bar_chain, n_four_bar
@@ -69,16 +73,16 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
     else:
         from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
-        stepper = GeneralizedAlphaStepper(n_four_bar(loops), STEP)
+        stepper = GeneralizedAlphaStepper(n_four_bar(loops), step)
     stepper.start(0.0)
     start_seconds = time.perf_counter() - start
     tips = []
 
     def advance(k: int) -> None:
-        stepper.advance(k * STEP)
+        stepper.advance(k * step)
         if analysis == "dynamic":  # B0, the tip of crank0 (origin at its pivot, 1 m long)
             q = stepper.state.coordinates
-            tips.append((k * STEP, q[0] + np.cos(q[2]), q[1] + np.sin(q[2])))
+            tips.append((k * step, q[0] + np.cos(q[2]), q[1] + np.sin(q[2])))
 
     from sparsekin.errors import ConvergenceError
 
@@ -93,7 +97,8 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int) -> dict:
             break
     per_step = (time.perf_counter() - clock) / max(done, 1)
     cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own: less moved by the load
-    result = {"analysis": analysis, "bodies": bodies, "steps": done, "seconds_per_step": per_step,
+    result = {"analysis": analysis, "bodies": bodies, "steps": done, **({"step_s": step} if step != STEP else {}),
+              "seconds_per_step": per_step,
               "cpu_seconds_per_step": cpu_per_step, "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
     if stopped is not None:
         result |= {"stopped": stopped, "stopped_at_s": stepper.time}
@@ -286,6 +291,7 @@ def main(argv=None) -> None:
     one.add_argument("analysis", choices=("kinematic", "dynamic"))
     one.add_argument("--bodies", type=int, default=1001, help="2N + 1")
     one.add_argument("--steps", type=int, default=20)
+    one.add_argument("--step", type=float, default=STEP, help="seconds (dynamic; default %(default)s)")
     run_table = commands.add_parser("table", help="every size, each measurement in a fresh process")
     run_table.add_argument("--accuracy", action="store_true", help=f"and {ACCURACY_STEPS} steps at the largest size")
     run_table.add_argument("--out", type=Path, help="also write the JSON lines here")
@@ -305,7 +311,7 @@ def main(argv=None) -> None:
         print(against_markdown(rows))
         return
     if arguments.command == "one":
-        print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps)))
+        print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps, arguments.step)))
         return
     rows = table(arguments.accuracy)
     if arguments.out:

@@ -11,18 +11,21 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.linalg
 from numba import njit
 from scipy.sparse import csr_array
+from scipy.sparse import eye as sparse_eye
+from scipy.sparse import random as sparse_random
 from scipy.sparse.linalg import splu, spsolve
 
 from sparsekin.engine.discretization import Discretization
 from sparsekin import solve_kinematics, testset
-from sparsekin.engine import _lu_kernels
+from sparsekin.engine import _lu_kernels, _pivoting_kernels, linalg
 from sparsekin.engine.assembly import Assembler
+from sparsekin.engine.dense import DenseSolver
 from sparsekin.engine.linalg import (
     MAX_GROWTH,
     MIN_PIVOT_RATIO,
-    DenseSolver,
     RefactorSolver,
     SingularMatrix,
     SuperLUSolver,
@@ -310,6 +313,92 @@ def test_guard_trips_on_a_small_pivot_ratio(rng):
     unguarded.factor(family.jacobian_at(0))
     unguarded.factor(jacobian)
     assert unguarded.n_fallbacks == 0 and unguarded.pivot_ratio < MIN_PIVOT_RATIO  # what tripped
+
+
+def _column_runs(jacobian: csr_array, perm_c: np.ndarray) -> tuple:
+    """B's column pointers and offsets for the column order `perm_c` of ``A = jacobian.T``
+    (as `RefactorSolver` holds them), and A's column of each column of B."""
+    column_of = np.argsort(perm_c)
+    b_indptr = np.concatenate([[0], np.cumsum(np.diff(jacobian.indptr)[column_of])])
+    return (b_indptr, jacobian.indptr[column_of] - b_indptr[:-1]), column_of
+
+
+@pytest.mark.parametrize("trial", range(40))
+def test_new_pivots_are_lapacks_partial_pivoting(trial, rng):
+    """`partial_pivoting_rows` at threshold 1 on a random sparse matrix and column order
+    chooses the rows LAPACK's ``getrf`` chooses for the column-permuted dense matrix (no
+    ties: random values), whatever the held rows; reads the values in either order; counts
+    the entries that the structural analysis of those pivots then finds.  At threshold 0.1
+    it keeps those rows as held rows, and from other held rows takes pivots within 0.1 of
+    their column's largest candidate."""
+    n = int(rng.integers(1, 40))
+    jacobian = csr_array(sparse_random(n, n, density=rng.uniform(0.05, 0.4), random_state=rng) + 0.3 * sparse_eye(n))
+    jacobian.sort_indices()
+    if np.linalg.matrix_rank(jacobian.toarray()) < n:
+        pytest.skip("a singular draw")
+    perm_c = rng.permutation(n)
+    b_pattern, column_of = _column_runs(jacobian, perm_c)
+    work = np.zeros(n)
+    held = (rng.permutation(n), perm_c)
+    pivot_of, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
+        jacobian.data, False, b_pattern, jacobian.indices, held, 1.0, 1, work)  # fmt: skip
+    assert bad_column == -1 and not work.any()
+    _, swaps = scipy.linalg.lu_factor(jacobian.toarray().T[:, column_of])
+    order = np.arange(n)  # row k of the pivoted matrix is row order[k]
+    for k, row in enumerate(swaps):
+        order[[k, row]] = order[[row, k]]
+    np.testing.assert_array_equal(pivot_of, np.argsort(order))
+    in_factor_order = np.concatenate([jacobian.data[jacobian.indptr[c]:jacobian.indptr[c + 1]] for c in column_of])
+    again = _pivoting_kernels.partial_pivoting_rows(
+        in_factor_order, True, b_pattern, jacobian.indices, held, 1.0, 1, work)  # fmt: skip
+    np.testing.assert_array_equal(again[0], pivot_of)
+    b_rows = np.concatenate([pivot_of[jacobian.indices[jacobian.indptr[c]:jacobian.indptr[c + 1]]] for c in column_of])
+    l_indptr, _, u_indptr, _ = _lu_kernels.analyse_lu_pattern(b_pattern[0], b_rows.astype(np.int32), 1, 1)
+    assert (l_entries, u_entries) == (l_indptr[-1], u_indptr[-1]) == again[2:]
+    kept = _pivoting_kernels.partial_pivoting_rows(
+        jacobian.data, False, b_pattern, jacobian.indices, (pivot_of, perm_c), 0.1, 1, work)  # fmt: skip
+    np.testing.assert_array_equal(kept[0], pivot_of)
+    other = _pivoting_kernels.partial_pivoting_rows(jacobian.data, False, b_pattern, jacobian.indices, held, 0.1, 1, work)
+    solver = RefactorSolver(min_pivot_ratio=0.0, max_growth=np.inf)
+    solver.suggest(other[0], perm_c)
+    solver.factor(jacobian)
+    assert solver.n_fallbacks == 0 and solver.pivot_ratio >= 0.1 * (1.0 - 1e-12)
+
+
+def test_new_pivots_without_superlu(monkeypatch, rng):
+    """When the guard trips, the new pivots come from partial pivoting on the held column
+    order: SuperLU is not called, the layout (column order) stays, the pivots are good and
+    the solves agree with `spsolve`; a singular matrix still goes to SuperLU, which says so,
+    and the solver refactors the next matrix on its held pivots."""
+    family = Family("task5_chain")
+    solver = RefactorSolver()
+    solver.factor(family.jacobian_at(0))
+    perm_c, version = solver.perm_c.copy(), solver.layout_version
+
+    def no_superlu(*args, **kwargs):
+        raise AssertionError("SuperLU called")
+
+    monkeypatch.setattr(linalg, "_splu", no_superlu)
+    jacobian = family.jacobian_at(1).copy()
+    jacobian.data *= (10.0 ** rng.uniform(-6.0, 6.0, jacobian.shape[1]))[jacobian.indices]
+    solver.factor(jacobian)
+    assert (solver.n_factorizations, solver.n_fallbacks, solver.layout_version) == (2, 1, version)
+    np.testing.assert_array_equal(solver.perm_c, perm_c)
+    assert solver.pivot_ratio >= linalg.NEW_PIVOT_THRESHOLD * (1.0 - 1e-12)  # |L| <= 10
+    check_solves(solver, jacobian, rng)
+    ordered = np.empty(jacobian.nnz)
+    ordered[solver.value_positions] = family.jacobian_at(2).data
+    ordered[solver.value_positions] *= (10.0 ** rng.uniform(-6.0, 6.0, jacobian.shape[1]))[jacobian.indices]
+    solver.factor_ordered(ordered)  # the rescaling reversed: the guard trips again
+    assert (solver.n_factorizations, solver.n_fallbacks) == (3, 2)
+    monkeypatch.undo()
+    singular = family.jacobian_at(2).copy()
+    singular.data[singular.indices == 5] = 0.0
+    with pytest.raises(SingularMatrix, match="singular"):
+        solver.factor(singular)
+    assert (solver.n_factorizations, solver.n_fallbacks) == (4, 3)
+    solver.factor(family.jacobian_at(3))
+    check_solves(solver, family.jacobian_at(3), rng)
 
 
 def test_guard_trips_on_growth(rng):

@@ -71,7 +71,7 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
     set of rows reachable from the rows of ``B(:, j)`` in the graph of the columns of L
     already found.  The diagonal is always kept.  This one kernel allocates and returns
     its outputs, whose sizes only the analysis finds (it grows them by doubling from the
-    capacities given).
+    capacities given, and trims them).
 
     Returns
     -------
@@ -143,7 +143,11 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
         for t in range(n_finished):
             u_indices[start + t] = finished[n_finished - 1 - t]
         u_indptr[j + 1] = start + n_finished
-    return l_indptr, l_indices[: l_indptr[n]].copy(), u_indptr, u_indices[: u_indptr[n]].copy()
+    if l_indptr[n] < l_indices.size:  # trimmed (no copy when the capacity was exact)
+        l_indices = l_indices[: l_indptr[n]].copy()
+    if u_indptr[n] < u_indices.size:
+        u_indices = u_indices[: u_indptr[n]].copy()
+    return l_indptr, l_indices, u_indptr, u_indices
 
 
 @njit(**_JIT)

@@ -10,10 +10,11 @@ of a 2-D array, with ``jacobian`` or its transpose, optionally into a preallocat
 * `RefactorSolver` — a first SuperLU factorization fixes the ordering and the pivot
   sequence; every later `factor` is a numeric refactorization on the fixed structural
   patterns of L and U (numba kernels in `sparsekin.engine._lu_kernels`), guarded: when the fixed
-  pivots turn bad it falls back to a fresh SuperLU factorization with new pivoting.
-* `DenseSolver` — LAPACK's LU with partial pivoting on a dense copy, for small models
-  that the compiled loop cannot run (see the dense kernels of `sparsekin.engine._lu_kernels` for
-  compiled loops; docs/design-notes.md compares the paths).
+  pivots turn bad it chooses new row pivots on the same column order
+  (`sparsekin.engine._pivoting_kernels`).
+* `sparsekin.engine.dense.DenseSolver` — LAPACK's LU with partial pivoting on a dense
+  copy, for small models that the compiled loop cannot run (see the dense kernels of
+  `sparsekin.engine._lu_kernels` for compiled loops; docs/design-notes.md compares the paths).
 
 All three factor ``A = jacobian.T`` — for a CSR Jacobian that is the CSC array sharing its
 memory, which SuperLU takes without a copy — and solve ``jacobian @ x = rhs`` as the
@@ -29,7 +30,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from . import _compact_lu_kernels, _lu_kernels, compact_factors
+from . import _compact_lu_kernels, _lu_kernels, _pivoting_kernels, compact_factors
 
 if TYPE_CHECKING:
     from scipy.sparse import csc_array, csr_array
@@ -38,7 +39,6 @@ __all__ = [
     "LinearSolver",
     "SuperLUSolver",
     "RefactorSolver",
-    "DenseSolver",
     "SingularMatrix",
     "MIN_PIVOT_RATIO",
     "MAX_GROWTH",
@@ -56,6 +56,11 @@ MIN_PIVOT_RATIO = 1e-3
 #: The rounding errors of LU scale with the growth: at 1e3 they stay below about
 #: 1e3 · 1.1e-16 ≈ 1e-13 of max |A| (times a small count of terms per entry).
 MAX_GROWTH = 1e3
+#: `RefactorSolver`'s new pivots after the guard tripped: a column keeps its held pivot row
+#: while that is at least this fraction of the column's largest candidate (threshold partial
+#: pivoting, UMFPACK's default): the held factors' fill where the held rows still do, and
+#: |L| <= 10, far inside the guard (docs/design-notes.md, "New pivots on the held column order").
+NEW_PIVOT_THRESHOLD = 0.1
 #: The column ordering of every SuperLU factorization (unless ``ordering="metis"``).
 _ORDERING = "COLAMD"
 #: A body's coordinates (x, y, angle): `SuperLUSolver(ordering="metis")` orders them together.
@@ -287,9 +292,12 @@ class RefactorSolver:
     this pivot sequence; SuperLU's own L and U drop the values that happen to be zero).
     Every later `factor` with the same pattern refactors numerically on those patterns;
     if a pivot turns zero, non-finite or smaller than `min_pivot_ratio` times the largest
-    candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver falls
-    back to a fresh SuperLU factorization with new pivoting and a new analysis.  A factorization
-    solved often is solved without its exact zeros (`sparsekin.engine.compact_factors`).
+    candidate of its column, or if max |U| / max |A| exceeds `max_growth`, the solver
+    chooses new row pivots by threshold partial pivoting on the held column order
+    (`sparsekin.engine._pivoting_kernels`: no SuperLU factors held on top of the caller's
+    arrays) and analyses them; only a column without a nonzero candidate goes to a fresh
+    SuperLU factorization.  A factorization solved often is solved without its exact zeros
+    (`sparsekin.engine.compact_factors`).
 
     Parameters
     ----------
@@ -313,12 +321,13 @@ class RefactorSolver:
     Attributes
     ----------
     n_factorizations : int
-        Fresh factorizations: SuperLU with new pivoting, then the structural analysis.
+        Fresh factorizations: new pivoting (SuperLU's, or partial pivoting on the held
+        column order after the guard), then the structural analysis.
     n_refactorizations : int
         Numeric refactorizations attempted on the fixed pattern (including those the guard
-        rejected, each of which is followed by a fresh factorization).
+        rejected, each of which is followed by new pivots: a fresh factorization).
     n_fallbacks : int
-        Refactorizations the guard rejected.
+        Refactorizations the guard rejected (each followed by new pivots).
     n_solves : int
         Right-hand sides solved (a 2-D `rhs` of k columns counts k).
     pivot_ratio, growth : float
@@ -441,11 +450,9 @@ class RefactorSolver:
             return
         data = jacobian.data if jacobian.data.dtype == np.float64 else jacobian.data.astype(float)
         self.n_refactorizations += 1
-        if self._numeric(data, False) and self._guard_accepts():
-            self._factored = True
-            return
-        self.n_fallbacks += 1
-        self._fresh_factor(jacobian.T)
+        if not (self._numeric(data, False) and self._guard_accepts()):
+            self._new_pivots(data, False)
+        self._factored = True
 
     def factor_ordered(self, values: np.ndarray) -> None:
         """Refactor from values given in factor order (see `value_positions`).
@@ -454,8 +461,8 @@ class RefactorSolver:
         ----------
         values : ndarray, shape (nnz,), float64
             ``values[value_positions[k]]`` is the k-th CSR value of the Jacobian.  Read
-            as it is; if the guard trips, the fresh factorization may change
-            `value_positions` (see `layout_version`).
+            as it is; if the guard trips and a fresh SuperLU factorization decides, it may
+            change `value_positions` (see `layout_version`).
         """
         self._require_analysis()
         if not (
@@ -470,11 +477,9 @@ class RefactorSolver:
             )
         self._factored = False
         self.n_refactorizations += 1
-        if self._numeric(values, True) and self._guard_accepts():
-            self._factored = True
-            return
-        self.n_fallbacks += 1
-        self._fresh_factor(self._transposed_csc(values[self.value_positions]))
+        if not (self._numeric(values, True) and self._guard_accepts()):
+            self._new_pivots(values, True)
+        self._factored = True
 
     def solve(
         self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
@@ -579,12 +584,38 @@ class RefactorSolver:
         """Analyse and factor with a given pivot order; False if a pivot is bad (guard)."""
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
-        self._analyse(perm_r, perm_c, 2 * self._nnz)
+        self._analyse(perm_r, perm_c, self._nnz, self._nnz)
         if self._numeric(data, False) and self._guard_accepts():
             self._factored = True
             return True
         self.n_fallbacks += 1
         return False
+
+    def _new_pivots(self, values: np.ndarray, in_factor_order: bool) -> None:
+        """The guard rejected the held pivots: new rows by threshold partial pivoting on the
+        held column order (`NEW_PIVOT_THRESHOLD`), their analysis and factors, without
+        SuperLU's factors on top of the caller's arrays (docs/design-notes.md, "New pivots on
+        the held column order").  A column without a nonzero finite candidate (a singular or
+        non-finite matrix) goes to SuperLU as before, with the held patterns back."""
+        self.n_fallbacks += 1
+        held_perm_r, l_capacity, u_capacity = self._perm_r, self._l_indices.size, self._u_indices.size
+        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None  # freed first
+        self._l_values = self._u_values = self._compact = None
+        if not self._work_is_zero:
+            self._work.fill(0.0)
+        perm_r, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
+            values, in_factor_order, (self._b_indptr, self._offsets), self._indices, (held_perm_r, self._perm_c),
+            NEW_PIVOT_THRESHOLD, l_capacity, self._work
+        )
+        self._work_is_zero = True
+        if bad_column < 0:
+            self._analyse(perm_r, self._perm_c, l_entries, u_entries)
+            if self._numeric(values, in_factor_order):
+                self.n_factorizations += 1
+                return
+        del perm_r
+        self._analyse(held_perm_r, self._perm_c, l_capacity, u_capacity)
+        self._fresh_factor(self._transposed_csc(values[self.value_positions] if in_factor_order else values))
 
     def _fresh_factor(self, matrix: csc_array) -> None:
         """SuperLU with new pivoting, the structural analysis, then the numeric factors."""
@@ -606,9 +637,9 @@ class RefactorSolver:
                 self._allocate_values()
             raise SingularMatrix(str(error)) from error
         perm_r = lu.perm_r.astype(np.int64)
-        capacity = lu.nnz
+        capacity = lu.nnz // 2
         del lu
-        self._analyse(perm_r, perm_c, capacity)
+        self._analyse(perm_r, perm_c, capacity, capacity)
         # SuperLU's own pivots: accepted whatever the guard says, unless one is zero or not finite.
         if not self._numeric(data, False):
             column = int(self._stats[_lu_kernels.STAT_BAD_COLUMN])
@@ -630,8 +661,9 @@ class RefactorSolver:
         perm_c[order] = lu.perm_c  # column order[j] of `matrix` is column j of the ordered one
         return lu, perm_c
 
-    def _analyse(self, perm_r: np.ndarray, perm_c: np.ndarray, capacity: int) -> None:
-        """Pattern of ``B = Pr A Pc`` by columns, the maps to A's values, L and U patterns."""
+    def _analyse(self, perm_r: np.ndarray, perm_c: np.ndarray, l_capacity: int, u_capacity: int) -> None:
+        """Pattern of ``B = Pr A Pc`` by columns, the maps to A's values, L and U patterns
+        (their first allocations: `l_capacity` and `u_capacity` entries)."""
         n, nnz, indptr, indices = self._n, self._nnz, self._indptr, self._indices
         index = _index_dtype(max(n, nnz))
         if self._perm_c is None or not np.array_equal(perm_c, self._perm_c):
@@ -659,7 +691,7 @@ class RefactorSolver:
         b_rows = np.empty(nnz, dtype=index)
         _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
         l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, b_rows, capacity // 2, capacity // 2
+            self._b_indptr, b_rows, l_capacity, u_capacity
         )
         self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
         del b_rows
@@ -721,75 +753,3 @@ class RefactorSolver:
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth
-
-
-class DenseSolver:
-    """LAPACK's LU with partial pivoting (``getrf``/``getrs``) on a dense copy, for small models.
-
-    The Jacobian is scattered into a preallocated C-ordered array, whose Fortran view is
-    ``A = jacobian.T``: LAPACK factors it in place, without a copy.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from scipy.sparse import csr_array
-    >>> solver = DenseSolver()
-    >>> solver.factor(csr_array(np.array([[2.0, 1.0], [0.0, 4.0]])))
-    >>> solver.solve(np.array([3.0, 4.0])).tolist()
-    [1.0, 1.0]
-    """
-
-    name = "dense"
-
-    def __init__(self) -> None:
-        self.n_factorizations = 0
-        self.n_refactorizations = 0
-        self.n_solves = 0
-        self._n = -1
-        self._factored = False
-        self._getrf = self._getrs = None  # LAPACK's, looked up at the first factorization
-
-    def factor(self, jacobian: csr_array) -> None:
-        """Factor `jacobian` (square CSR); raise `SingularMatrix` if a pivot is exactly zero."""
-        n = _checked_square(jacobian)
-        self._factored = False
-        if self._getrf is None:
-            import scipy.linalg
-
-            self._getrf, self._getrs = scipy.linalg.lapack.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
-        if n != self._n:
-            self._n = n
-            self._dense = np.zeros((n, n))  # C order: its Fortran view ``.T`` is jacobian.T
-        self.n_factorizations += 1
-        dense = self._dense
-        dense.fill(0.0)
-        jacobian.toarray(out=dense)  # adds the values into `out`
-        lu, pivots, info = self._getrf(dense.T, overwrite_a=True)
-        if info > 0:
-            raise SingularMatrix(f"exactly zero pivot at step {info}")
-        if not np.all(np.isfinite(lu.diagonal())):
-            raise SingularMatrix("non-finite pivot: the Jacobian holds non-finite values")
-        self._lu, self._pivots = lu, pivots
-        self._factored = True
-
-    def solve(
-        self, rhs: np.ndarray, out: np.ndarray | None = None, *, transposed: bool = False
-    ) -> np.ndarray:
-        """Solve ``jacobian @ x = rhs``, or ``jacobian.T @ x = rhs`` if `transposed`.
-
-        Parameters and returns as `RefactorSolver.solve`.
-        """
-        if not self._factored:
-            raise RuntimeError(_NOT_FACTORED)
-        rhs = np.asarray(rhs, dtype=float)
-        if out is not None or rhs.ndim not in (1, 2) or rhs.shape[0] != self._n:
-            _checked_rhs(rhs, self._n, out)
-        # The factors are those of A = jacobian.T: jacobian @ x = rhs is LAPACK's trans=1.
-        solution, info = self._getrs(self._lu, self._pivots, rhs, trans=0 if transposed else 1)
-        if out is not None:
-            out[...] = solution
-            solution = out
-        self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
-        if not np.all(np.isfinite(solution)):
-            raise SingularMatrix("the solution is not finite")
-        return solution

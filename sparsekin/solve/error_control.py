@@ -230,10 +230,11 @@ def advance_controlled(stepper, t: float, max_halvings: int, growth_after: int) 
         try:
             stepper._state = stepper._step(stepper.state, h, t if h == t - now else now + h)
         except ErrorTooLarge as rejection:
-            proposed, failure = controller.next_step(h, h), rejection
+            proposed, failure = controller.next_step(h, h), str(rejection)  # (not the exception: its
+            # traceback held the attempt's arrays through the substeps after it)
             stepper._factored = False
         except StepFailed as newton:
-            proposed, held, failure = 0.5 * h, growth_after, newton
+            proposed, held, failure = 0.5 * h, growth_after, str(newton)
             stepper.n_subdivisions += 1
             stepper._factored = False
             stepper._floor.failed()

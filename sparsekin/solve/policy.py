@@ -42,7 +42,8 @@ from ..analysis.rank import SMALLEST_TALL_LU
 from ..engine.discretization import Discretization
 from ..engine.dissection import DissectionSolver
 from ..engine.krylov import ReusingSolver
-from ..engine.linalg import COORDINATES_PER_BODY, DenseSolver, RefactorSolver, SuperLUSolver
+from ..engine.dense import DenseSolver
+from ..engine.linalg import COORDINATES_PER_BODY, RefactorSolver, SuperLUSolver
 from ..engine.multipliers import MIN_NORM_ITERATIONS
 from ..engine.ordering import MIN_TILED_COORDINATES, metis_installed
 from ._compiled import supports_compiled
