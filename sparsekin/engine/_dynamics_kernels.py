@@ -557,55 +557,6 @@ def saddle_product(rows, cols, vals, count, n, indptr, indices, values, kept_row
 
 
 @njit(**JIT)
-def saddle_residuals(rows, cols, vals, count, n, indptr, indices, values, kept_row, x0, drift0, out0, x1, drift1,
-                     out1, both):  # fmt: skip
-    """``out0 = [0; drift0] − S x0`` and, when `both`, ``out1 = [0; drift1] − S x1`` in one
-    pass over S (as `saddle_product`: the coordinate block's first `count` triplets and the
-    CSR Jacobian; `drift0`, `drift1` of the kept rows): the residuals of the two projections'
-    iterative refinement (`sparsekin.solve.projections`).  A run of triplets on one row (a
-    body's mass block: three) is summed in registers and stored once, the same subtractions
-    in the same order: no wait on a store to load the next."""
-    for k in range(out0.size):
-        out0[k] = 0.0
-        if both:
-            out1[k] = 0.0
-    current, total0, total1 = -1, 0.0, 0.0
-    for e in range(count):
-        row, col = rows[e], cols[e]
-        if row < n and col < n:
-            if row != current:
-                if current >= 0:
-                    out0[current] = total0
-                    if both:
-                        out1[current] = total1
-                current, total0 = row, out0[row]
-                total1 = out1[row] if both else 0.0
-            total0 -= vals[e] * x0[col]
-            if both:
-                total1 -= vals[e] * x1[col]
-    if current >= 0:
-        out0[current] = total0
-        if both:
-            out1[current] = total1
-    for r in range(indptr.size - 1):
-        kept = kept_row[r]
-        if kept < 0:
-            continue
-        weight0, total0 = x0[n + kept], 0.0
-        weight1, total1 = x1[n + kept] if both else 0.0, 0.0
-        for s in range(indptr[r], indptr[r + 1]):
-            value, c = values[s], indices[s]
-            out0[c] -= value * weight0
-            total0 += value * x0[c]
-            if both:
-                out1[c] -= value * weight1
-                total1 += value * x1[c]
-        out0[n + kept] = drift0[kept] - total0
-        if both:
-            out1[n + kept] = drift1[kept] - total1
-
-
-@njit(**JIT)
 def fill_diagonal_triplets(first, count, value, rows, cols, vals, start):
     """``value`` on the diagonal of rows ``first .. first + count − 1``."""
     for k in range(count):
