@@ -153,7 +153,6 @@ class DynamicSystem:
         self._vals = np.zeros(count)
         self._block_count = 0  # triplets of the coordinate block at the last `product` or `residuals`
         self._block_compact = False  # the last of them `residuals`'s: the bodies' inertia in `_inertia`
-        self._inertia = np.zeros((arrays.masses.mass.size, 6))  # (`_projection_kernels.fill_inertia_values`)
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
         drawn = pattern.initial_coordinates
@@ -165,6 +164,10 @@ class DynamicSystem:
         # diagonal are scattered from the Jacobian's values straight into their slots
         # (`kernels.scatter_saddle`), which saves 16 bytes for each of 2 nnz(Φq) + m triplets.
         self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        # `residuals`' inertia blocks, six values a body (`_projection_kernels.fill_inertia_values`), in
+        # the values of their nine triplets (no memory of their own; `_block_compact` says which)
+        bodies = arrays.masses.mass.size
+        self._inertia = self._vals[: 6 * bodies].reshape(bodies, 6)
         slots = self.saddle.slots
         self._slots = (slots[:block], slots[block : block + 2 * pattern.nnz], slots[block + 2 * pattern.nnz :])
         # Φq's slots and the diagonal's follow from the row pointers when each kept equation's

@@ -139,8 +139,11 @@ class ConstraintProjections:
             else:
                 for column in active:
                     self.solver.solve(column.residual, out=column.residual)
-            for column in active:
-                column.solution += column.residual
+            for column in active:  # (a first solve since `start`: its solution is its increment, 0 + increment)
+                if column.first:
+                    np.add(0.0, column.residual, out=column.solution)
+                else:
+                    column.solution += column.residual
                 column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
             if moves in active:
                 v -= moves.residual[:n]
@@ -188,6 +191,8 @@ class ConstraintProjections:
                 system.residuals(q, v, zeros, lam, *coefficients, *refined, same_state=filled)
                 filled = True
         for column in columns:
+            if column.started and column.first:  # started again, not solved since: no change yet
+                column.solution[:] = 0.0
             if column.done or not column.started:
                 continue
             left = self._drift_left(column.drift, column.solution)
@@ -289,11 +294,12 @@ class _Column:
             self.start(measured=True)
 
     def start(self, measured: bool = False) -> None:
-        """From no change: the residual [0; drift] (`measured`: `before` is its drift's norm already)."""
+        """From no change: the residual [0; drift] (`measured`: `before` is its drift's norm
+        already).  Its solution is made by its next solve (`first`), not set to 0 here."""
         n = self.n
         if not (self.started or measured):
             self.before = _dynamics_kernels.weighted_norm(self.drift, self.weights)
-        self.residual[:n], self.residual[n:], self.solution[:] = 0.0, self.drift, 0.0
+        self.residual[:n], self.residual[n:] = 0.0, self.drift
         self.active, self.done, self.started, self.first, self.last = True, False, True, True, math.inf
 
     def resume(self) -> None:
