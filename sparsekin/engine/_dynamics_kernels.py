@@ -370,6 +370,28 @@ def load_motion(coordinates, velocities, accelerations, q, qd, qdd, filled, fill
 
 
 @njit(**JIT)
+def load_shared(coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns):
+    """`load_motion`, but where `filled` is q already (the constraints' last fill was at these
+    coordinates) neither q nor the turns are copied: returns True, and the caller reads
+    `filled` and `filled_turns` (equal, entry for entry, to what `load_motion` would copy)."""
+    same = True
+    for k in range(coordinates.size):
+        qd[k] = velocities[k]
+        qdd[k] = accelerations[k]
+        same = same and filled[k] == coordinates[k]
+    for k in range(coordinates.size, q.size):
+        same = same and filled[k] == q[k]
+    if not same:
+        for k in range(coordinates.size):
+            q[k] = coordinates[k]
+        for b in range(turns.shape[0]):
+            angle = q[3 * b + 2]
+            turns[b, 0] = math.cos(angle)
+            turns[b, 1] = math.sin(angle)
+    return same
+
+
+@njit(**JIT)
 def scatter_add(vals, slots, data):
     """``data[:] = 0``, then ``data[slots[e]] += vals[e]``; the last entry of `data` is the
     discard slot."""

@@ -226,6 +226,15 @@ class DynamicSystem:
         kernels.load_motion(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
                             self._turns)  # fmt: skip
 
+    def _shared(self, coordinates, velocities, accelerations) -> tuple[np.ndarray, np.ndarray]:
+        """`_load`, returning the kernels' q and turns: the constraints' own arrays when their
+        last refill was at these coordinates (no copy; `kernels.load_shared`), else ours."""
+        filled, _, turns = self.assembler.filled_motion()
+        if kernels.load_shared(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
+                               self._turns):  # fmt: skip
+            return filled, turns
+        return self._q, self._turns
+
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
         self._load(coordinates, velocities, accelerations)
@@ -327,10 +336,10 @@ class DynamicSystem:
         the same numbers as `product` followed by the two subtractions.)  The bodies' inertia
         blocks are held as six values each, not as triplets (`fill_block_compact`)."""
         if not same_state or not self._block_compact:
-            self._load(coordinates, velocities, accelerations)
+            q, turns = self._shared(coordinates, velocities, accelerations)
             self._block_count = _motion_kernels.fill_block_compact(
-                self.loads.arrays, self.pattern.primitives, self._actuator_arrays, self._q, self._qd, self._qdd,
-                self._turns, self.law_values, multipliers, self._actuator_weights, (a, b, c), self._scratch,
+                self.loads.arrays, self.pattern.primitives, self._actuator_arrays, q, self._qd, self._qdd,
+                turns, self.law_values, multipliers, self._actuator_weights, (a, b, c), self._scratch,
                 self._inertia, self._rows, self._cols, self._vals)  # fmt: skip
             self._block_compact = True
         p, start = self.pattern, 9 * self._inertia.shape[0]
@@ -342,18 +351,18 @@ class DynamicSystem:
     # ------------------------------------------------------------------ energy
     def energies(self, coordinates, velocities) -> tuple[float, float, float]:
         """Kinetic, gravitational potential and elastic energy, J."""
-        self._load(coordinates, velocities, self._qdd[:-3])
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
         arrays = self.loads.arrays
-        return kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion,
-                                                 self._q, self._qd, self._turns)  # fmt: skip
+        return kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion, q,
+                                                 self._qd, turns)  # fmt: skip
 
     def powers(self, coordinates, velocities, multipliers) -> tuple[float, float]:
         """Power put in by the loads, actuators and drivers, and power dissipated by the
         dampers, W; Phi_q and the drivers' rates from the last `fill_constraints` /
         `set_time`."""
-        self._load(coordinates, velocities, self._qdd[:-3])
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
         power, dissipated = _motion_kernels.motion_powers(
-            self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._turns, self.law_values, multipliers,
+            self.loads.arrays, self._actuator_arrays, q, self._qd, turns, self.law_values, multipliers,
             self.pattern.driven_row, self.assembler.velocity_rhs,
         )  # fmt: skip
         return power, dissipated
