@@ -6,9 +6,7 @@ on every entry as the NumPy expressions and kernels they replace (bit for bit).
   − S x`` of one or two columns in one pass over S, each body's inertia block held as its
   six values (not nine triplets of 16 bytes each);
 * `move_acceleration_drift` — the acceleration drift Φq q̈ − γ at moved velocities from γ
-  and the kept Φq q̈, and how far it moved, in one pass;
-* `apply_acceleration_change` — the acceleration projection's change applied to q̈, ã and λ,
-  Newton's q̈ kept, in one pass.
+  and the kept Φq q̈, and how far it moved, in one pass.
 
 Symbols as in `sparsekin.engine._dynamics_kernels`: S the saddle matrix [[A, Φqᵀ], [Φq, 0]],
 its leading block A as the bodies' inertia blocks and triplets (``rows``, ``cols``,
@@ -136,18 +134,3 @@ def move_acceleration_drift(product, gamma, target_acceleration, out, weights, m
         out[r] = drift
     return norm if probe == 0.0 else math.nan
 
-
-@njit(**JIT)
-def apply_acceleration_change(accelerations, pseudo, multipliers, change, kept_rows, all_kept, newton):
-    """``newton = accelerations`` (a copy: Newton's q̈, before the change), then
-    ``accelerations −= change[:n]``, ``pseudo −= change[:n]`` and ``multipliers[kept_rows]
-    −= change[n:]`` (the acceleration projection's change and multipliers), in one pass."""
-    n = accelerations.size
-    for k in range(n):
-        value = accelerations[k]
-        newton[k] = value
-        accelerations[k] = value - change[k]
-        pseudo[k] -= change[k]
-    for k in range(change.size - n):
-        row = k if all_kept else kept_rows[k]
-        multipliers[row] -= change[n + k]

@@ -50,7 +50,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..engine import _dynamics_kernels, _kernels, _projection_kernels
+from ..engine import _dynamics_kernels, _kernels
 from ..engine.discretization import Discretization, discretize
 from ..engine.linalg import SingularMatrix
 from ..engine.linearization import Linearization
@@ -607,9 +607,13 @@ class GeneralizedAlphaStepper(ConstraintProjections):
     def _apply_acceleration_change(self, a, pseudo, lam, change) -> np.ndarray:
         """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈
         (a copy of `a` before: the next step's Newton starts from it)."""
-        newton, kept = np.empty(a.size), self.system.kept_rows
-        all_kept = kept.size == self.pattern.n_equations
-        _projection_kernels.apply_acceleration_change(a, pseudo, lam, change, kept, all_kept, newton)
+        newton = a.copy()
+        a -= change[: a.size]
+        pseudo -= change[: a.size]
+        if self.system.kept_rows.size == self.pattern.n_equations:
+            lam -= change[a.size :]
+        else:
+            lam[self.system.kept_rows] -= change[a.size :]
         return newton
 
     # ------------------------------------------------------------------ start
