@@ -451,6 +451,31 @@ def test_saddle_residuals_are_the_drift_less_the_product():
     assert np.array_equal(single, np.concatenate([0.0 - product[:n], drifts[0] - product[n:]]))
 
 
+def test_refinement_passes_are_the_numpy_passes_bit_for_bit():
+    """The projections' fused passes (`sparsekin.engine._projection_kernels`) give the numbers
+    of the passes they replace, bit for bit: `residuals` with the bodies' inertia as six values
+    each after `product`'s triplets of the same state; the acceleration drift at moved
+    velocities and its move (`Assembler.fill_acceleration_drift`)."""
+    system, state, rng = _saddle_state(12, left_out=[3, 8])
+    n, k = system.n, system.size - system.n
+    x, drift = rng.standard_normal(system.size), rng.standard_normal(k)
+    product = system.product(*state, x, np.empty(system.size))
+    after_product = np.empty(system.size)  # the triplets of `product` are not `residuals`' own: filled again
+    system.residuals(*state, (x, drift, after_product), same_state=True)
+    assert np.array_equal(after_product, np.concatenate([0.0 - product[:n], drift - product[n:]]))
+    assembler, (q, v, a, lam) = system.assembler, state[:4]
+    jacobian_qdd, weights = rng.standard_normal(lam.size), assembler.weights
+    old = rng.standard_normal(lam.size)
+    assembler.fill_acceleration_rhs(q, v)
+    expected = jacobian_qdd - assembler.acceleration_rhs
+    moved_drift = old.copy()
+    moved = assembler.fill_acceleration_drift(q, v, jacobian_qdd, moved_drift, weights)
+    assert np.array_equal(moved_drift, expected)
+    assert moved == _dynamics_kernels.weighted_norm(expected - old, weights)
+    assert assembler.fill_acceleration_drift(q, v, jacobian_qdd, moved_drift) == 0.0
+    assert np.array_equal(moved_drift, expected)
+
+
 def test_projections_together_land_on_both_constraints():
     """The large path's paired projections (`_project_together`): from velocities and
     accelerations off their constraints, the velocities on Φq q̇ + Φt = 0 and the

@@ -370,6 +370,28 @@ def load_motion(coordinates, velocities, accelerations, q, qd, qdd, filled, fill
 
 
 @njit(**JIT)
+def load_shared(coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns):
+    """`load_motion`, but where `filled` is q already (the constraints' last fill was at these
+    coordinates) neither q nor the turns are copied: returns True, and the caller reads
+    `filled` and `filled_turns` (equal, entry for entry, to what `load_motion` would copy)."""
+    same = True
+    for k in range(coordinates.size):
+        qd[k] = velocities[k]
+        qdd[k] = accelerations[k]
+        same = same and filled[k] == coordinates[k]
+    for k in range(coordinates.size, q.size):
+        same = same and filled[k] == q[k]
+    if not same:
+        for k in range(coordinates.size):
+            q[k] = coordinates[k]
+        for b in range(turns.shape[0]):
+            angle = q[3 * b + 2]
+            turns[b, 0] = math.cos(angle)
+            turns[b, 1] = math.sin(angle)
+    return same
+
+
+@njit(**JIT)
 def scatter_add(vals, slots, data):
     """``data[:] = 0``, then ``data[slots[e]] += vals[e]``; the last entry of `data` is the
     discard slot."""
@@ -554,55 +576,6 @@ def saddle_product(rows, cols, vals, count, n, indptr, indices, values, kept_row
             out[indices[s]] += values[s] * weight
             total += values[s] * x[indices[s]]
         out[n + kept] = total
-
-
-@njit(**JIT)
-def saddle_residuals(rows, cols, vals, count, n, indptr, indices, values, kept_row, x0, drift0, out0, x1, drift1,
-                     out1, both):  # fmt: skip
-    """``out0 = [0; drift0] − S x0`` and, when `both`, ``out1 = [0; drift1] − S x1`` in one
-    pass over S (as `saddle_product`: the coordinate block's first `count` triplets and the
-    CSR Jacobian; `drift0`, `drift1` of the kept rows): the residuals of the two projections'
-    iterative refinement (`sparsekin.solve.projections`).  A run of triplets on one row (a
-    body's mass block: three) is summed in registers and stored once, the same subtractions
-    in the same order: no wait on a store to load the next."""
-    for k in range(out0.size):
-        out0[k] = 0.0
-        if both:
-            out1[k] = 0.0
-    current, total0, total1 = -1, 0.0, 0.0
-    for e in range(count):
-        row, col = rows[e], cols[e]
-        if row < n and col < n:
-            if row != current:
-                if current >= 0:
-                    out0[current] = total0
-                    if both:
-                        out1[current] = total1
-                current, total0 = row, out0[row]
-                total1 = out1[row] if both else 0.0
-            total0 -= vals[e] * x0[col]
-            if both:
-                total1 -= vals[e] * x1[col]
-    if current >= 0:
-        out0[current] = total0
-        if both:
-            out1[current] = total1
-    for r in range(indptr.size - 1):
-        kept = kept_row[r]
-        if kept < 0:
-            continue
-        weight0, total0 = x0[n + kept], 0.0
-        weight1, total1 = x1[n + kept] if both else 0.0, 0.0
-        for s in range(indptr[r], indptr[r + 1]):
-            value, c = values[s], indices[s]
-            out0[c] -= value * weight0
-            total0 += value * x0[c]
-            if both:
-                out1[c] -= value * weight1
-                total1 += value * x1[c]
-        out0[n + kept] = drift0[kept] - total0
-        if both:
-            out1[n + kept] = drift1[kept] - total1
 
 
 @njit(**JIT)

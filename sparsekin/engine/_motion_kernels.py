@@ -45,6 +45,7 @@ from ._dynamics_kernels import (
 )
 from ._force_kernels import fill_applied_forces
 from ._kernels import residual_jacobian
+from ._projection_kernels import fill_inertia_values
 
 
 @njit(inline="always", **JIT)
@@ -53,8 +54,30 @@ def fill_block_triplets(loads, primitives, actuators, q, qd, qdd, turns, law_val
     """The triplets of the leading block ``a M + b C_t + c K_t`` of the saddle matrix, from
     the first on (returns how many; arguments as for `fill_saddle_triplets`)."""
     a, b, c = coefficients
-    gradient, rate_gradient, d, hessian, block = scratch
     e = fill_inertia_triplets(loads.masses, loads.gravity, qd, qdd, turns, a, b, c, rows, cols, vals, 0)
+    return _fill_load_triplets(loads, primitives, actuators, q, qd, turns, law_values, multipliers, actuator_weights,
+                               b, c, scratch, rows, cols, vals, e)  # fmt: skip
+
+
+@njit(**JIT)
+def fill_block_compact(loads, primitives, actuators, q, qd, qdd, turns, law_values, multipliers, actuator_weights,
+                       coefficients, scratch, inertia, rows, cols, vals):  # fmt: skip
+    """`fill_block_triplets` with each body's inertia block as its six values in `inertia`
+    (`_projection_kernels.fill_inertia_values`: the same numbers, a third of the bytes)
+    instead of its nine triplets: the triplets from ``9 · bodies`` on only, as
+    `fill_block_triplets` writes them (returns how many, the same count)."""
+    a, b, c = coefficients
+    e = fill_inertia_values(loads.masses, loads.gravity, qd, qdd, turns, a, b, c, inertia)
+    return _fill_load_triplets(loads, primitives, actuators, q, qd, turns, law_values, multipliers, actuator_weights,
+                               b, c, scratch, rows, cols, vals, e)  # fmt: skip
+
+
+@njit(inline="always", **JIT)
+def _fill_load_triplets(loads, primitives, actuators, q, qd, turns, law_values, multipliers, actuator_weights, b, c,
+                        scratch, rows, cols, vals, e):  # fmt: skip
+    """The leading block's triplets after the bodies' inertia, from `e` on: point forces,
+    springs, rotational springs, the constraints' and the actuators' Hessians."""
+    gradient, rate_gradient, d, hessian, block = scratch
     e = fill_point_force_triplets(loads.force, turns, law_values, c, rows, cols, vals, e)
     e = fill_spring_triplets(loads.spring, q, qd, turns, b, c, gradient, rate_gradient, d, hessian, block,
                              rows, cols, vals, e)  # fmt: skip

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import _kernels
+from . import _kernels, _projection_kernels
 from .discretization import Discretization, DriverLaws
 
 if TYPE_CHECKING:
@@ -155,10 +155,25 @@ class Assembler:
 
     def fill_acceleration_rhs(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
         """Refill `acceleration_rhs` (gamma plus the targets' second derivative)."""
+        self._fill_gamma(coordinates, velocities)
+        self.acceleration_rhs += self._target_acceleration
+
+    def fill_acceleration_drift(self, coordinates: np.ndarray, velocities: np.ndarray, product: np.ndarray,
+                                out: np.ndarray, weights: np.ndarray | None = None) -> float:  # fmt: skip
+        """`fill_acceleration_rhs`, and ``out = product − acceleration_rhs`` in the same pass
+        (the acceleration drift of every equation from ``product = jacobian @ qdd``; the same
+        numbers as the two steps).  With `weights`, returns the weighted norm of the move of
+        `out` (max |new − old| · weights, NaN if not finite), else 0."""
+        self._fill_gamma(coordinates, velocities)
+        return _projection_kernels.move_acceleration_drift(product, self.acceleration_rhs, self._target_acceleration,
+                                                           out, self.weights if weights is None else weights,
+                                                           weights is not None)  # fmt: skip
+
+    def _fill_gamma(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
+        """gamma at (coordinates, velocities) into `acceleration_rhs` (the targets' part not added)."""
         q, qd, turns = self._q, self._qd, self._turns
         if not np.array_equal(q[:-3], coordinates):  # else `turns` is that of the last refill
             q[:-3] = coordinates
             _kernels.fill_body_turns(q, turns)
         qd[:-3] = velocities
         _kernels.fill_gamma(self._primitives, q, qd, turns, self.acceleration_rhs)
-        self.acceleration_rhs += self._target_acceleration

@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import _dynamics_kernels as kernels
-from . import _motion_kernels
+from . import _motion_kernels, _projection_kernels
 from .actuators import actuator_kernel_arrays
 from .assembly import Assembler
 from .discretization import Discretization
@@ -151,7 +151,8 @@ class DynamicSystem:
         self._rows = np.zeros(count, dtype=index)
         self._cols = np.zeros(count, dtype=index)
         self._vals = np.zeros(count)
-        self._block_count = 0  # triplets of the coordinate block at the last `product`
+        self._block_count = 0  # triplets of the coordinate block at the last `product` or `residuals`
+        self._block_compact = False  # the last of them `residuals`'s: the bodies' inertia in `_inertia`
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
         drawn = pattern.initial_coordinates
@@ -163,6 +164,10 @@ class DynamicSystem:
         # diagonal are scattered from the Jacobian's values straight into their slots
         # (`kernels.scatter_saddle`), which saves 16 bytes for each of 2 nnz(Φq) + m triplets.
         self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        # `residuals`' inertia blocks, six values a body (`_projection_kernels.fill_inertia_values`), in
+        # the values of their nine triplets (no memory of their own; `_block_compact` says which)
+        bodies = arrays.masses.mass.size
+        self._inertia = self._vals[: 6 * bodies].reshape(bodies, 6)
         slots = self.saddle.slots
         self._slots = (slots[:block], slots[block : block + 2 * pattern.nnz], slots[block + 2 * pattern.nnz :])
         # Φq's slots and the diagonal's follow from the row pointers when each kept equation's
@@ -221,6 +226,15 @@ class DynamicSystem:
         kernels.load_motion(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
                             self._turns)  # fmt: skip
 
+    def _shared(self, coordinates, velocities, accelerations) -> tuple[np.ndarray, np.ndarray]:
+        """`_load`, returning the kernels' q and turns: the constraints' own arrays when their
+        last refill was at these coordinates (no copy; `kernels.load_shared`), else ours."""
+        filled, _, turns = self.assembler.filled_motion()
+        if kernels.load_shared(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
+                               self._turns):  # fmt: skip
+            return filled, turns
+        return self._q, self._turns
+
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
         self._load(coordinates, velocities, accelerations)
@@ -254,6 +268,7 @@ class DynamicSystem:
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
         self._load(coordinates, velocities, accelerations)
+        self._block_compact = False  # (`residuals` fills its own again)
         return _motion_kernels.fill_block_triplets(self.loads.arrays, self.pattern.primitives, self._actuator_arrays,
                                                    self._q, self._qd, self._qdd, self._turns, self.law_values,
                                                    multipliers, self._actuator_weights, (a, b, c), self._scratch,
@@ -305,7 +320,7 @@ class DynamicSystem:
         the last `fill_constraints`; returns `out` (shape (size,)).  (The velocity projection's
         residual: a third of the work of filling S and multiplying.)  `same_state`: the state
         and coefficients of the last call, and no fill since: its triplets are reused."""
-        if not same_state:
+        if not same_state or self._block_compact:
             self._block_count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
         count = self._block_count
         p = self.pattern
@@ -318,30 +333,36 @@ class DynamicSystem:
         """``out = [0; drift] − S x`` for ``first = (x, drift, out)`` and, if given, `second`
         (`drift` of the kept equations), S as in `product`, both in one pass over S: the
         residuals of iterative refinement for the projections.  (``-(0 − v) = v`` exactly:
-        the same numbers as `product` followed by the two subtractions.)"""
-        if not same_state:
-            self._block_count = self._fill_block_triplets(coordinates, velocities, accelerations, multipliers, a, b, c)
-        p = self.pattern
+        the same numbers as `product` followed by the two subtractions.)  The bodies' inertia
+        blocks are held as six values each, not as triplets (`fill_block_compact`)."""
+        if not same_state or not self._block_compact:
+            q, turns = self._shared(coordinates, velocities, accelerations)
+            self._block_count = _motion_kernels.fill_block_compact(
+                self.loads.arrays, self.pattern.primitives, self._actuator_arrays, q, self._qd, self._qdd,
+                turns, self.law_values, multipliers, self._actuator_weights, (a, b, c), self._scratch,
+                self._inertia, self._rows, self._cols, self._vals)  # fmt: skip
+            self._block_compact = True
+        p, start = self.pattern, 9 * self._inertia.shape[0]
         x1, drift1, out1 = first if second is None else second
-        kernels.saddle_residuals(self._rows, self._cols, self._vals, self._block_count, self.n, p.indptr, p.indices,
-                                 self.assembler.values, self.kept_row, *first, x1, drift1, out1,
-                                 second is not None)  # fmt: skip
+        _projection_kernels.saddle_residuals(self._inertia, self._rows, self._cols, self._vals, start,
+                                             self._block_count, self.n, p.indptr, p.indices, self.assembler.values,
+                                             self.kept_row, *first, x1, drift1, out1, second is not None)  # fmt: skip
 
     # ------------------------------------------------------------------ energy
     def energies(self, coordinates, velocities) -> tuple[float, float, float]:
         """Kinetic, gravitational potential and elastic energy, J."""
-        self._load(coordinates, velocities, self._qdd[:-3])
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
         arrays = self.loads.arrays
-        return kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion,
-                                                 self._q, self._qd, self._turns)  # fmt: skip
+        return kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion, q,
+                                                 self._qd, turns)  # fmt: skip
 
     def powers(self, coordinates, velocities, multipliers) -> tuple[float, float]:
         """Power put in by the loads, actuators and drivers, and power dissipated by the
         dampers, W; Phi_q and the drivers' rates from the last `fill_constraints` /
         `set_time`."""
-        self._load(coordinates, velocities, self._qdd[:-3])
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
         power, dissipated = _motion_kernels.motion_powers(
-            self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._turns, self.law_values, multipliers,
+            self.loads.arrays, self._actuator_arrays, q, self._qd, turns, self.law_values, multipliers,
             self.pattern.driven_row, self.assembler.velocity_rhs,
         )  # fmt: skip
         return power, dissipated

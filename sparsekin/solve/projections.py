@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..engine import _dynamics_kernels
+from ..engine import _dynamics_kernels, _projection_kernels
 from .error_control import StepFailed as _StepFailed
 
 __all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "TARGET_MARGIN", "ConstraintProjections"]
@@ -139,19 +139,19 @@ class ConstraintProjections:
             else:
                 for column in active:
                     self.solver.solve(column.residual, out=column.residual)
-            for column in active:
-                column.solution += column.residual
+            for column in active:  # (a first solve since `start`: its solution is its increment, 0 + increment)
+                if column.first:
+                    np.add(0.0, column.residual, out=column.solution)
+                else:
+                    column.solution += column.residual
                 column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
-            if moves in active:  # the accelerations' target at the moved velocities
+            if moves in active:
                 v -= moves.residual[:n]
-                if gain is None or gain * moves.size > TARGET_MARGIN * follows.bound:
-                    before = follows.residual[: follows.drift.size]  # (its increment is in its solution)
-                    before[:] = follows.drift
-                    follows.drift = system.kept(self._moved_acceleration_drift(q, v, drift_out))
-                    if gain is None:  # how far the target moves per velocity increment, this step
-                        np.subtract(follows.drift, before, out=before)
-                        moved = _dynamics_kernels.weighted_norm(before, weights)
-                        gain = moved / moves.size if moves.size > 0.0 else math.inf
+            if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):
+                # the accelerations' target at the moved velocities, and (first) how far it moved
+                moved = self._move_acceleration_target(q, v, follows, gain is None)
+                if gain is None:  # how far the target moves per velocity increment, this step
+                    gain = moved / moves.size if moves.size > 0.0 else math.inf
             restart, lefts = False, self._paired_drift_lefts(active)
             for column in active:
                 if column.size <= column.bound or (column.size <= column.noise
@@ -191,6 +191,8 @@ class ConstraintProjections:
                 system.residuals(q, v, zeros, lam, *coefficients, *refined, same_state=filled)
                 filled = True
         for column in columns:
+            if column.started and column.first:  # started again, not solved since: no change yet
+                column.solution[:] = 0.0
             if column.done or not column.started:
                 continue
             left = self._drift_left(column.drift, column.solution)
@@ -219,9 +221,23 @@ class ConstraintProjections:
     def _moved_acceleration_drift(self, q, v, out):
         """The acceleration drift Φq q̈ − γ(q, v) of `_project_together` at the velocities `v`
         moved so far (every equation, into `out`): γ made again, Φq q̈ that of `_paired_targets`
-        (q̈ and Φq have not changed since)."""
-        self.assembler.fill_acceleration_rhs(q, v)
-        return np.subtract(self._pair_work[2], self.assembler.acceleration_rhs, out=out)
+        (q̈ and Φq have not changed since), in one pass (`Assembler.fill_acceleration_drift`)."""
+        self.assembler.fill_acceleration_drift(q, v, self._pair_work[2], out)
+        return out
+
+    def _move_acceleration_target(self, q, v, follows, measure: bool) -> float:
+        """`follows`'s drift made again at the moved velocities `v` (`_moved_acceleration_drift`);
+        with `measure`, returns the weighted norm of its move (else 0).  When every equation is
+        kept its drift is the array made again, and the move is measured in the same pass."""
+        system, out = self.system, self._projection_work[3]
+        if follows.drift is out:
+            return self.assembler.fill_acceleration_drift(q, v, self._pair_work[2], out,
+                                                          self.assembler.weights if measure else None)  # fmt: skip
+        before = follows.drift
+        follows.drift = system.kept(self._moved_acceleration_drift(q, v, out))
+        if not measure:
+            return 0.0
+        return _dynamics_kernels.weighted_norm(follows.drift - before, system.kept(self.assembler.weights))
 
     def _paired_drift_lefts(self, active) -> dict:
         """The drift left (`_drift_left`) of each active column of `_project_together`, by
@@ -275,14 +291,15 @@ class _Column:
         self.active = self.done = self.started = self.first = False
         self.size, self.last = math.inf, math.inf
         if self.before > bound:
-            self.start()
+            self.start(measured=True)
 
-    def start(self) -> None:
-        """From no change: the residual [0; drift]."""
+    def start(self, measured: bool = False) -> None:
+        """From no change: the residual [0; drift] (`measured`: `before` is its drift's norm
+        already).  Its solution is made by its next solve (`first`), not set to 0 here."""
         n = self.n
-        if not self.started:
+        if not (self.started or measured):
             self.before = _dynamics_kernels.weighted_norm(self.drift, self.weights)
-        self.residual[:n], self.residual[n:], self.solution[:] = 0.0, self.drift, 0.0
+        self.residual[:n], self.residual[n:] = 0.0, self.drift
         self.active, self.done, self.started, self.first, self.last = True, False, True, True, math.inf
 
     def resume(self) -> None:

@@ -1,0 +1,136 @@
+"""numba kernels of the large path's constraint projections (`sparsekin.solve.projections`):
+the passes of their iterative refinement fused, each the same operations in the same order
+on every entry as the NumPy expressions and kernels they replace (bit for bit).
+
+* `fill_inertia_values` and `saddle_residuals` — the refinement's residuals ``[0; drift]
+  − S x`` of one or two columns in one pass over S, each body's inertia block held as its
+  six values (not nine triplets of 16 bytes each);
+* `move_acceleration_drift` — the acceleration drift Φq q̈ − γ at moved velocities from γ
+  and the kept Φq q̈, and how far it moved, in one pass.
+
+Symbols as in `sparsekin.engine._dynamics_kernels`: S the saddle matrix [[A, Φqᵀ], [Φq, 0]],
+its leading block A as the bodies' inertia blocks and triplets (``rows``, ``cols``,
+``vals``; the ground's entries, from ``n`` on, left out), Φq as the CSR Jacobian
+(``indptr``, ``indices``, ``values``) whose row r is S's row ``n + kept_row[r]`` (−1: left
+out).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .._jit import JIT
+from ._kernels import _turned
+
+
+@njit(**JIT)
+def fill_inertia_values(masses, gravity, qd, qdd, turns, a, b, c, inertia):
+    """Each body's 3×3 block of ``a M + b C + c K`` (`_dynamics_kernels.fill_inertia_triplets`,
+    the same expressions) as its six values that are not fixed zeros, ``inertia[body] =
+    (a m, xθ, yθ, θx, θy, θθ)`` (the block is ``[[a m, 0, xθ], [0, a m, yθ], [θx, θy, θθ]]``);
+    returns the triplets it stands for, 9 per body."""
+    gx, gy = gravity[0], gravity[1]
+    for body in range(masses.mass.size):
+        m, moment = masses.mass[body], masses.inertia[body]
+        ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
+        omega, alpha = qd[3 * body + 2], qdd[3 * body + 2]
+        xdd, ydd = qdd[3 * body], qdd[3 * body + 1]
+        k_x = m * (omega * omega * ay - alpha * ax)
+        k_y = -m * (alpha * ay + omega * omega * ax)
+        k_t = -m * (ax * xdd + ay * ydd) + m * (ax * gx + ay * gy)
+        c_x, c_y = -2.0 * m * omega * ax, -2.0 * m * omega * ay
+        inertia[body, 0] = a * m
+        inertia[body, 1] = -a * m * ay + b * c_x + c * k_x
+        inertia[body, 2] = a * m * ax + b * c_y + c * k_y
+        inertia[body, 3] = -a * m * ay
+        inertia[body, 4] = a * m * ax
+        inertia[body, 5] = a * (moment + m * (ax * ax + ay * ay)) + c * k_t
+    return 9 * masses.mass.size
+
+
+@njit(inline="always", **JIT)
+def _inertia_residuals(inertia, x, out):
+    """``out = −B x`` on each body's rows for its inertia block B (`fill_inertia_values`),
+    the subtractions of its nine triplets row after row (zeros included: bit for bit)."""
+    for body in range(inertia.shape[0]):
+        i = 3 * body
+        mass, x_angle, y_angle = inertia[body, 0], inertia[body, 1], inertia[body, 2]
+        xx, xy, xt = x[i], x[i + 1], x[i + 2]
+        out[i] = ((0.0 - mass * xx) - 0.0 * xy) - x_angle * xt
+        out[i + 1] = ((0.0 - 0.0 * xx) - mass * xy) - y_angle * xt
+        out[i + 2] = ((0.0 - inertia[body, 3] * xx) - inertia[body, 4] * xy) - inertia[body, 5] * xt
+
+
+@njit(**JIT)
+def saddle_residuals(inertia, rows, cols, vals, start, count, n, indptr, indices, values, kept_row, x0, drift0, out0,
+                     x1, drift1, out1, both):  # fmt: skip
+    """``out0 = [0; drift0] − S x0`` and, when `both`, ``out1 = [0; drift1] − S x1`` in one
+    pass over S (`drift0`, `drift1` of the kept rows): the residuals of the two projections'
+    iterative refinement.  S's leading block is the bodies' inertia blocks (`inertia`, of
+    `fill_inertia_values`) and the triplets from `start` to `count` (`fill_block_compact`);
+    the same subtractions in the same order as over the triplets of `fill_block_triplets`
+    (bit for bit).  A run of triplets on one row is summed in registers and stored once: no
+    wait on a store to load the next."""
+    for k in range(out0.size):
+        out0[k] = 0.0
+        if both:
+            out1[k] = 0.0
+    _inertia_residuals(inertia, x0, out0)
+    if both:
+        _inertia_residuals(inertia, x1, out1)
+    current, total0, total1 = -1, 0.0, 0.0
+    for e in range(start, count):
+        row, col = rows[e], cols[e]
+        if row < n and col < n:
+            if row != current:
+                if current >= 0:
+                    out0[current] = total0
+                    if both:
+                        out1[current] = total1
+                current, total0 = row, out0[row]
+                total1 = out1[row] if both else 0.0
+            total0 -= vals[e] * x0[col]
+            if both:
+                total1 -= vals[e] * x1[col]
+    if current >= 0:
+        out0[current] = total0
+        if both:
+            out1[current] = total1
+    for r in range(indptr.size - 1):
+        kept = kept_row[r]
+        if kept < 0:
+            continue
+        weight0, total0 = x0[n + kept], 0.0
+        weight1, total1 = x1[n + kept] if both else 0.0, 0.0
+        for s in range(indptr[r], indptr[r + 1]):
+            value, c = values[s], indices[s]
+            out0[c] -= value * weight0
+            total0 += value * x0[c]
+            if both:
+                out1[c] -= value * weight1
+                total1 += value * x1[c]
+        out0[n + kept] = drift0[kept] - total0
+        if both:
+            out1[n + kept] = drift1[kept] - total1
+
+
+@njit(**JIT)
+def move_acceleration_drift(product, gamma, target_acceleration, out, weights, measure):
+    """``gamma += target_acceleration`` (the acceleration right-hand side γ + the targets'
+    second derivative) and ``out = product − gamma`` (the acceleration drift Φq q̈ − γ, from
+    Φq q̈ = `product`), every equation; with `measure` returns the weighted norm of the move
+    ``out_new − out_old`` (NaN if not finite), else 0."""
+    norm, probe = 0.0, 0.0
+    for r in range(out.size):
+        rhs = gamma[r] + target_acceleration[r]
+        gamma[r] = rhs
+        drift = product[r] - rhs
+        if measure:
+            moved = abs(drift - out[r]) * weights[r]
+            probe += 0.0 * moved
+            norm = max(norm, moved)
+        out[r] = drift
+    return norm if probe == 0.0 else math.nan
+
