@@ -167,6 +167,12 @@ class RoundingFloor:
             return False
         return self._paid or (self._since_trial >= RATE_STEPS and self._since_factored >= RATE_STEPS)
 
+    def extrapolates_multipliers(self) -> bool:
+        """Whether the next step's predictor extrapolates λ: on the large path, not
+        regularized (always then: Newton's own λ vary smoothly, 3e-3 against 0.4 kept
+        constant on a 10^4-body chain)."""
+        return not self._regularized
+
     def predicted(self, extrapolated: bool, correction: float) -> None:
         """Newton's first correction after the predictor, `extrapolated` or not."""
         if extrapolated:
