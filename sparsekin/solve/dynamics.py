@@ -302,7 +302,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         # projections': solution, residual (Newton's rhs), drift, drift left, zeros
         self._rhs = np.zeros(system.size)
         self._projection_work = (np.zeros(system.size), self._rhs, np.zeros(m), np.zeros(m), np.zeros(n))
-        self._pair_work = None  # `_project_together`'s, made when first needed
+        self._pair_work = self._last_projections = self._projection_step = None  # `_project_together`'s
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
