@@ -274,12 +274,12 @@ def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
 
 
 def test_long_chain_projections_start_from_the_last_change(monkeypatch):
-    """10^4 bodies, 100 steps of 1 ms: the projections started from their changes of the
-    step before (`projections.WARM_START`) take fewer solves than from zero (measured 624
-    against 707), B0 on the exact answer as from zero, the drifts at the tolerance."""
+    """10^4 bodies, 300 steps of 1 ms: the projections started from their changes of the
+    step before (`projections.WARM_START`) take fewer solves than from zero (measured 1858
+    against 2119), B0 on the exact answer as from zero, the drifts at the tolerance."""
     from sparsekin.solve import projections
 
-    loops, times = 5000, np.linspace(0.0, 0.1, 11)
+    loops, times = 5000, np.linspace(0.0, 0.3, 31)
     exact, _ = n_four_bar_b0(times, n_loops=loops)
     results = {}
     for warm in (True, False):
@@ -287,9 +287,9 @@ def test_long_chain_projections_start_from_the_last_change(monkeypatch):
         options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
         results[warm] = run_dynamics(discretize(n_four_bar(loops)), times, options, DynamicsOptions(1e-3),
                                      Request(coordinates=False, points=["B0"], energy=True))  # fmt: skip
-    assert results[True].stats.n_solves < 0.95 * results[False].stats.n_solves
+    assert results[True].stats.n_solves < 0.92 * results[False].stats.n_solves
     errors = {warm: np.abs(result.point("B0").position - exact).max() for warm, result in results.items()}
-    assert errors[True] < 1e-7 and errors[True] <= 1.01 * errors[False]  # the integrator's own error, 9.1e-8 m here
+    assert errors[True] < 1e-6 and errors[True] <= 1.01 * errors[False]  # the integrator's own error, 3.3e-7 m here
     assert results[True].energy.drift_position.max() <= 1e-10 and results[True].energy.drift_velocity.max() <= 1e-10
 
 

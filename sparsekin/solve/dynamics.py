@@ -460,7 +460,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a, start, previous, ratio)  # fmt: skip
         lam = self._predicted_multipliers(state, h)
         system.set_time(t_next)
-        self._floor.step_begins()
+        if self._floor.step_begins():  # the held matrix too old (`MAX_MATRIX_AGE`)
+            self._factored = False
         weights = self._weights
         rhs = self._rhs
         all_kept = kept.size == self.pattern.n_equations
@@ -540,7 +541,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             self._project_velocities(q, v, lam, coefficients, h)
             self._floor.step()
             change = self._project_accelerations(q, v, a, lam, coefficients)
-        newton, newton_lam = (a, None) if change is None else self._apply_acceleration_change(a, pseudo, lam, change)
+        newton, newton_lam = a, None
+        if change is not None:
+            newton, newton_lam = self._apply_acceleration_change(a, pseudo, lam, change)
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
@@ -549,7 +552,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
-        self._previous = (start, h, state.newton_start_multipliers)  # the step's start: the next one extrapolates from it
+        self._previous = (start, h, state.newton_start_multipliers)  # the next step extrapolates from them
         return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton, newton_lam)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:

@@ -21,7 +21,8 @@ import numpy as np
 from ..engine import _dynamics_kernels
 from .error_control import StepFailed as _StepFailed
 
-__all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "TARGET_MARGIN", "WARM_START", "ConstraintProjections"]
+__all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "TARGET_MARGIN", "WARM_START",
+           "ConstraintProjections"]
 
 #: Most solves of one velocity projection, and the contraction its iterative refinement
 #: must keep on the held factorization.
@@ -138,11 +139,12 @@ class ConstraintProjections:
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
         zeros, drift_out = self._projection_work[4], self._projection_work[3]
-        last, step = self._last_projections, self._projection_step  # (h, velocities solved, accelerations solved)
+        last, step = self._last_projections, self._projection_step  # (h, velocities, accelerations solved)
         warm = WARM_START and last is not None and last[0] == step
-        moves = _Column("velocity", *velocity, self._projection_work[0], self._projection_work[1], weights, system,
-                        warm and last[1])  # fmt: skip
-        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm and last[2])
+        work = self._projection_work
+        moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm and last[1])
+        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system,
+                          warm and last[2])  # fmt: skip
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain = False, False, None
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
@@ -245,7 +247,7 @@ class ConstraintProjections:
         """`_velocity_target` and `_acceleration_target` of the large path (``(drift, bound,
         noise)`` each), both drifts in one pass over Φq (`fill_drift_pair`: the same numbers),
         Φq q̈ kept for the acceleration drifts at moved velocities (`_moved_acceleration_drift`)."""
-        self._projection_step = h  # (`_project_together` starts from the last step's changes only at the same h)
+        self._projection_step = h  # (`_project_together` starts from the last changes at the same h only)
         if self._pair_work is None:  # the accelerations' solution and residual, and Φq q̈ (made at the first call)
             size, m = self.system.size, self.pattern.n_equations
             self._pair_work = (np.zeros(size), np.zeros(size), np.zeros(m))
