@@ -37,9 +37,9 @@ EXTRAPOLATION_RATIO = 2.0
 #: than this many steps (large path): Newton's and the projections' errors on a held matrix
 #: keep their sign step after step and add up with its age.  Measured (10^5 bodies, 1000
 #: steps, B0 against a run with a fresh matrix at every iterate): with no limit the matrix
-#: lived ~50 steps and B0 strayed 9.4e-8 m from that run at 1 s (main: 7.7e-8); at most 24,
-#: 16, 8 steps: 8.3e-9, see docs/design-notes.md, 2.4e-9, for 1.4, 2.1, 3.5 factorizations
-#: per 100 steps more.
+#: lived ~50 steps and B0 strayed 9.4e-8 m from that run at 1 s (before the limit's
+#: session: 7.7e-8); at most 24, 16, 8 steps: 8.3e-9, 8.4e-9, 2.4e-9 m, for 56, 71, 115
+#: factorizations over the 1000 steps against 39 (docs/design-notes.md).
 MAX_MATRIX_AGE = 16
 
 
