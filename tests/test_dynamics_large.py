@@ -309,12 +309,13 @@ def test_chain_on_the_refactor_path_passes_its_singular_crossings():
 
 
 def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
-    """10^5 bodies, 20 steps of 1 ms: the projections stop after one solve where the held
-    factorization's measured contraction allows it (`RoundingFloor.skips_refinement`),
-    with fewer solves than without the rule, B0 on the exact answer as before, and the
-    drifts at the tolerance at every sample."""
-    from sparsekin.solve import rounding_floor
+    """10^5 bodies, 20 steps of 1 ms, the projections started from zero: they stop after one
+    solve where the held factorization's measured contraction allows it
+    (`RoundingFloor.skips_refinement`), with fewer solves than without the rule, B0 on the
+    exact answer as before, and the drifts at the tolerance at every sample."""
+    from sparsekin.solve import projections, rounding_floor
 
+    monkeypatch.setattr(projections, "WARM_START", False)  # (a column started warm never stops at one solve)
     loops, times = 50000, np.linspace(0.0, 0.02, 21)
     exact, _ = n_four_bar_b0(times, n_loops=loops)
     results = {}
@@ -328,6 +329,26 @@ def test_long_chain_skips_refinements_and_stays_exact(monkeypatch):
     errors = [np.abs(result.point("B0").position - exact).max() for result in (skipping, refining)]
     assert errors[0] < 1e-7 and errors[0] <= 1.01 * errors[1]  # the integrator's own error, ~1e-8 m here
     assert skipping.energy.drift_position.max() <= 1e-10 and skipping.energy.drift_velocity.max() <= 1e-10
+
+
+def test_long_chain_projections_start_from_the_last_change(monkeypatch):
+    """10^4 bodies, 300 steps of 1 ms: the projections started from their changes of the
+    step before (`projections.WARM_START`) take fewer solves than from zero (measured 1858
+    against 2119), B0 on the exact answer as from zero, the drifts at the tolerance."""
+    from sparsekin.solve import projections
+
+    loops, times = 5000, np.linspace(0.0, 0.3, 31)
+    exact, _ = n_four_bar_b0(times, n_loops=loops)
+    results = {}
+    for warm in (True, False):
+        monkeypatch.setattr(projections, "WARM_START", warm)
+        options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+        results[warm] = run_dynamics(discretize(n_four_bar(loops)), times, options, DynamicsOptions(1e-3),
+                                     Request(coordinates=False, points=["B0"], energy=True))  # fmt: skip
+    assert results[True].stats.n_solves < 0.92 * results[False].stats.n_solves
+    errors = {warm: np.abs(result.point("B0").position - exact).max() for warm, result in results.items()}
+    assert errors[True] < 1e-6 and errors[True] <= 1.01 * errors[False]  # the integrator's own error, 3.3e-7 m here
+    assert results[True].energy.drift_position.max() <= 1e-10 and results[True].energy.drift_velocity.max() <= 1e-10
 
 
 

@@ -160,6 +160,9 @@ class DynamicState(NamedTuple):
     newton_accelerations : ndarray, shape (n_coordinates,), optional
         q̈ as Newton solved the step, before the acceleration projection (None: the same as
         `accelerations`): the next step's Newton starts from them.
+    newton_multipliers : ndarray, shape (n_equations,), optional
+        λ as Newton solved the step, before the acceleration projection (None: the same as
+        `multipliers`; the large path only): the next step's Newton starts from them.
     """
 
     time: float
@@ -172,11 +175,17 @@ class DynamicState(NamedTuple):
     work: float
     dissipated: float
     newton_accelerations: np.ndarray | None = None
+    newton_multipliers: np.ndarray | None = None
 
     @property
     def newton_start(self) -> np.ndarray:
         """The q̈ the next step's Newton starts from: `newton_accelerations`, else `accelerations`."""
         return self.accelerations if self.newton_accelerations is None else self.newton_accelerations
+
+    @property
+    def newton_start_multipliers(self) -> np.ndarray:
+        """The λ the next step's Newton starts from: `newton_multipliers`, else `multipliers`."""
+        return self.multipliers if self.newton_multipliers is None else self.newton_multipliers
 
 
 class GeneralizedAlphaStepper(ConstraintProjections):
@@ -248,7 +257,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self.system: DynamicSystem | None = None
         self.redundant_rows = np.zeros(0, dtype=np.int64)
         self._floor = RoundingFloor(False)
-        self._previous: tuple | None = None  # q̈ at the start of the last step and its size
+        self._previous: tuple | None = None  # q̈ and λ at the start of the last step, its size
         self.n_steps = self.n_subdivisions = self.n_newton = self.n_stalls = self.n_singular_projections = 0
         self._state: DynamicState | None = None
         self._factored, self._good = False, 0  # good steps in a row at a reduced step
@@ -293,7 +302,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         # projections': solution, residual (Newton's rhs), drift, drift left, zeros
         self._rhs = np.zeros(system.size)
         self._projection_work = (np.zeros(system.size), self._rhs, np.zeros(m), np.zeros(m), np.zeros(n))
-        self._pair_work = None  # `_project_together`'s, made when first needed
+        self._pair_work = self._last_projections = self._projection_step = None  # `_project_together`'s
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
@@ -450,9 +459,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (start, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a, start, previous, ratio)  # fmt: skip
-        lam = state.multipliers.copy()
+        lam = self._predicted_multipliers(state, h)
         system.set_time(t_next)
-        self._floor.step_begins()
+        if self._floor.step_begins():  # the held matrix too old (`MAX_MATRIX_AGE`)
+            self._factored = False
         weights = self._weights
         rhs = self._rhs
         all_kept = kept.size == self.pattern.n_equations
@@ -510,6 +520,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                     raise _StepFailed(f"Newton does not contract ({correction:.3g} after {last:.3g})")
                 else:
                     self._factored = False  # a fresh matrix at the next iterate
+            elif (self._floor.enabled and not (settled or fresh) and iteration > 0
+                  and correction <= self._floor.noise(NOISE * stall / STALL)):  # fmt: skip
+                settled, stalled = True, stall  # within the held matrix's noise, contracting or not (`NOISE`)
+                self.n_stalls += 1
             else:
                 if not (settled or fresh) and iteration > 0 and not _converges_in_time(
                         correction, rate, max(bound, floor), max_iterations - iteration - 1):  # fmt: skip
@@ -528,7 +542,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             self._project_velocities(q, v, lam, coefficients, h)
             self._floor.step()
             change = self._project_accelerations(q, v, a, lam, coefficients)
-        newton = a if change is None else self._apply_acceleration_change(a, pseudo, lam, change)
+        newton, newton_lam = a, None
+        if change is not None:
+            newton, newton_lam = self._apply_acceleration_change(a, pseudo, lam, change)
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
         power = system.powers(q, v, lam)
@@ -537,8 +553,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
-        self._previous = (start, h)  # the step's start: the next one extrapolates from it
-        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton)
+        self._previous = (start, h, state.newton_start_multipliers)  # the next step extrapolates from them
+        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton, newton_lam)
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
         """Newton's last test, once its corrections have settled: the constraints' residual
@@ -605,17 +621,37 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         drift = None if out is None else self.system.jacobian_product(a, assembler.acceleration_rhs, out)
         return drift, bound, noise
 
-    def _apply_acceleration_change(self, a, pseudo, lam, change) -> np.ndarray:
+    def _predicted_multipliers(self, state: DynamicState, h: float) -> np.ndarray:
+        """The λ Newton starts the step from (a new array): Newton's of the last step (before
+        the acceleration projection), on the large path extrapolated linearly from the step
+        before's (`RoundingFloor.extrapolates_multipliers`).  Newton's q̈ start predicts its
+        accelerations to 1e-10 of a step, so that its first correction is λ's error through
+        the held matrix's stale Φq: on a 10^4-body chain after its flat crossing, a constant λ
+        (0.37 off) left a first correction 3x too small and a second one 4x larger (the held
+        matrix refactored at every step), the extrapolated one is 3e-3 off."""
+        start = state.newton_start_multipliers
+        previous = self._previous
+        if (previous is None or not h <= EXTRAPOLATION_RATIO * previous[1]
+                or not self._floor.extrapolates_multipliers()):  # fmt: skip
+            return start.copy()
+        lam = np.subtract(start, previous[2])
+        lam *= h / previous[1]
+        lam += start
+        return lam
+
+    def _apply_acceleration_change(self, a, pseudo, lam, change) -> tuple:
         """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈
-        (a copy of `a` before: the next step's Newton starts from it)."""
+        and, on the large path, λ (copies of `a` and `lam` before: the next step's Newton
+        starts from them; None in λ's place on the dense path)."""
         newton = a.copy()
+        newton_lam = lam.copy() if self._floor.enabled else None
         a -= change[: a.size]
         pseudo -= change[: a.size]
         if self.system.kept_rows.size == self.pattern.n_equations:
             lam -= change[a.size :]
         else:
             lam[self.system.kept_rows] -= change[a.size :]
-        return newton
+        return newton, newton_lam
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
