@@ -267,6 +267,41 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
     assert errors[0] < errors[1] < 1e-8  # the second millisecond in two steps: closer (1.1e-9, 1.8e-9 m)
 
 
+def test_a_refinement_restart_leaves_velocities_that_needed_no_projection(monkeypatch):
+    """The paired projections restart on a fresh matrix when a refinement stops contracting;
+    the velocity column's change made so far is then taken back from q̇ — only if that column
+    started this step: otherwise its array holds an earlier step's change (always, with warm
+    starts), which the restart added to q̇.  Forced here: the velocities on their constraint
+    (the column never starts), stale values in its array, and an acceleration column that
+    cannot stop (bound and noise 1e-300) on a refinement whose every second increment counts as
+    not contracting (`REFINEMENT_CONTRACTION` 0): one restart, q̇ left as it was (the old test,
+    ``not moves.done``, moved it by the stale values)."""
+    from sparsekin.solve import projections
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+    options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+    stepper = GeneralizedAlphaStepper(n_four_bar(60), 1e-3, options=options)
+    stepper.start(0.0)
+    for k in (1, 2, 3):
+        stepper.advance(k * 1e-3)
+    project, factor, calls, factored = stepper._project_together, stepper._factor, [], []
+
+    def forced(q, v, a, lam, coefficients, velocity, acceleration):
+        velocity[0][:] = 0.0  # the velocities' drift: within any bound
+        stepper._projection_work[0][:] = 1.0  # the velocity column's array: an earlier step's change
+        before, count = v.copy(), len(factored)
+        try:
+            return project(q, v, a, lam, coefficients, velocity, (acceleration[0], 1e-300, 1e-300))
+        finally:
+            calls.append((np.array_equal(v, before), len(factored) - count))
+
+    monkeypatch.setattr(projections, "REFINEMENT_CONTRACTION", 0.0)
+    monkeypatch.setattr(stepper, "_project_together", forced)
+    monkeypatch.setattr(stepper, "_factor", lambda *args: (factored.append(None), factor(*args))[1])
+    stepper.advance(4e-3)
+    assert calls == [(True, 1)]
+
+
 def test_regularization_only_after_a_failed_step_on_the_large_path():
     large, dense = RoundingFloor(True), RoundingFloor(False)
     assert large.regularization(1e-10) == 0.0 and dense.regularization(1e-10) == 1e-10
