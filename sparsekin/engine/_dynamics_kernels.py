@@ -55,30 +55,39 @@ def _put(rows, cols, vals, e, row, col, value):
 def fill_inertia_triplets(masses, gravity, qd, qdd, turns, a, b, c, rows, cols, vals, start):
     """Each body's 3×3 block of ``a M + b C + c K`` from its mass, inertia and gravity:
     9 entries per body, row-major, massless bodies included (zeros)."""
-    gx, gy = gravity[0], gravity[1]
     e = start
     for body in range(masses.mass.size):
-        m, inertia = masses.mass[body], masses.inertia[body]
-        ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
-        omega, alpha = qd[3 * body + 2], qdd[3 * body + 2]
-        xdd, ydd = qdd[3 * body], qdd[3 * body + 1]
         x, y, angle = 3 * body, 3 * body + 1, 3 * body + 2
-        # column θ: stiffness (inertial at fixed accelerations, and gravity) and damping
-        k_x = m * (omega * omega * ay - alpha * ax)
-        k_y = -m * (alpha * ay + omega * omega * ax)
-        k_t = -m * (ax * xdd + ay * ydd) + m * (ax * gx + ay * gy)
-        c_x, c_y = -2.0 * m * omega * ax, -2.0 * m * omega * ay
-        _put(rows, cols, vals, e, x, x, a * m)
+        mass, x_angle, y_angle, angle_x, angle_y, angle_angle = inertia_block(masses, gravity, qd, qdd, turns, a, b,
+                                                                              c, body)  # fmt: skip
+        _put(rows, cols, vals, e, x, x, mass)
         _put(rows, cols, vals, e + 1, x, y, 0.0)
-        _put(rows, cols, vals, e + 2, x, angle, -a * m * ay + b * c_x + c * k_x)
+        _put(rows, cols, vals, e + 2, x, angle, x_angle)
         _put(rows, cols, vals, e + 3, y, x, 0.0)
-        _put(rows, cols, vals, e + 4, y, y, a * m)
-        _put(rows, cols, vals, e + 5, y, angle, a * m * ax + b * c_y + c * k_y)
-        _put(rows, cols, vals, e + 6, angle, x, -a * m * ay)
-        _put(rows, cols, vals, e + 7, angle, y, a * m * ax)
-        _put(rows, cols, vals, e + 8, angle, angle, a * (inertia + m * (ax * ax + ay * ay)) + c * k_t)
+        _put(rows, cols, vals, e + 4, y, y, mass)
+        _put(rows, cols, vals, e + 5, y, angle, y_angle)
+        _put(rows, cols, vals, e + 6, angle, x, angle_x)
+        _put(rows, cols, vals, e + 7, angle, y, angle_y)
+        _put(rows, cols, vals, e + 8, angle, angle, angle_angle)
         e += 9
     return e
+
+
+@njit(inline="always", **JIT)
+def inertia_block(masses, gravity, qd, qdd, turns, a, b, c, body):
+    """The six values of `body`'s 3×3 block of ``a M + b C + c K`` that are not fixed zeros:
+    ``(a m, xθ, yθ, θx, θy, θθ)``, the block ``[[a m, 0, xθ], [0, a m, yθ], [θx, θy, θθ]]``."""
+    m, inertia = masses.mass[body], masses.inertia[body]
+    ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
+    omega, alpha = qd[3 * body + 2], qdd[3 * body + 2]
+    xdd, ydd = qdd[3 * body], qdd[3 * body + 1]
+    # column θ: stiffness (inertial at fixed accelerations, and gravity) and damping
+    k_x = m * (omega * omega * ay - alpha * ax)
+    k_y = -m * (alpha * ay + omega * omega * ax)
+    k_t = -m * (ax * xdd + ay * ydd) + m * (ax * gravity[0] + ay * gravity[1])
+    c_x, c_y = -2.0 * m * omega * ax, -2.0 * m * omega * ay
+    return (a * m, -a * m * ay + b * c_x + c * k_x, a * m * ax + b * c_y + c * k_y, -a * m * ay, a * m * ax,
+            a * (inertia + m * (ax * ax + ay * ay)) + c * k_t)  # fmt: skip
 
 
 # ---------------------------------------------------------------------- loads

@@ -251,6 +251,7 @@ def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, wor
     stats[STAT_MAX_ABS_B] = max_b
     stats[STAT_NON_FINITE] = probe
 
+
 @njit(**_JIT)
 def solve_lu(factors, rhs, work, out, probe):
     """Solve ``A x = rhs`` with ``Pr A Pc = L U``: fill `out` (may be `rhs` itself).

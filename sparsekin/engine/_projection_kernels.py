@@ -22,31 +22,18 @@ import math
 from numba import njit
 
 from .._jit import JIT
-from ._kernels import _turned
+from ._dynamics_kernels import inertia_block
 
 
 @njit(**JIT)
 def fill_inertia_values(masses, gravity, qd, qdd, turns, a, b, c, inertia):
-    """Each body's 3×3 block of ``a M + b C + c K`` (`_dynamics_kernels.fill_inertia_triplets`,
-    the same expressions) as its six values that are not fixed zeros, ``inertia[body] =
-    (a m, xθ, yθ, θx, θy, θθ)`` (the block is ``[[a m, 0, xθ], [0, a m, yθ], [θx, θy, θθ]]``);
-    returns the triplets it stands for, 9 per body."""
-    gx, gy = gravity[0], gravity[1]
+    """Each body's 3×3 block of ``a M + b C + c K`` as its six values that are not fixed zeros
+    (`_dynamics_kernels.inertia_block`, as `_dynamics_kernels.fill_inertia_triplets` fills
+    them); returns the triplets it stands for, 9 per body."""
     for body in range(masses.mass.size):
-        m, moment = masses.mass[body], masses.inertia[body]
-        ax, ay = _turned(turns[body, 0], turns[body, 1], masses.com[body])
-        omega, alpha = qd[3 * body + 2], qdd[3 * body + 2]
-        xdd, ydd = qdd[3 * body], qdd[3 * body + 1]
-        k_x = m * (omega * omega * ay - alpha * ax)
-        k_y = -m * (alpha * ay + omega * omega * ax)
-        k_t = -m * (ax * xdd + ay * ydd) + m * (ax * gx + ay * gy)
-        c_x, c_y = -2.0 * m * omega * ax, -2.0 * m * omega * ay
-        inertia[body, 0] = a * m
-        inertia[body, 1] = -a * m * ay + b * c_x + c * k_x
-        inertia[body, 2] = a * m * ax + b * c_y + c * k_y
-        inertia[body, 3] = -a * m * ay
-        inertia[body, 4] = a * m * ax
-        inertia[body, 5] = a * (moment + m * (ax * ax + ay * ay)) + c * k_t
+        values = inertia_block(masses, gravity, qd, qdd, turns, a, b, c, body)
+        for k in range(6):
+            inertia[body, k] = values[k]
     return 9 * masses.mass.size
 
 

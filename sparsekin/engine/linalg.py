@@ -601,13 +601,10 @@ class RefactorSolver:
         held_perm_r, l_capacity, u_capacity = self._perm_r, self._l_indices.size, self._u_indices.size
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None  # freed first
         self._l_values = self._u_values = self._compact = None
-        if not self._work_is_zero:
-            self._work.fill(0.0)
         perm_r, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
             values, in_factor_order, (self._b_indptr, self._offsets), self._indices, (held_perm_r, self._perm_c),
-            NEW_PIVOT_THRESHOLD, l_capacity, self._work
-        )
-        self._work_is_zero = True
+            NEW_PIVOT_THRESHOLD, l_capacity, self._zeroed_work()
+        )  # (the kernel leaves the work array zero)
         if bad_column < 0:
             self._analyse(perm_r, self._perm_c, l_entries, u_entries)
             if self._numeric(values, in_factor_order):
@@ -622,8 +619,7 @@ class RefactorSolver:
         self.n_factorizations += 1
         data = matrix.data if matrix.data.dtype == np.float64 else matrix.data.astype(float)
         # the old factors' values go before SuperLU makes its own factors (held across it,
-        # they made the peak of a long chain's run at its flat crossing, where the guard
-        # sends refactorizations here); their patterns stay, for a refactorization after a
+        # they would add to the peak); their patterns stay, for a refactorization after a
         # failure here
         self._l_values = self._u_values = self._compact = None
         try:
@@ -711,21 +707,26 @@ class RefactorSolver:
         self._l_values, self._u_values = np.zeros(self._l_indices.size), np.zeros(self._u_indices.size)
         self._compact = None  # the compact factors' counts and offsets, made when first compacted
 
-    def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
-        """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
-        stats = self._stats
+    def _zeroed_work(self) -> np.ndarray:
+        """The accumulator of a factorization kernel, zero (the solves leave their scratch in
+        it); its kernels leave it zero again."""
         if not self._work_is_zero:
             self._work.fill(0.0)
             self._work_is_zero = True
+        return self._work
+
+    def _numeric(self, values: np.ndarray, in_factor_order: bool) -> bool:
+        """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
+        stats = self._stats
+        work = self._zeroed_work()
         b_pattern = (self._b_indptr, self._b_rows, self._offsets)
         lower = (self._l_indptr, self._l_indices, self._l_values)
         upper = (self._u_indptr, self._u_indices, self._u_values, self._u_inverse)
         if self.lean:
             rows = (self._indices, self._perm_r)
-            _lu_kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, self._work,
-                                             stats)  # fmt: skip
+            _lu_kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats)
         else:
-            _lu_kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, self._work, stats)
+            _lu_kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats)
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
         if bad_column >= 0 or non_finite != 0.0:

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..engine import _dynamics_kernels, _projection_kernels
+from ..engine import _dynamics_kernels
 from .error_control import StepFailed as _StepFailed
 
 __all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "TARGET_MARGIN", "WARM_START",
