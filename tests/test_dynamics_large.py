@@ -28,8 +28,8 @@ from sparsekin.engine.saddle import DynamicSystem
 from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
-from sparsekin.solve.rounding_floor import (COLD_MARGIN, EXTRAPOLATION_GAIN, FLOOR_STEPS, PROJECTION_NOISE,
-                                            RATE_STEPS, REFINEMENT_MARGIN, RoundingFloor)
+from sparsekin.solve.rounding_floor import (COLD_MARGIN, EXTRAPOLATION_GAIN, FLOOR_STEPS, GROWTH_STEPS,
+                                            PROJECTION_NOISE, RATE_STEPS, REFINEMENT_MARGIN, RoundingFloor)
 from sparsekin.testset import n_four_bar
 
 
@@ -158,7 +158,7 @@ def test_refinement_skipped_only_on_a_measured_contraction_grown_with_age():
 
 def test_projection_starts_cold_where_two_solves_from_zero_are_predicted_to_do():
     """`RoundingFloor.starts_cold`: from zero on a factorization of this step, when no second
-    increment from zero was measured in `RATE_STEPS` steps, or when the contraction measured,
+    increment from zero was measured in `GROWTH_STEPS` steps, or when the contraction measured,
     per step of age and grown with the age now, predicts one within `COLD_MARGIN` · noise."""
     floor, noise = RoundingFloor(True), 1e-7
     floor.step_begins()
@@ -174,7 +174,7 @@ def test_projection_starts_cold_where_two_solves_from_zero_are_predicted_to_do()
     assert floor.starts_cold("acceleration", 1.01 * limit, noise)  # measured per projection
     floor.refactored()
     assert floor.starts_cold("velocity", 1.0, noise)  # a factorization of this step (age 0)
-    for _ in range(RATE_STEPS):
+    for _ in range(GROWTH_STEPS):
         floor.step_begins()
         floor.step()
     assert floor.starts_cold("velocity", 1.0, noise)  # measured too long ago: measured again

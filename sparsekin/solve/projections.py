@@ -171,11 +171,13 @@ class ConstraintProjections:
                 else:
                     column.solution += column.residual
                 column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
-                if column.first and not column.warm_started:
+                column.solves += 1
+                if column.warm_started:
+                    pass
+                elif column.solves == 1:  # (from zero: the size of its change, within the contraction)
                     column.opening = column.size
-                elif column.opening:  # its second increment from zero: the contraction `starts_cold` predicts
+                elif column.solves == 2:  # the contraction `starts_cold` predicts
                     self._floor.contracted(column.what, column.size / column.opening)
-                    column.opening = 0.0
             if moves in active:
                 v -= moves.residual[:n]
             if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):
@@ -235,9 +237,8 @@ class ConstraintProjections:
                 self.n_singular_projections += 1
                 continue
             raise _StepFailed(f"the {column.what} projection does not converge (increment {column.size:.3g})")
-        self._last_projections = (step, moves.started, follows.started, *(
-            _dynamics_kernels.weighted_norm(column.solution[:n], self._weights) if column.started else 0.0
-            for column in columns))  # fmt: skip
+        changes = (column.change(self._weights) for column in columns)
+        self._last_projections = (step, moves.started, follows.started, *changes)
         return follows.solution if follows.started else None
 
     def _warm_residuals(self, q, v, lam, coefficients, moves, follows, drift_out) -> None:
@@ -345,7 +346,7 @@ class _Column:
         self.solution, self.residual, self.n = solution, residual, system.n
         self.active = self.done = self.started = self.first = False
         self.size, self.last = math.inf, math.inf
-        self.warm_started, self.opening = False, 0.0  # (its first increment from zero, until its second)
+        self.warm_started, self.opening, self.solves = False, 0.0, 0  # (opening: its first increment from 0)
         if self.before > bound:
             self.warm() if warm else self.start(measured=True)
 
@@ -357,7 +358,7 @@ class _Column:
             self.before = _dynamics_kernels.weighted_norm(self.drift, self.weights)
         self.residual[:n], self.residual[n:] = 0.0, self.drift
         self.active, self.done, self.started, self.first, self.last = True, False, True, True, math.inf
-        self.warm_started, self.opening = False, 0.0
+        self.warm_started, self.opening, self.solves = False, 0.0, 0
 
     def warm(self) -> None:
         """From the change of the step before, still in `solution` (Δ and μ: μ from zero left
@@ -373,6 +374,15 @@ class _Column:
             self.start()
             return
         self.active, self.done, self.first, self.last = True, False, False, math.inf
+
+    def change(self, coordinate_weights) -> float:
+        """The weighted size of its change (0 if it did not start): its first increment from
+        zero (the same within the contraction), else its solution's."""
+        if not self.started:
+            return 0.0
+        if self.opening > 0.0:
+            return self.opening
+        return _dynamics_kernels.weighted_norm(self.solution[: self.n], coordinate_weights)
 
     def drift_left(self, projections) -> float:
         """The weighted drift its change so far leaves (its drift if it has not started)."""

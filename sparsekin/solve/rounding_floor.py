@@ -10,7 +10,7 @@ from __future__ import annotations
 from ..engine._dynamics_kernels import fill_rounding_probe, weighted_norm
 
 __all__ = ["COLD_MARGIN", "EXTRAPOLATION_GAIN", "EXTRAPOLATION_RATIO", "FLOOR_MARGIN", "FLOOR_STEPS",
-           "MAX_MATRIX_AGE", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor",
+           "GROWTH_STEPS", "MAX_MATRIX_AGE", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor",
            "rounding_response"]
 
 #: A floor measured by a stalled Newton is trusted for this many steps, then measured again.
@@ -28,8 +28,11 @@ REFINEMENT_MARGIN = 0.01
 #: ... the contraction measured at most this many steps ago (then it is measured again).
 RATE_STEPS = 8
 #: A projection starts from zero when the contraction measured lately predicts a second
-#: increment within this fraction of its noise (`RoundingFloor.starts_cold`).
+#: increment within this fraction of its noise (`RoundingFloor.starts_cold`) ...
 COLD_MARGIN = 0.5
+#: ... the contraction per step of the factorization's age measured at most this many steps
+#: ago, on any factorization (then it is measured again: from zero).
+GROWTH_STEPS = 32
 #: The predictor extrapolates the accelerations while that leaves Newton a first correction
 #: at most this fraction of the last one without (`RoundingFloor.extrapolates`).
 EXTRAPOLATION_GAIN = 0.5
@@ -186,7 +189,7 @@ class RoundingFloor:
         """Whether projection `what`, whose change in the step before was `change`, starts
         from zero rather than from that change (`sparsekin.solve.projections.WARM_START`):
         on a factorization made in this step, when no contraction was measured in the last
-        `RATE_STEPS` steps (a refinement from zero measures it), or when the last one
+        `GROWTH_STEPS` steps (a refinement from zero measures it), or when the last one
         measured (`contracted`), grown in proportion to the factorization's age, predicts a
         second increment from zero within `COLD_MARGIN` times `noise`: two solves from zero
         will do then, and a warm column also takes two and a residual pass more."""
@@ -194,7 +197,7 @@ class RoundingFloor:
             return True
         growth, measured = self._growth[what]
         predicted = growth * self._matrix_age * change
-        return self._steps - measured >= RATE_STEPS or predicted <= COLD_MARGIN * noise
+        return self._steps - measured >= GROWTH_STEPS or predicted <= COLD_MARGIN * noise
 
     def extrapolates(self) -> bool:
         """Whether the next step's predictor extrapolates the accelerations: on the large
