@@ -10,8 +10,8 @@ from __future__ import annotations
 from ..engine._dynamics_kernels import fill_rounding_probe, weighted_norm
 
 __all__ = ["COLD_MARGIN", "EXTRAPOLATION_GAIN", "EXTRAPOLATION_RATIO", "FLOOR_MARGIN", "FLOOR_STEPS",
-           "GROWTH_STEPS", "MAX_MATRIX_AGE", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor",
-           "rounding_response"]
+           "GROWTH_STEPS", "MAX_MATRIX_AGE", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN",
+           "RoundingFloor", "rounding_response"]
 
 #: A floor measured by a stalled Newton is trusted for this many steps, then measured again.
 FLOOR_STEPS = 100
