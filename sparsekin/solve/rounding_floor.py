@@ -89,14 +89,19 @@ class RoundingFloor:
     5.5e-4, 6.8e-4, 1.2e-3 at ages 2 to 6 on a 10^4-body chain), so a contraction measured
     at age a₀ ≥ 1 predicts ``rate · (a / a₀)²`` now.  When that predicts a second increment
     below `REFINEMENT_MARGIN` times the noise, the projection stops after its first solve
-    (once the drift left is within its bound, as always).
+    (once the drift left is within its bound, as always).  The second increment from zero
+    over the first grows in proportion to the age (10^5 bodies: 6e-4 to 1.2e-2 at ages 1 to
+    13); measured per step of age (`contracted`) it says whether a projection starts from
+    zero or from its last change (`starts_cold`).
 
     And it decides the predictor (`extrapolates`, `predicted`).  Generalized-α's predictor
     takes the last accelerations: its error in q is about β h² (q̈_{n+1} − q̈_n), ~3e-9 on
     the chain, ten times its rounding floor, so that Newton took a correction to remove it
     and two more to reach the floor.  Extrapolated linearly from the step before, q̈_{n+1}
-    ≈ q̈_n + (h / h_{n-1}) (q̈_n − q̈_{n-1}), the first correction is 3e-10–6e-10 at 10^5
-    bodies and 7e-11 at 10^4: one correction fewer.  It is used while it pays: its first
+    ≈ q̈_n + (h / h_{n-1}) (q̈_n − q̈_{n-1}), the first correction was 3e-10–6e-10 at 10^5
+    bodies and 7e-11 at 10^4 (residuals summed left to right; with exact sums and Newton's
+    own q̈ and λ to start from, medians 2e-12–6e-12 at both sizes, the second correction still
+    needed: docs/design-notes.md): one correction fewer.  It is used while it pays: its first
     correction at most `EXTRAPOLATION_GAIN` times the last one without; otherwise it is
     tried again after `RATE_STEPS` steps, and only when no factorization was made for as
     many steps (near a flat crossing the accelerations jump, and an extrapolation tried
