@@ -95,6 +95,58 @@ def test_derived_slots_fill_the_same_matrix_bit_for_bit(name):
         assert system.saddle.slots is None  # derived, not held
 
 
+def _saddle_models():
+    from pathlib import Path
+
+    import sparsekin as sk
+    from helpers import actuator_round_trip
+    from sparsekin.testset import lattice, task5, with_masses
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    return {"chain": lambda: n_four_bar(12), "task5 with masses": lambda: with_masses(task5(), 1.0, 0.1),
+            "lattice with masses": lambda: with_masses(lattice(3, 4), 1.0, 0.1),
+            "andrews (a spring)": lambda: sk.load_model(examples / "dynamics" / "andrews.toml"),
+            "struck lattice (rotational springs)": lambda: sk.load_model(examples / "dynamics" / "struck_lattice.toml"),
+            "task5 on actuators": lambda: actuator_round_trip(0.1, 0.05)[0]}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", list(_saddle_models()))
+@pytest.mark.parametrize("left_out", [(), (0, 3, -1)])
+def test_pattern_from_its_parts_is_the_sorted_triplets(name, left_out, monkeypatch):
+    """S's pattern made from the block's triplets and the Jacobian's rows (`_pattern_from_parts`:
+    no Φq triplets, no sort of them) is the pattern of every triplet sorted
+    (`SaddlePattern.from_triplets`), entry for entry and dtype for dtype, with the same slots
+    and the same matrix bit for bit; kept equations out of order take the sort."""
+    discretization = discretize(_saddle_models()[name]())
+    m = discretization.constraints.n_equations
+    kept = np.setdiff1d(np.arange(m), np.array(left_out, dtype=np.int64) % m)
+    made = DynamicSystem(discretization, kept)
+    assert made.saddle.slots is None and made._slots[2] is None  # from the parts: Φq's slots derived
+    monkeypatch.setattr(DynamicSystem, "_pattern_from_parts", lambda self, block, dtype: False)
+    sorted_ = DynamicSystem(discretization, kept)
+    for mine, theirs in [(made.saddle.indptr, sorted_.saddle.indptr), (made.saddle.indices, sorted_.saddle.indices),
+                         (made._slots[0], sorted_._slots[0]), (made._slots[1], sorted_._slots[1]),
+                         (made._rows, sorted_._rows), (made._cols, sorted_._cols), (made._vals, sorted_._vals)]:  # fmt: skip
+        assert mine.dtype == theirs.dtype
+        np.testing.assert_array_equal(mine, theirs)
+    np.testing.assert_array_equal(made.triplet_slots(), sorted_.triplet_slots())
+    rng = np.random.default_rng(6)
+    n = made.n
+    q = discretization.constraints.initial_coordinates + 0.05 * rng.standard_normal(n)
+    state = (q, rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(m), 1.0, 0.3, 0.2)
+    for system in (made, sorted_):
+        system.set_time(0.01)
+        system.fill_constraints(q)
+    np.testing.assert_array_equal(made.fill_matrix(*state, regularization=1e-9).data,
+                                  sorted_.fill_matrix(*state, regularization=1e-9).data)  # fmt: skip
+    monkeypatch.undo()
+    shuffled = DynamicSystem(discretization, kept[::-1].copy())  # rows of S in another order: sorted
+    assert shuffled.saddle.nnz == made.saddle.nnz
+    shuffled.set_time(0.01)
+    shuffled.fill_constraints(q)
+    np.testing.assert_array_equal(np.sort(shuffled.fill_matrix(*state).data), np.sort(made.fill_matrix(*state).data))
+
+
 def test_product_is_the_assembled_matrix_times_x():
     discretization = discretize(n_four_bar(12))
     m = discretization.constraints.n_equations
