@@ -28,52 +28,46 @@ def coordinate_block_rows(rows, cols, count, n):
     """The coordinate block's rows of S from its first `count` triplets (indices below n:
     coordinates; ``n .. n + 2``, the ground's, and negative ones: discarded).
 
-    Returns ``(ok, start, columns, position)``: row r's columns, ascending and each once,
-    are ``columns[start[r]:start[r + 1]]``; triplet e sits at ``position[e]`` within its
-    row (−1: discarded).  ``ok`` is False (and the arrays empty) if an index is from
-    ``n + 3`` on (an equation's: not a block triplet)."""
+    Returns ``(ok, start, columns)``: row r's columns, ascending and each once, are
+    ``columns[start[r]:start[r + 1]]`` (of the triplets' index type).  ``ok`` is False
+    (and the arrays empty) if an index is from ``n + 3`` on (an equation's: not a block
+    triplet)."""
     start = np.zeros(n + 1, dtype=np.int64)
-    position = np.full(count, -1, dtype=np.int64)
     for e in range(count):
         r, c = rows[e], cols[e]
         if r >= n + 3 or c >= n + 3:
-            return False, start, np.zeros(0, dtype=np.int64), position
+            return False, start, np.zeros(0, dtype=cols.dtype)
         if 0 <= r < n and 0 <= c < n:
             start[r + 1] += 1
     for r in range(n):
         start[r + 1] += start[r]
-    columns = np.empty(start[n], dtype=np.int64)
-    entries = np.empty(start[n], dtype=np.int64)
+    columns = np.empty(start[n], dtype=cols.dtype)
     fill = start[:n].copy()
     for e in range(count):
         r, c = rows[e], cols[e]
         if 0 <= r < n and 0 <= c < n:
             columns[fill[r]] = c
-            entries[fill[r]] = e
             fill[r] += 1
     unique = 0
     for r in range(n):
         first, end = start[r], start[r + 1]
         if end - first > INSERTION_SORT_MAX:
-            order = np.argsort(columns[first:end], kind="mergesort")
-            columns[first:end] = columns[first:end][order]
-            entries[first:end] = entries[first:end][order]
+            columns[first:end] = np.sort(columns[first:end])
         else:
             for k in range(first + 1, end):
-                column, moved = columns[k], entries[k]
+                column = columns[k]
                 before = k - 1
                 while before >= first and columns[before] > column:
-                    columns[before + 1], entries[before + 1] = columns[before], entries[before]
+                    columns[before + 1] = columns[before]
                     before -= 1
-                columns[before + 1], entries[before + 1] = column, moved
+                columns[before + 1] = column
         start[r] = unique
         for k in range(first, end):
             if k == first or columns[k] != columns[k - 1]:
                 columns[unique] = columns[k]  # unique <= k: compaction in place
                 unique += 1
-            position[entries[k]] = unique - 1 - start[r]
     start[n] = unique
-    return True, start, columns[:unique].copy(), position
+    return True, start, columns[:unique].copy()
 
 
 @njit(**JIT)
@@ -111,13 +105,14 @@ def saddle_rows(block_start, indptr, indices, kept_row, n, saddle_indptr):
 
 
 @njit(**JIT)
-def fill_saddle_pattern(rows, block, position, block_start, block_columns, jacobian, n, saddle_indptr,
-                        saddle_indices, block_slots, transposed_slots):  # fmt: skip
+def fill_saddle_pattern(triplets, block_start, block_columns, jacobian, n, saddle_indptr, saddle_indices, block_slots,
+                        transposed_slots):  # fmt: skip
     """S's column indices (`saddle_indices`, on `saddle_rows`' pointers) and the slots of
-    the block's first `block` triplets (`rows` and `position` of `coordinate_block_rows`)
-    and of Φqᵀ's entry for each Jacobian entry (`transposed_slots`); ``nnz``, the discard
-    slot, for the ground's and left-out equations'.  `jacobian` is ``(indptr, indices,
-    kept_row)``."""
+    the block's first ``block_slots.size`` triplets (``triplets = (rows, cols)``; their
+    rows' columns from `coordinate_block_rows`) and of Φqᵀ's entry for each Jacobian entry
+    (`transposed_slots`); ``nnz``, the discard slot, for the ground's and left-out
+    equations'.  `jacobian` is ``(indptr, indices, kept_row)``."""
+    rows, cols = triplets
     indptr, indices, kept_row = jacobian
     nnz = saddle_indptr[saddle_indptr.size - 1]
     following = np.empty(n, dtype=np.int64)  # the next free place of each coordinate's row
@@ -127,8 +122,19 @@ def fill_saddle_pattern(rows, block, position, block_start, block_columns, jacob
         for k in range(width):
             saddle_indices[first + k] = block_columns[block_start[j] + k]
         following[j] = first + width
-    for e in range(block):
-        block_slots[e] = saddle_indptr[rows[e]] + position[e] if position[e] >= 0 else nnz
+    for e in range(block_slots.size):
+        r, c = rows[e], cols[e]
+        if 0 <= r < n and 0 <= c < n:  # c among its row's block columns (ascending): bisection
+            low, high = saddle_indptr[r], following[r] - 1
+            while low < high:
+                middle = (low + high) // 2
+                if saddle_indices[middle] < c:
+                    low = middle + 1
+                else:
+                    high = middle
+            block_slots[e] = low
+        else:
+            block_slots[e] = nnz
     for r in range(indptr.size - 1):
         kept = kept_row[r]
         if kept < 0:

@@ -176,8 +176,7 @@ class DynamicSystem:
         derived from the row pointers; False (nothing set) where the Jacobian's rows or the
         kept equations are not in order."""
         p, n = self.pattern, self.n
-        ok, block_start, block_columns, position = _saddle_pattern_kernels.coordinate_block_rows(
-            self._rows, self._cols, block, n)  # fmt: skip
+        ok, block_start, block_columns = _saddle_pattern_kernels.coordinate_block_rows(self._rows, self._cols, block, n)
         saddle_indptr = np.zeros(self.size + 1, dtype=np.int64)
         if not (ok and _saddle_pattern_kernels.saddle_rows(block_start, p.indptr, p.indices, self.kept_row, n,
                                                            saddle_indptr)):  # fmt: skip
@@ -186,12 +185,13 @@ class DynamicSystem:
         index = _index_dtype(max(self.size, nnz))
         indices = np.empty(nnz, dtype=index)
         block_slots, transposed_slots = np.empty(block, dtype=slot_dtype), np.empty(p.nnz, dtype=slot_dtype)
-        _saddle_pattern_kernels.fill_saddle_pattern(self._rows, block, position, block_start, block_columns,
+        _saddle_pattern_kernels.fill_saddle_pattern((self._rows, self._cols), block_start, block_columns,
                                                     (p.indptr, p.indices, self.kept_row), n, saddle_indptr, indices,
                                                     block_slots, transposed_slots)  # fmt: skip
-        del block_start, block_columns, position
+        del block_start, block_columns
         self.saddle = SaddlePattern(self.size, saddle_indptr.astype(index), indices, None)
-        self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        if block < self._rows.size:  # (the count is exact without spring or actuator entries: no copy then)
+            self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
         self._slots = (block_slots, transposed_slots, None)
         self._jacobian_rows = (p.indptr, p.indices, self.kept_row, n, self.saddle.indptr)
         return True
