@@ -64,7 +64,7 @@ from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
-from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
+from ._dynamics_start import assembled, initial_velocities, kept_equations, redundant_equations, undetermined
 from .error_control import StepFailed as _StepFailed
 from .error_control import StepSizeController, advance_controlled
 from .kinematics import recorded_result
@@ -662,7 +662,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
             warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); the forces "
                         "of a redundant set are not unique: the minimum-norm ones are given", RedundantConstraintWarning)  # fmt: skip
-        return np.setdiff1d(np.arange(self.pattern.n_equations, dtype=np.int64), self.redundant_rows)
+        return kept_equations(self.pattern.n_equations, self.redundant_rows)
 
     @property
     def redundant_labels(self) -> tuple[str, ...]:
