@@ -313,7 +313,7 @@ def test_redundant_multipliers_are_the_minimum_norm_ones():
 def test_kept_equations_are_every_equation_but_the_redundant_ones():
     """The saddle's kept equations: ascending, each once, none of the redundant ones (given in
     any order, repeated or not), what a set difference gives; and the tower's system holds them."""
-    from sparsekin.solve._dynamics_start import kept_equations
+    from sparsekin.engine.reduced import kept_equations
     from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
     rng = np.random.default_rng(7)

@@ -57,6 +57,7 @@ from ..engine.linearization import Linearization
 from ..engine.multipliers import redundant_minimum_norm
 from ..engine.newton import NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
+from ..engine.reduced import kept_equations
 from ..engine.saddle import DynamicSystem
 from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, warn_caller
 from ..model.mechanism import Mechanism
@@ -64,7 +65,7 @@ from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
-from ._dynamics_start import assembled, initial_velocities, kept_equations, redundant_equations, undetermined
+from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
 from .error_control import StepFailed as _StepFailed
 from .error_control import StepSizeController, advance_controlled
 from .kinematics import recorded_result
