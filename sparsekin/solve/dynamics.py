@@ -460,6 +460,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (start, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a, start, previous, ratio)  # fmt: skip
+        del previous  # (spare once the step stands: `StateArrays` counts its references)
         lam = self._predicted_multipliers(state, h)
         system.set_time(t_next)
         if self._floor.step_begins():  # the held matrix too old (`MAX_MATRIX_AGE`)
@@ -543,20 +544,24 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             self._project_velocities(q, v, lam, coefficients, h)
             self._floor.step()
             change = self._project_accelerations(q, v, a, lam, coefficients)
-        newton, newton_lam = a, None
         if change is not None:
-            newton, newton_lam = self._apply_acceleration_change(a, pseudo, lam, change)
+            pseudo -= change[:n]  # ã moves with q̈
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
+        # the step stands: Newton's start two steps back is spare (the projected q̈ and λ go there)
+        self._arrays.retire((self._previous,), (state, (q, v, a, lam, pseudo)))
+        self._previous = (start, h, state.newton_start_multipliers)  # the next step extrapolates from them
+        newton, newton_lam = a, None
+        if change is not None:
+            a, lam, newton_lam = self._apply_acceleration_change(a, lam, change)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
-        retired, self._previous = self._previous, (start, h, state.newton_start_multipliers)  # the next step's
         new = DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton, newton_lam)
-        self._arrays.retire((state, retired), (new, self._previous))  # what those held and these do not: spare
+        self._arrays.retire((state,), (new, self._previous))  # what it held and these do not: spare
         return new
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
@@ -641,19 +646,19 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         lam += start
         return lam
 
-    def _apply_acceleration_change(self, a, pseudo, lam, change) -> tuple:
-        """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈
-        and, on the large path, λ (copies of `a` and `lam` before: the next step's Newton
-        starts from them; None in λ's place on the dense path)."""
-        newton = self._arrays.copy_of(a)
-        newton_lam = self._arrays.copy_of(lam) if self._floor.enabled else None
-        a -= change[: a.size]
-        pseudo -= change[: a.size]
+    def _apply_acceleration_change(self, a, lam, change) -> tuple:
+        """q̈ less the projection's change and λ less its multipliers, in arrays of their own
+        (`StateArrays`) where Newton's stay for the next step's Newton to start from: returns
+        the projected q̈ and λ and Newton's λ (on the dense path None, λ changed in place)."""
+        projected = np.subtract(a, change[: a.size], out=self._arrays.take(a.size))
+        newton_lam = None
+        if self._floor.enabled:
+            newton_lam, lam = lam, self._arrays.copy_of(lam)
         if self.system.kept_rows.size == self.pattern.n_equations:
             lam -= change[a.size :]
         else:
             lam[self.system.kept_rows] -= change[a.size :]
-        return newton, newton_lam
+        return projected, lam, newton_lam
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
