@@ -644,12 +644,12 @@ def test_projections_together_land_on_both_constraints():
         assert np.array_equal(one[0], other[0]) and one[1:] == other[1:]
     velocity, acceleration = paired
     bounds, noises = (velocity[1], acceleration[1]), (velocity[2], acceleration[2])
-    stepper._apply_acceleration_change(a1, a1.copy(), lam1, stepper._project_together(
+    a1, lam1, _ = stepper._apply_acceleration_change(a1, lam1, stepper._project_together(
         q, v1, a1, lam1, coefficients, velocity, acceleration))  # fmt: skip
     v2, a2, lam2 = v0.copy(), a0.copy(), lam.copy()
     stepper._project_velocities(q, v2, lam2, coefficients, h)
-    stepper._apply_acceleration_change(a2, a2.copy(), lam2, stepper._project_accelerations(q, v2, a2, lam2,
-                                                                                           coefficients))  # fmt: skip
+    a2, lam2, _ = stepper._apply_acceleration_change(a2, lam2, stepper._project_accelerations(q, v2, a2, lam2,
+                                                                                              coefficients))  # fmt: skip
     # the exact projections: the saddle at the converged state, factored afresh
     matrix = system.fill_matrix(q, v0, np.zeros(n), lam, *coefficients).tocsc()
     change = spsolve(matrix, np.concatenate([np.zeros(n), system.velocity_drift(v0)]))
