@@ -28,8 +28,8 @@ from sparsekin.engine.saddle import DynamicSystem
 from sparsekin.solve.dynamics import run_dynamics
 from sparsekin.solve.options import DynamicsOptions, Request, SolveOptions
 from sparsekin.solve.policy import Thresholds
-from sparsekin.solve.rounding_floor import (EXTRAPOLATION_GAIN, FLOOR_STEPS, PROJECTION_NOISE, RATE_STEPS,
-                                            REFINEMENT_MARGIN, RoundingFloor)
+from sparsekin.solve.rounding_floor import (COLD_MARGIN, EXTRAPOLATION_GAIN, FLOOR_STEPS, GROWTH_STEPS,
+                                            PROJECTION_NOISE, RATE_STEPS, REFINEMENT_MARGIN, RoundingFloor)
 from sparsekin.testset import n_four_bar
 
 
@@ -154,6 +154,34 @@ def test_refinement_skipped_only_on_a_measured_contraction_grown_with_age():
     assert dense.projection_noise(1e3) == 0.0 and not dense.skips_refinement("velocity", 1e-12, noise)
     floor.measured(4e-10, fresh=True)
     assert floor.projection_noise(2e3) == pytest.approx(PROJECTION_NOISE * 2e3 * 4e-10)
+
+
+def test_projection_starts_cold_where_two_solves_from_zero_are_predicted_to_do():
+    """`RoundingFloor.starts_cold`: from zero on a factorization of this step, when no second
+    increment from zero was measured in `GROWTH_STEPS` steps, or when the contraction measured,
+    per step of age and grown with the age now, predicts one within `COLD_MARGIN` · noise."""
+    floor, noise = RoundingFloor(True), 1e-7
+    floor.step_begins()
+    assert floor.starts_cold("velocity", 1.0, noise)  # nothing measured: from zero, to measure it
+    floor.contracted("velocity", 2e-3)  # at age 1
+    floor.step()
+    floor.refactored()
+    floor.step_begins()
+    floor.step_begins()  # a new factorization, age 2: the growth per step of age still holds
+    limit = COLD_MARGIN * noise / (2e-3 * 2)
+    assert floor.starts_cold("velocity", 0.99 * limit, noise)
+    assert not floor.starts_cold("velocity", 1.01 * limit, noise)  # warm: from the last change
+    assert floor.starts_cold("acceleration", 1.01 * limit, noise)  # measured per projection
+    floor.refactored()
+    assert floor.starts_cold("velocity", 1.0, noise)  # a factorization of this step (age 0)
+    for _ in range(GROWTH_STEPS):
+        floor.step_begins()
+        floor.step()
+    assert floor.starts_cold("velocity", 1.0, noise)  # measured too long ago: measured again
+    dense = RoundingFloor(False)
+    dense.step_begins()
+    dense.contracted("velocity", 1e-12)
+    assert dense.starts_cold("velocity", 1.0, noise)  # (the dense path projects from zero, `_project`)
 
 
 def test_predictor_extrapolates_while_it_pays():

@@ -75,6 +75,20 @@ def fill_body_turns(q, turns):
         turns[b, 1] = math.sin(angle)
 
 
+@njit(**JIT)
+def load_coordinates(coordinates, q, turns):
+    """``q[:coordinates.size] = coordinates`` and `fill_body_turns` there, unless q holds them
+    already (then `turns` is that of the fill that put them there: nothing is written)."""
+    k = 0
+    while k < coordinates.size and q[k] == coordinates[k]:
+        k += 1
+    if k == coordinates.size:
+        return
+    for j in range(k, coordinates.size):
+        q[j] = coordinates[j]
+    fill_body_turns(q, turns)
+
+
 # ---------------------------------------------------------------------- point coincidence
 @njit(**JIT)
 def fill_coincidence(q, turns, c, residual, jac_data):

@@ -172,8 +172,6 @@ class Assembler:
     def _fill_gamma(self, coordinates: np.ndarray, velocities: np.ndarray) -> None:
         """gamma at (coordinates, velocities) into `acceleration_rhs` (the targets' part not added)."""
         q, qd, turns = self._q, self._qd, self._turns
-        if not np.array_equal(q[:-3], coordinates):  # else `turns` is that of the last refill
-            q[:-3] = coordinates
-            _kernels.fill_body_turns(q, turns)
+        _kernels.load_coordinates(coordinates, q, turns)  # (at the last refill's q: its turns, as they are)
         qd[:-3] = velocities
         _kernels.fill_gamma(self._primitives, q, qd, turns, self.acceleration_rhs)

@@ -21,7 +21,7 @@ import numpy as np
 from ..engine import _dynamics_kernels
 from .error_control import StepFailed as _StepFailed
 
-__all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "TARGET_MARGIN", "WARM_START",
+__all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "SAME_STEP", "TARGET_MARGIN", "WARM_START",
            "ConstraintProjections"]
 
 #: Most solves of one velocity projection, and the contraction its iterative refinement
@@ -35,6 +35,9 @@ TARGET_MARGIN = 0.01
 #: `ConstraintProjections._project_together` starts each projection from its change of the
 #: step before (same h) instead of from zero (False: from zero, as `_project` does).
 WARM_START = True
+#: Steps within this relative difference are the same step for `WARM_START` (the steps of a
+#: run at a fixed largest step differ in their last bits: t − t₋₁).
+SAME_STEP = 1e-9
 
 
 class ConstraintProjections:
@@ -139,12 +142,14 @@ class ConstraintProjections:
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
         zeros, drift_out = self._projection_work[4], self._projection_work[3]
-        last, step = self._last_projections, self._projection_step  # (h, velocities, accelerations solved)
-        warm = WARM_START and last is not None and last[0] == step
-        work = self._projection_work
-        moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm and last[1])
-        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system,
-                          warm and last[2])  # fmt: skip
+        # (h, velocities and accelerations solved, the sizes of their changes)
+        last, step = self._last_projections, self._projection_step
+        warm = WARM_START and last is not None and math.isclose(last[0], step, rel_tol=SAME_STEP)
+        work, cold = self._projection_work, self._floor.starts_cold
+        warm_moves = warm and last[1] and not cold("velocity", last[3], velocity[2])
+        warm_follows = warm and last[2] and not cold("acceleration", last[4], acceleration[2])
+        moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm_moves)
+        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm_follows)
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain = False, False, None
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
@@ -166,6 +171,13 @@ class ConstraintProjections:
                 else:
                     column.solution += column.residual
                 column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
+                column.solves += 1
+                if column.warm_started:
+                    pass
+                elif column.solves == 1:  # (from zero: the size of its change, within the contraction)
+                    column.opening = column.size
+                elif column.solves == 2:  # the contraction `starts_cold` predicts
+                    self._floor.contracted(column.what, column.size / column.opening)
             if moves in active:
                 v -= moves.residual[:n]
             if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):
@@ -225,7 +237,8 @@ class ConstraintProjections:
                 self.n_singular_projections += 1
                 continue
             raise _StepFailed(f"the {column.what} projection does not converge (increment {column.size:.3g})")
-        self._last_projections = (step, moves.started, follows.started)
+        changes = (column.change(self._weights) for column in columns)
+        self._last_projections = (step, moves.started, follows.started, *changes)
         return follows.solution if follows.started else None
 
     def _warm_residuals(self, q, v, lam, coefficients, moves, follows, drift_out) -> None:
@@ -333,7 +346,7 @@ class _Column:
         self.solution, self.residual, self.n = solution, residual, system.n
         self.active = self.done = self.started = self.first = False
         self.size, self.last = math.inf, math.inf
-        self.warm_started = False
+        self.warm_started, self.opening, self.solves = False, 0.0, 0  # (opening: its first increment from 0)
         if self.before > bound:
             self.warm() if warm else self.start(measured=True)
 
@@ -345,7 +358,7 @@ class _Column:
             self.before = _dynamics_kernels.weighted_norm(self.drift, self.weights)
         self.residual[:n], self.residual[n:] = 0.0, self.drift
         self.active, self.done, self.started, self.first, self.last = True, False, True, True, math.inf
-        self.warm_started = False
+        self.warm_started, self.opening, self.solves = False, 0.0, 0
 
     def warm(self) -> None:
         """From the change of the step before, still in `solution` (Δ and μ: μ from zero left
@@ -361,6 +374,15 @@ class _Column:
             self.start()
             return
         self.active, self.done, self.first, self.last = True, False, False, math.inf
+
+    def change(self, coordinate_weights) -> float:
+        """The weighted size of its change (0 if it did not start): its first increment from
+        zero (the same within the contraction), else its solution's."""
+        if not self.started:
+            return 0.0
+        if self.opening > 0.0:
+            return self.opening
+        return _dynamics_kernels.weighted_norm(self.solution[: self.n], coordinate_weights)
 
     def drift_left(self, projections) -> float:
         """The weighted drift its change so far leaves (its drift if it has not started)."""

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 from ..engine._dynamics_kernels import fill_rounding_probe, weighted_norm
 
-__all__ = ["EXTRAPOLATION_GAIN", "EXTRAPOLATION_RATIO", "FLOOR_MARGIN", "FLOOR_STEPS", "MAX_MATRIX_AGE",
-           "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN", "RoundingFloor", "rounding_response"]
+__all__ = ["COLD_MARGIN", "EXTRAPOLATION_GAIN", "EXTRAPOLATION_RATIO", "FLOOR_MARGIN", "FLOOR_STEPS",
+           "GROWTH_STEPS", "MAX_MATRIX_AGE", "PROJECTION_NOISE", "RATE_STEPS", "REFINEMENT_MARGIN",
+           "RoundingFloor", "rounding_response"]
 
 #: A floor measured by a stalled Newton is trusted for this many steps, then measured again.
 FLOOR_STEPS = 100
@@ -26,6 +27,12 @@ PROJECTION_NOISE = 0.03
 REFINEMENT_MARGIN = 0.01
 #: ... the contraction measured at most this many steps ago (then it is measured again).
 RATE_STEPS = 8
+#: A projection starts from zero when the contraction measured lately predicts a second
+#: increment within this fraction of its noise (`RoundingFloor.starts_cold`) ...
+COLD_MARGIN = 0.5
+#: ... the contraction per step of the factorization's age measured at most this many steps
+#: ago, on any factorization (then it is measured again: from zero).
+GROWTH_STEPS = 32
 #: The predictor extrapolates the accelerations while that leaves Newton a first correction
 #: at most this fraction of the last one without (`RoundingFloor.extrapolates`).
 EXTRAPOLATION_GAIN = 0.5
@@ -82,14 +89,19 @@ class RoundingFloor:
     5.5e-4, 6.8e-4, 1.2e-3 at ages 2 to 6 on a 10^4-body chain), so a contraction measured
     at age a₀ ≥ 1 predicts ``rate · (a / a₀)²`` now.  When that predicts a second increment
     below `REFINEMENT_MARGIN` times the noise, the projection stops after its first solve
-    (once the drift left is within its bound, as always).
+    (once the drift left is within its bound, as always).  The second increment from zero
+    over the first grows in proportion to the age (10^5 bodies: 6e-4 to 1.2e-2 at ages 1 to
+    13); measured per step of age (`contracted`) it says whether a projection starts from
+    zero or from its last change (`starts_cold`).
 
     And it decides the predictor (`extrapolates`, `predicted`).  Generalized-α's predictor
     takes the last accelerations: its error in q is about β h² (q̈_{n+1} − q̈_n), ~3e-9 on
     the chain, ten times its rounding floor, so that Newton took a correction to remove it
     and two more to reach the floor.  Extrapolated linearly from the step before, q̈_{n+1}
-    ≈ q̈_n + (h / h_{n-1}) (q̈_n − q̈_{n-1}), the first correction is 3e-10–6e-10 at 10^5
-    bodies and 7e-11 at 10^4: one correction fewer.  It is used while it pays: its first
+    ≈ q̈_n + (h / h_{n-1}) (q̈_n − q̈_{n-1}), the first correction was 3e-10–6e-10 at 10^5
+    bodies and 7e-11 at 10^4 (residuals summed left to right; with exact sums and Newton's
+    own q̈ and λ to start from, medians 2e-12–6e-12 at both sizes, the second correction still
+    needed: docs/design-notes.md): one correction fewer.  It is used while it pays: its first
     correction at most `EXTRAPOLATION_GAIN` times the last one without; otherwise it is
     tried again after `RATE_STEPS` steps, and only when no factorization was made for as
     many steps (near a flat crossing the accelerations jump, and an extrapolation tried
@@ -103,6 +115,8 @@ class RoundingFloor:
         self._age = 0
         self._regularized = not enabled
         self._rates: dict[str, tuple] = {}  # projection -> (contraction, the factorization's age then)
+        self._growth: dict[str, tuple] = {}  # projection -> (contraction / age, `_steps` then), kept
+        self._steps = 0  # steps taken
         self._matrix_age = 0  # steps begun since the last factorization
         self._newton = 0.0  # Newton's last correction in this step
         # the predictor's: did the last extrapolation pay, steps since it was tried, the last
@@ -136,6 +150,7 @@ class RoundingFloor:
         """One step taken: the floor ages, forgotten after `FLOOR_STEPS`; the refinements'
         contractions age, forgotten after `RATE_STEPS`."""
         self._age += 1
+        self._steps += 1
         self._since_factored += 1
         if self._age > FLOOR_STEPS:
             self.level = 0.0
@@ -150,6 +165,12 @@ class RoundingFloor:
         """Projection `what`'s refinement contracted by `rate` on the held factorization."""
         if self.enabled:
             self._rates[what] = (rate, self._matrix_age)
+
+    def contracted(self, what: str, rate: float) -> None:
+        """Projection `what`'s second increment from zero was `rate` times its first, on the
+        held factorization (kept across factorizations, per step of its age: `starts_cold`)."""
+        if self.enabled and self._matrix_age >= 1:
+            self._growth[what] = (rate / self._matrix_age, self._steps)
 
     def refactored(self) -> None:
         """A new factorization: its contractions are not known yet."""
@@ -168,6 +189,20 @@ class RoundingFloor:
         if age < 1 or self._matrix_age - age >= RATE_STEPS:
             return False
         return rate * (self._matrix_age / age) ** 2 * increment <= REFINEMENT_MARGIN * noise
+
+    def starts_cold(self, what: str, change: float, noise: float) -> bool:
+        """Whether projection `what`, whose change in the step before was `change`, starts
+        from zero rather than from that change (`sparsekin.solve.projections.WARM_START`):
+        on a factorization made in this step, when no contraction was measured in the last
+        `GROWTH_STEPS` steps (a refinement from zero measures it), or when the last one
+        measured (`contracted`), grown in proportion to the factorization's age, predicts a
+        second increment from zero within `COLD_MARGIN` times `noise`: two solves from zero
+        will do then, and a warm column also takes two and a residual pass more."""
+        if self._matrix_age < 1 or what not in self._growth:
+            return True
+        growth, measured = self._growth[what]
+        predicted = growth * self._matrix_age * change
+        return self._steps - measured >= GROWTH_STEPS or predicted <= COLD_MARGIN * noise
 
     def extrapolates(self) -> bool:
         """Whether the next step's predictor extrapolates the accelerations: on the large
