@@ -349,10 +349,12 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
     """A step that fails is halved; its second substep holds two states (the one it steps from
     and the one it makes), not the sample's first state (`advance` held it through every
     substep: 140 MB at 10^6 bodies) nor the failed attempt's arrays (the error-controlled
-    loop held its exception, whose traceback held them).  Weak references to both are dead
-    there, the collector disabled; the motion is closer to the exact answer than in 1 ms
-    steps."""
+    loop held its exception, whose traceback held them).  Nothing but the stepper holds
+    their arrays there (dead, spare in its pool `StateArrays`, or written again as the first
+    substep's), the collector disabled, and the second substep makes no new array; the
+    motion is closer to the exact answer than in 1 ms steps."""
     import gc
+    import sys
     import weakref
 
     from sparsekin.engine.linalg import SingularMatrix
@@ -365,7 +367,7 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
     stepper.advance(1e-3)
     sample = weakref.ref(stepper.state.coordinates)
     solve, step, predict = stepper.solver.solve, stepper._step, _dynamics_kernels.predict
-    solves, attempts, alive = [], [], []
+    solves, attempts, alive, made = [], [], [], []
 
     def failing_once(*args, **kwargs):
         solves.append(None)
@@ -377,9 +379,18 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
         attempts.append(weakref.ref(args[9]))  # the attempt's new coordinates
         return predict(*args)
 
+    def held_elsewhere(reference) -> bool:  # alive, and held by more than the stepper
+        array, pool = reference(), stepper._arrays
+        if array is None:
+            return False
+        holders = (*pool._spare.values(), pool._lent, stepper._state, stepper._previous)
+        held = sum(item is array for items in holders for item in items)
+        return sys.getrefcount(array) - held > 2  # this local and the call's argument
+
     def checked_step(state, h, t_next):
         if len(attempts) == 2:  # the second substep: the failed attempt and the sample's state
-            alive.extend(reference() is not None for reference in (attempts[0], sample))
+            alive.extend(held_elsewhere(reference) for reference in (attempts[0], sample))
+            made.append(stepper._arrays.n_made)
         return step(state, h, t_next)
 
     monkeypatch.setattr(stepper.solver, "solve", failing_once)
@@ -391,7 +402,7 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
     finally:
         gc.enable()
     assert stepper.n_subdivisions == 1 and len(attempts) == 3
-    assert alive == [False, False]
+    assert alive == [False, False] and made == [stepper._arrays.n_made]
     unhalved = GeneralizedAlphaStepper(n_four_bar(60), options=options, dynamics=dynamics)
     unhalved.start(0.0)
     unhalved.advance(1e-3)
@@ -400,6 +411,64 @@ def test_a_halved_step_holds_no_state_of_a_failed_attempt_or_of_the_sample_befor
     errors = [np.abs(np.array([q[0] + np.cos(q[2]), q[1] + np.sin(q[2])]) - exact[0]).max()
               for q in (stepper.state.coordinates, unhalved.state.coordinates)]  # fmt: skip
     assert errors[0] < errors[1] < 1e-8  # the second millisecond in two steps: closer (1.1e-9, 1.8e-9 m)
+
+
+@pytest.mark.parametrize("dense_max_size", [0, 10**6])  # the refactorization path, the dense one
+def test_states_a_caller_holds_are_never_written_again(dense_max_size):
+    """A step writes its state into the arrays of states the stepper let go of (`StateArrays`),
+    never into a state, an array or a view of one that a caller holds.  Three steppers on one
+    chain, a step of each failing once (halved): the caller of the first keeps every state
+    (each step's arrays are then new: the reference), of the second a view of every state's
+    q and its linearization (as `SampleSteps`' blocks do), of the third nothing.  Every
+    step's state is the same in the three bit for bit, the held states and views are what
+    they were when they were current, and the third stepper makes no array after its second
+    step."""
+    from sparsekin.engine.linalg import SingularMatrix
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+    options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=dense_max_size))
+
+    def arrays(state):
+        return [None if array is None else array.copy() for array in (*state[1:6], *state[9:])]
+
+    def kept(stepper, keep):  # what the caller keeps, with copies of its values
+        state = stepper.state
+        if keep == "states":
+            return state, arrays(state)
+        lin = stepper.linearization()
+        views = (state.coordinates[1:], lin.velocities[None], lin.accelerations[None], lin.multipliers[:])
+        return views, [view.copy() for view in views]
+
+    def run(keep):
+        stepper = GeneralizedAlphaStepper(n_four_bar(30), options=options, dynamics=DynamicsOptions(1e-3))
+        solve, armed = stepper.start(0.0) or stepper.solver.solve, []
+
+        def failing_once(*args, **kwargs):
+            if armed:  # the sixth step's first solve: Newton's first correction
+                armed.clear()
+                raise SingularMatrix("forced")
+            return solve(*args, **kwargs)
+
+        stepper.solver.solve = failing_once
+        states, held, made = [arrays(stepper.state)], [], None
+        for k in range(1, 31):
+            armed[:] = [True] if k == 6 else []
+            stepper.advance(k * 1e-3)
+            if keep != "nothing":  # (no local keeps a state through the next step)
+                held.append(kept(stepper, keep))
+            states.append(arrays(stepper.state))
+            made = stepper._arrays.n_made if k == 2 else made
+        assert stepper.n_subdivisions == 1
+        for holding, copies in held:
+            values = arrays(holding) if keep == "states" else holding
+            assert all(a is None and b is None or a.tobytes() == b.tobytes() for a, b in zip(values, copies))
+        return states, made, stepper._arrays.n_made
+
+    (reference, *_), (viewed, *_), (free, made, last) = run("states"), run("views"), run("nothing")
+    for states in (viewed, free):
+        assert all(a is None and b is None or a.tobytes() == b.tobytes()
+                   for state, expected in zip(states, reference, strict=True) for a, b in zip(state, expected))
+    assert made == last
 
 
 def test_a_refinement_restart_leaves_velocities_that_needed_no_projection(monkeypatch):
@@ -710,12 +779,12 @@ def test_projections_together_land_on_both_constraints():
         assert np.array_equal(one[0], other[0]) and one[1:] == other[1:]
     velocity, acceleration = paired
     bounds, noises = (velocity[1], acceleration[1]), (velocity[2], acceleration[2])
-    stepper._apply_acceleration_change(a1, a1.copy(), lam1, stepper._project_together(
+    a1, lam1, _ = stepper._apply_acceleration_change(a1, lam1, stepper._project_together(
         q, v1, a1, lam1, coefficients, velocity, acceleration))  # fmt: skip
     v2, a2, lam2 = v0.copy(), a0.copy(), lam.copy()
     stepper._project_velocities(q, v2, lam2, coefficients, h)
-    stepper._apply_acceleration_change(a2, a2.copy(), lam2, stepper._project_accelerations(q, v2, a2, lam2,
-                                                                                           coefficients))  # fmt: skip
+    a2, lam2, _ = stepper._apply_acceleration_change(a2, lam2, stepper._project_accelerations(q, v2, a2, lam2,
+                                                                                              coefficients))  # fmt: skip
     # the exact projections: the saddle at the converged state, factored afresh
     matrix = system.fill_matrix(q, v0, np.zeros(n), lam, *coefficients).tocsc()
     change = spsolve(matrix, np.concatenate([np.zeros(n), system.velocity_drift(v0)]))

@@ -86,11 +86,13 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
     u_indptr = np.zeros(n + 1, dtype=np.int64)
     l_indices = np.empty(max(l_capacity, n, 1), dtype=b_rows.dtype)
     u_indices = np.empty(max(u_capacity, n, 1), dtype=b_rows.dtype)
-    mark = np.full(n, -1, dtype=np.int64)
-    stack = np.empty(n, dtype=np.int64)  # depth-first search: node ...
+    # rows in the dtype of `b_rows` (int32 up to 2^31 entries: at a flat crossing of the
+    # 10^6-body chain these scratch arrays were 240 MB of the new pivots' peak in int64)
+    mark = np.full(n, -1, dtype=b_rows.dtype)
+    stack = np.empty(n, dtype=b_rows.dtype)  # depth-first search: node ...
     next_child = np.empty(n, dtype=np.int64)  # ... and the position of its next child in L
-    finished = np.empty(n, dtype=np.int64)  # rows < j of the pattern, in postorder
-    lower = np.empty(n, dtype=np.int64)  # rows > j of the pattern
+    finished = np.empty(n, dtype=b_rows.dtype)  # rows < j of the pattern, in postorder
+    lower = np.empty(n, dtype=b_rows.dtype)  # rows > j of the pattern
     for j in range(n):
         n_finished = 0
         n_lower = 0

@@ -160,6 +160,13 @@ def _index_dtype(largest: int) -> type:
     return np.int32 if largest < np.iinfo(np.int32).max else np.int64
 
 
+def _same_memory(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether `a` and `b` are the same values in the same memory: one array, or views of it
+    alike (``np.array_equal`` made an array of the pattern's size to tell)."""
+    return a is b or (a.dtype == b.dtype and a.shape == b.shape and a.strides == b.strides
+                      and a.ctypes.data == b.ctypes.data)  # fmt: skip
+
+
 def _checked_square(jacobian) -> int:
     """The size of `jacobian`, a square CSR array."""
     if not (hasattr(jacobian, "format") and jacobian.format == "csr"):
@@ -550,8 +557,8 @@ class RefactorSolver:
     def _same_pattern(self, jacobian, n: int) -> bool:
         if self._indptr is None or n != self._n:
             return False
-        if jacobian.indptr is self._indptr and jacobian.indices is self._indices:
-            return True
+        if _same_memory(jacobian.indptr, self._indptr) and _same_memory(jacobian.indices, self._indices):
+            return True  # (the analysed pattern is the CSC view ``jacobian.T``'s: not the same objects)
         return bool(
             np.array_equal(jacobian.indptr, self._indptr) and np.array_equal(jacobian.indices, self._indices)
         )

@@ -66,8 +66,9 @@ from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
 from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
+from ._state_arrays import StateArrays
 from .error_control import StepFailed as _StepFailed
-from .error_control import StepSizeController, advance_controlled
+from .error_control import StepSizeController, advance_controlled, step_velocity_bound
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -221,8 +222,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
     time : float or None
         The current time, None before `start`.
     state : DynamicState
-        After `start`: the current state, one value (each step makes new arrays: a
-        recorder may keep them).
+        After `start`: the current state, one value (a step writes its state into arrays
+        of states let go of that nothing else holds: a caller may keep a state or its arrays).
     system : DynamicSystem
     n_steps, n_subdivisions, n_newton, n_stalls, n_singular_projections : int
         Steps accepted, step halvings, Newton corrections, Newton iterations accepted at
@@ -307,7 +308,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._weights = self.pattern.coordinate_weights  # a new array at every call of the property
         self._row_weights = system.kept(system.assembler.weights)  # of the kept equations
         self._floor = RoundingFloor(self.path != "dense")
-        self._previous = None
+        self._previous, self._arrays = None, StateArrays()  # the states' arrays, used again
         self.controller = None if self.rtol is None else StepSizeController(
             self.rtol, *self.integrator.coefficients[2:], self._weights, self.max_step)  # fmt: skip
         masses = system.loads.arrays.masses
@@ -452,14 +453,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         coefficients = (1.0, gamma_prime / beta_prime, 1.0 / beta_prime)
         # predictor: Newton's accelerations of the last step (before their projection),
         # extrapolated from the one before where that paid (`RoundingFloor.extrapolates`)
-        # (new arrays: the state keeps them)
-        q, v, a = np.empty(n), np.empty(n), np.empty(n)
+        # (into arrays of states let go of that no one holds: `StateArrays`)
+        q, v, a = self._arrays.step_begins(n)
         extrapolate = (self._previous is not None and h <= EXTRAPOLATION_RATIO * self._previous[1]
                        and self._floor.extrapolates())  # fmt: skip
         start = state.newton_start
         previous, ratio = (self._previous[0], h / self._previous[1]) if extrapolate else (start, 0.0)
         _dynamics_kernels.predict(state.coordinates, state.velocities, state.accelerations, state.pseudo_accelerations,
                                   alpha_m, alpha_f, gamma, beta, h, q, v, a, start, previous, ratio)  # fmt: skip
+        del previous  # (spare once the step stands: `StateArrays` counts its references)
         lam = self._predicted_multipliers(state, h)
         system.set_time(t_next)
         if self._floor.step_begins():  # the held matrix too old (`MAX_MATRIX_AGE`)
@@ -532,7 +534,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                 fresh = False
             last = correction
         self._floor.converged(max(last, NOISE * stall / STALL))  # the projections' noise
-        pseudo = np.empty(n)  # ã, from q alone: the acceleration projection moves it with q̈
+        pseudo = self._arrays.take(n)  # ã, from q alone: the acceleration projection moves it with q̈
         _dynamics_kernels.pseudo_accelerations(q, state.coordinates, state.velocities, state.pseudo_accelerations, h,
                                                beta, pseudo)  # fmt: skip
         if self._floor.enabled:  # the large path: both projections in one refinement, paired solves
@@ -543,19 +545,25 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             self._project_velocities(q, v, lam, coefficients, h)
             self._floor.step()
             change = self._project_accelerations(q, v, a, lam, coefficients)
-        newton, newton_lam = a, None
         if change is not None:
-            newton, newton_lam = self._apply_acceleration_change(a, pseudo, lam, change)
+            pseudo -= change[:n]  # ã moves with q̈
         if self.controller is not None:  # rtol: ErrorTooLarge, the step is taken again shorter
             self.controller.check(pseudo, state.pseudo_accelerations, h, min(last, stall) if stalled else 0.0)
+        # the step stands: Newton's start two steps back is spare (the projected q̈ and λ go there)
+        self._arrays.retire((self._previous,), (state, (q, v, a, lam, pseudo)))
+        self._previous = (start, h, state.newton_start_multipliers)  # the next step extrapolates from them
+        newton, newton_lam = a, None
+        if change is not None:
+            a, lam, newton_lam = self._apply_acceleration_change(a, lam, change)
         power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
         self.n_steps += 1
         self._constraint_norm = phi_norm  # Φ and Φq are at q, t_next
-        self._previous = (start, h, state.newton_start_multipliers)  # the next step extrapolates from them
-        return DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton, newton_lam)
+        new = DynamicState(t_next, q, v, a, pseudo, lam, state.step, work, dissipated, newton, newton_lam)
+        self._arrays.retire((state,), (new, self._previous))  # what it held and these do not: spare
+        return new
 
     def _constraints_met(self, residual: float, limit: float) -> bool:
         """Newton's last test, once its corrections have settled: the constraints' residual
@@ -623,36 +631,35 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         return drift, bound, noise
 
     def _predicted_multipliers(self, state: DynamicState, h: float) -> np.ndarray:
-        """The λ Newton starts the step from (a new array): Newton's of the last step (before
+        """The λ Newton starts the step from (a new state array): Newton's of the last step (before
         the acceleration projection), on the large path extrapolated linearly from the step
         before's (`RoundingFloor.extrapolates_multipliers`).  Newton's q̈ start predicts its
         accelerations to 1e-10 of a step, so that its first correction is λ's error through
         the held matrix's stale Φq: on a 10^4-body chain after its flat crossing, a constant λ
         (0.37 off) left a first correction 3x too small and a second one 4x larger (the held
         matrix refactored at every step), the extrapolated one is 3e-3 off."""
-        start = state.newton_start_multipliers
-        previous = self._previous
+        start, previous = state.newton_start_multipliers, self._previous
         if (previous is None or not h <= EXTRAPOLATION_RATIO * previous[1]
                 or not self._floor.extrapolates_multipliers()):  # fmt: skip
-            return start.copy()
-        lam = np.subtract(start, previous[2])
+            return self._arrays.copy_of(start)
+        lam = np.subtract(start, previous[2], out=self._arrays.take(start.size))
         lam *= h / previous[1]
         lam += start
         return lam
 
-    def _apply_acceleration_change(self, a, pseudo, lam, change) -> tuple:
-        """q̈ and ã less the projection's change, λ less its multipliers; returns Newton's q̈
-        and, on the large path, λ (copies of `a` and `lam` before: the next step's Newton
-        starts from them; None in λ's place on the dense path)."""
-        newton = a.copy()
-        newton_lam = lam.copy() if self._floor.enabled else None
-        a -= change[: a.size]
-        pseudo -= change[: a.size]
+    def _apply_acceleration_change(self, a, lam, change) -> tuple:
+        """q̈ less the projection's change and λ less its multipliers, in arrays of their own
+        (`StateArrays`) where Newton's stay for the next step's Newton to start from: returns
+        the projected q̈ and λ and Newton's λ (on the dense path None, λ changed in place)."""
+        projected = np.subtract(a, change[: a.size], out=self._arrays.take(a.size))
+        newton_lam = None
+        if self._floor.enabled:
+            newton_lam, lam = lam, self._arrays.copy_of(lam)
         if self.system.kept_rows.size == self.pattern.n_equations:
             lam -= change[a.size :]
         else:
             lam[self.system.kept_rows] -= change[a.size :]
-        return newton, newton_lam
+        return projected, lam, newton_lam
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:
@@ -677,13 +684,6 @@ class GeneralizedAlphaStepper(ConstraintProjections):
                                   discretization=self.discretization)  # fmt: skip
         self.path = plan.solver
         return plan.make_solver()
-
-
-
-def step_velocity_bound(tolerance: float, h: float) -> float:
-    """The velocity error a step of `h` s may leave (Newton, projection): ``tolerance · h``,
-    so that the errors of one second add up to at most `tolerance` whatever the step."""
-    return tolerance * h
 
 
 # ---------------------------------------------------------------------- the facade

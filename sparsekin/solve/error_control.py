@@ -56,7 +56,8 @@ from ..errors import ConvergenceError
 from ..model.mechanism import Analysis
 
 __all__ = ["RTOL_RANGE", "SAFETY", "GROWTH_LIMIT", "SHRINK_LIMIT", "StepSizeController", "StepFailed",
-           "ErrorTooLarge", "advance_controlled", "local_error_constant", "step_to"]
+           "ErrorTooLarge", "advance_controlled", "local_error_constant", "step_to",
+           "step_velocity_bound"]
 
 #: Smallest and largest accepted `rtol` (`sparsekin.model.mechanism.Analysis.rtol_range`).
 RTOL_RANGE = Analysis.rtol_range
@@ -249,3 +250,9 @@ def advance_controlled(stepper, t: float, max_halvings: int, growth_after: int) 
             raise ConvergenceError(f"the step from t = {now:.9g} s fell below {shortest:.3g} s ({failure})",
                                    time=now + h, driver_values={}) from None  # fmt: skip
     return proposed
+
+
+def step_velocity_bound(tolerance: float, h: float) -> float:
+    """The velocity error a step of `h` s may leave (Newton, projection): ``tolerance · h``,
+    so that the errors of one second add up to at most `tolerance` whatever the step."""
+    return tolerance * h
