@@ -310,6 +310,26 @@ def test_redundant_multipliers_are_the_minimum_norm_ones():
     assert np.abs(published[stepper.redundant_rows]).min() > 1e-2 * np.abs(published).max()  # the third bars take load
 
 
+def test_kept_equations_are_every_equation_but_the_redundant_ones():
+    """The saddle's kept equations: ascending, each once, none of the redundant ones (given in
+    any order, repeated or not), what a set difference gives; and the tower's system holds them."""
+    from sparsekin.engine.reduced import kept_equations
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+    rng = np.random.default_rng(7)
+    for m, redundant in [(0, []), (5, []), (5, [4, 0]), (9, [3, 3, 8]), (40, rng.integers(0, 40, 12))]:
+        redundant = np.asarray(redundant, dtype=np.int64)
+        kept = kept_equations(m, redundant)
+        assert kept.dtype == np.int64
+        assert kept.tolist() == sorted(set(range(m)) - set(redundant.tolist()))
+    stepper = GeneralizedAlphaStepper(_tower(True), 1e-3)
+    with pytest.warns(sk.RedundantConstraintWarning):
+        stepper.start(0.0)
+    assert stepper.system.kept_rows.tolist() == sorted(set(range(stepper.pattern.n_equations))
+                                                       - set(stepper.redundant_rows.tolist()))
+    assert stepper.system.size == stepper.pattern.n_coordinates + stepper.pattern.n_equations - 3
+
+
 def test_energy_and_drift_are_recorded_variables_streamed_bit_for_bit(pendulum, tmp_path):
     """The energy balance and drift are rows of the schema: a run streamed to Zarr holds
     them labelled, equal to the run in memory."""

@@ -95,6 +95,113 @@ def test_derived_slots_fill_the_same_matrix_bit_for_bit(name):
         assert system.saddle.slots is None  # derived, not held
 
 
+def test_saddle_pattern_from_parts_is_the_pattern_of_every_triplet():
+    """The kernels that make S's pattern from the block's triplets and the Jacobian's rows
+    (`_saddle_pattern_kernels`) against `saddle_pattern` of every triplet (block, Φq, Φqᵀ,
+    diagonal): random block triplets with repeats, the ground's and negative indices and a
+    hub's long row; a random Jacobian with ground columns and rows left out."""
+    from scipy.sparse import random as sparse_random
+
+    from sparsekin.engine import _saddle_pattern_kernels as parts
+
+    rng = np.random.default_rng(11)
+    n, m, count = 40, 25, 3000
+    rows = rng.integers(-2, n + 3, count).astype(np.int32)
+    cols = rng.integers(-2, n + 3, count).astype(np.int32)
+    rows[:100], cols[:100] = 7, rng.integers(0, n, 100)  # a hub: sorted by np.sort, not insertion
+    jacobian = sparse_random(m, n + 3, density=0.15, random_state=3, format="csr")
+    jacobian.sort_indices()
+    indptr, indices = jacobian.indptr.astype(np.int32), jacobian.indices.astype(np.int32)
+    kept_row = np.full(m, -1, dtype=np.int64)
+    kept = np.setdiff1d(np.arange(m), [2, 9, 17])
+    kept_row[kept] = np.arange(kept.size)
+    size = n + kept.size
+    # every triplet, as `DynamicSystem._fill_triplets` writes them
+    every_rows, every_cols = [rows], [cols]
+    for r in range(m):
+        row = n + 3 + kept_row[r] if kept_row[r] >= 0 else -1
+        for s in range(indptr[r], indptr[r + 1]):
+            every_rows.append(np.array([row, indices[s]], dtype=np.int32))
+            every_cols.append(np.array([indices[s], row], dtype=np.int32))
+    every_rows.append((n + 3 + np.arange(kept.size)).astype(np.int32))
+    every_cols.append(every_rows[-1])
+    every_rows, every_cols = np.concatenate(every_rows), np.concatenate(every_cols)
+    expected_indptr, slots = np.zeros(size + 1, dtype=np.int64), np.empty(every_rows.size, dtype=np.int64)
+    expected = _dynamics_kernels.saddle_pattern(every_rows, every_cols, n, expected_indptr, slots)
+
+    ok, block_start, block_columns = parts.coordinate_block_rows(rows, cols, count, n)
+    saddle_indptr = np.zeros(size + 1, dtype=np.int64)
+    assert ok and parts.saddle_rows(block_start, indptr, indices, kept_row, n, saddle_indptr)
+    saddle_indices = np.empty(saddle_indptr[-1], dtype=np.int32)
+    block_slots, transposed_slots = np.empty(count, dtype=np.int64), np.empty(indices.size, dtype=np.int64)
+    parts.fill_saddle_pattern((rows, cols), block_start, block_columns, (indptr, indices, kept_row), n, saddle_indptr,
+                              saddle_indices, block_slots, transposed_slots)  # fmt: skip
+    np.testing.assert_array_equal(saddle_indptr, expected_indptr)
+    np.testing.assert_array_equal(saddle_indices, expected)
+    np.testing.assert_array_equal(block_slots, slots[:count])
+    np.testing.assert_array_equal(transposed_slots, slots[count + 1 : count + 2 * indices.size : 2])
+    # out of order: an equation's index among the triplets, a Jacobian row unsorted, kept rows reversed
+    assert not parts.coordinate_block_rows(rows, np.append(cols[:-1], n + 3).astype(np.int32), count, n)[0]
+    unsorted = indices.copy()
+    first = next(r for r in range(m) if indptr[r + 1] - indptr[r] >= 2)
+    unsorted[indptr[first]], unsorted[indptr[first] + 1] = unsorted[indptr[first] + 1], unsorted[indptr[first]]
+    assert not parts.saddle_rows(block_start, indptr, unsorted, kept_row, n, saddle_indptr)
+    reversed_row = np.where(kept_row >= 0, kept.size - 1 - kept_row, -1)
+    assert not parts.saddle_rows(block_start, indptr, indices, reversed_row, n, saddle_indptr)
+
+
+def _saddle_models():
+    from pathlib import Path
+
+    import sparsekin as sk
+    from helpers import actuator_round_trip
+    from sparsekin.testset import lattice, task5, with_masses
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    return {"chain": lambda: n_four_bar(12), "task5 with masses": lambda: with_masses(task5(), 1.0, 0.1),
+            "lattice with masses": lambda: with_masses(lattice(3, 4), 1.0, 0.1),
+            "andrews (a spring)": lambda: sk.load_model(examples / "dynamics" / "andrews.toml"),
+            "struck lattice (rotational springs)": lambda: sk.load_model(examples / "dynamics" / "struck_lattice.toml"),
+            "task5 on actuators": lambda: actuator_round_trip(0.1, 0.05)[0]}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", list(_saddle_models()))
+@pytest.mark.parametrize("left_out", [(), (0, 3, -1)])
+def test_pattern_from_its_parts_is_the_sorted_triplets(name, left_out, monkeypatch):
+    """S's pattern made from the block's triplets and the Jacobian's rows (`_pattern_from_parts`:
+    no Φq triplets, no sort of them) is the pattern of every triplet sorted
+    (`SaddlePattern.from_triplets`), entry for entry and dtype for dtype, with the same slots
+    and the same matrix bit for bit; kept equations out of order take the sort."""
+    discretization = discretize(_saddle_models()[name]())
+    m = discretization.constraints.n_equations
+    kept = np.setdiff1d(np.arange(m), np.array(left_out, dtype=np.int64) % m)
+    made = DynamicSystem(discretization, kept)
+    assert made.saddle.slots is None and made._slots[2] is None  # from the parts: Φq's slots derived
+    monkeypatch.setattr(DynamicSystem, "_pattern_from_parts", lambda self, block, dtype: False)
+    sorted_ = DynamicSystem(discretization, kept)
+    for mine, theirs in [(made.saddle.indptr, sorted_.saddle.indptr), (made.saddle.indices, sorted_.saddle.indices),
+                         (made._slots[0], sorted_._slots[0]), (made._slots[1], sorted_._slots[1]),
+                         (made._rows, sorted_._rows), (made._cols, sorted_._cols), (made._vals, sorted_._vals)]:  # fmt: skip
+        assert mine.dtype == theirs.dtype
+        np.testing.assert_array_equal(mine, theirs)
+    np.testing.assert_array_equal(made.triplet_slots(), sorted_.triplet_slots())
+    rng = np.random.default_rng(6)
+    n = made.n
+    q = discretization.constraints.initial_coordinates + 0.05 * rng.standard_normal(n)
+    state = (q, rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(m), 1.0, 0.3, 0.2)
+    for system in (made, sorted_):
+        system.set_time(0.01)
+        system.fill_constraints(q)
+    np.testing.assert_array_equal(made.fill_matrix(*state, regularization=1e-9).data,
+                                  sorted_.fill_matrix(*state, regularization=1e-9).data)  # fmt: skip
+    monkeypatch.undo()
+    shuffled = DynamicSystem(discretization, kept[::-1].copy())  # rows of S in another order: sorted
+    assert shuffled.saddle.nnz == made.saddle.nnz
+    shuffled.set_time(0.01)
+    shuffled.fill_constraints(q)
+    np.testing.assert_array_equal(np.sort(shuffled.fill_matrix(*state).data), np.sort(made.fill_matrix(*state).data))
+
+
 def test_product_is_the_assembled_matrix_times_x():
     discretization = discretize(n_four_bar(12))
     m = discretization.constraints.n_equations

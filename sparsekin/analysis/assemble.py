@@ -31,7 +31,7 @@ from ..engine.discretization import Discretization
 from ..engine.linalg import SingularMatrix, SuperLUSolver
 from ..engine.newton import NoConvergence, solve_positions
 from ..engine.pattern import build_point_map
-from ..engine.reduced import ReducedSystem
+from ..engine.reduced import ReducedSystem, kept_equations
 from ..model.geometry import to_global
 from ..model.mechanism import Mechanism
 
@@ -231,7 +231,7 @@ def point_moves(mechanism: Mechanism, drawn: np.ndarray, coordinates: np.ndarray
 def reduced_system(assembler: Assembler, analysis, drawn: np.ndarray) -> ReducedSystem:
     """The system `check_model` assembles: the redundant equations left out, the free
     coordinates held at their drawn values."""
-    kept = np.setdiff1d(np.arange(assembler.pattern.n_equations), analysis.redundant_rows)
+    kept = kept_equations(assembler.pattern.n_equations, analysis.redundant_rows)
     held = analysis.free_coordinates
     return ReducedSystem(assembler, kept, held, drawn[held])
 

@@ -18,11 +18,19 @@ import numpy as np
 
 from .assembly import Assembler
 
-__all__ = ["ReducedSystem", "CONSISTENCY_TOLERANCE"]
+__all__ = ["ReducedSystem", "CONSISTENCY_TOLERANCE", "kept_equations"]
 
 #: A redundant equation left out is consistent while its residual stays below this
 #: (lengths relative to the model size, angles in rad).
 CONSISTENCY_TOLERANCE = 1e-9
+
+
+def kept_equations(n_equations: int, redundant: np.ndarray) -> np.ndarray:
+    """The equations ``0 .. n_equations - 1`` but the `redundant` ones, ascending (int64): what
+    ``np.setdiff1d`` gives, through a mask (numpy 2's setdiff1d hashes: 3.4 s at 3·10^6 rows)."""
+    keep = np.ones(n_equations, dtype=bool)
+    keep[redundant] = False
+    return np.flatnonzero(keep).astype(np.int64, copy=False)
 
 
 class ReducedSystem:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import _dynamics_kernels as kernels
-from . import _motion_kernels, _projection_kernels
+from . import _motion_kernels, _projection_kernels, _saddle_pattern_kernels
 from .actuators import actuator_kernel_arrays
 from .assembly import Assembler
 from .discretization import Discretization
@@ -148,9 +148,10 @@ class DynamicSystem:
         if self.actuators is not None:
             count += kernels.hessian_entries(self.actuators.equations.primitives)
         index = _index_dtype(n + 3 + m)
-        self._rows = np.zeros(count, dtype=index)
-        self._cols = np.zeros(count, dtype=index)
-        self._vals = np.zeros(count)
+        block_count = count - 2 * pattern.nnz - self.kept_rows.size  # the coordinate block's
+        self._rows = np.zeros(block_count, dtype=index)
+        self._cols = np.zeros(block_count, dtype=index)
+        self._vals = np.zeros(block_count)
         self._block_count = 0  # triplets of the coordinate block at the last `product` or `residuals`
         self._block_compact = False  # the last of them `residuals`'s: the bodies' inertia in `_inertia`
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
@@ -158,31 +159,69 @@ class DynamicSystem:
         drawn = pattern.initial_coordinates
         self.assembler.set_time(0.0)
         self.assembler.fill_residual_jacobian(drawn)
-        block = self._fill_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
-        self.saddle = SaddlePattern.from_triplets(self._rows, self._cols, n, self.size)
-        # From now on only the coordinate block goes through triplets: Φq, Φqᵀ and the (2, 2)
-        # diagonal are scattered from the Jacobian's values straight into their slots
-        # (`kernels.scatter_saddle`), which saves 16 bytes for each of 2 nnz(Φq) + m triplets.
-        self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        block = self._fill_block_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
+        if not self._pattern_from_parts(block, _index_dtype(max(self.size, count))):
+            self._pattern_from_triplets(block, count, index)
         # `residuals`' inertia blocks, six values a body (`_projection_kernels.fill_inertia_values`), in
         # the values of their nine triplets (no memory of their own; `_block_compact` says which)
         bodies = arrays.masses.mass.size
         self._inertia = self._vals[: 6 * bodies].reshape(bodies, 6)
+        self._data = np.zeros(self.saddle.nnz + 1)
+        self.matrix = csr_array((self._data[:-1], self.saddle.indices, self.saddle.indptr), shape=(self.size, self.size))
+
+    def _pattern_from_parts(self, block: int, slot_dtype: type) -> bool:
+        """S's pattern from the block's first `block` triplets and the Jacobian's rows
+        (`sparsekin.engine._saddle_pattern_kernels`: the same pattern and slots as sorting
+        every triplet, without Φq's): `saddle` and `_slots`, Φq's and the diagonal's slots
+        derived from the row pointers; False (nothing set) where the Jacobian's rows or the
+        kept equations are not in order."""
+        p, n = self.pattern, self.n
+        ok, block_start, block_columns = _saddle_pattern_kernels.coordinate_block_rows(self._rows, self._cols, block, n)
+        saddle_indptr = np.zeros(self.size + 1, dtype=np.int64)
+        if not (ok and _saddle_pattern_kernels.saddle_rows(block_start, p.indptr, p.indices, self.kept_row, n,
+                                                           saddle_indptr)):  # fmt: skip
+            return False
+        nnz = int(saddle_indptr[-1])
+        index = _index_dtype(max(self.size, nnz))
+        indices = np.empty(nnz, dtype=index)
+        block_slots, transposed_slots = np.empty(block, dtype=slot_dtype), np.empty(p.nnz, dtype=slot_dtype)
+        _saddle_pattern_kernels.fill_saddle_pattern((self._rows, self._cols), block_start, block_columns,
+                                                    (p.indptr, p.indices, self.kept_row), n, saddle_indptr, indices,
+                                                    block_slots, transposed_slots)  # fmt: skip
+        del block_start, block_columns
+        self.saddle = SaddlePattern(self.size, saddle_indptr.astype(index), indices, None)
+        if block < self._rows.size:  # (the count is exact without spring or actuator entries: no copy then)
+            self._rows, self._cols, self._vals = (array[:block].copy() for array in (self._rows, self._cols, self._vals))
+        self._slots = (block_slots, transposed_slots, None)
+        self._jacobian_rows = (p.indptr, p.indices, self.kept_row, n, self.saddle.indptr)
+        return True
+
+    def _pattern_from_triplets(self, block: int, count: int, index: type) -> None:
+        """S's pattern from every triplet (`SaddlePattern.from_triplets`): `saddle` and
+        `_slots`, Φq's and the diagonal's derived where the pattern's agree."""
+        p, n, m = self.pattern, self.n, self.pattern.n_equations
+        rows, cols, vals = np.zeros(count, dtype=index), np.zeros(count, dtype=index), np.zeros(count)
+        self._rows, self._cols, self._vals = rows, cols, vals
+        drawn = p.initial_coordinates
+        self._fill_triplets(drawn, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 1.0, 1.0)
+        self.saddle = SaddlePattern.from_triplets(rows, cols, n, self.size)
+        # From now on only the coordinate block goes through triplets: Φq, Φqᵀ and the (2, 2)
+        # diagonal are scattered from the Jacobian's values straight into their slots
+        # (`kernels.scatter_saddle`), which saves 16 bytes for each of 2 nnz(Φq) + m triplets.
+        self._rows, self._cols, self._vals = (array[:block].copy() for array in (rows, cols, vals))
+        del rows, cols, vals
         slots = self.saddle.slots
-        self._slots = (slots[:block], slots[block : block + 2 * pattern.nnz], slots[block + 2 * pattern.nnz :])
+        self._slots = (slots[:block], slots[block : block + 2 * p.nnz], slots[block + 2 * p.nnz :])
         # Φq's slots and the diagonal's follow from the row pointers when each kept equation's
         # row of S is its Jacobian row in order: then only the block's and Φqᵀ's are held
         # (10^6 bodies: 52 MB fewer), checked here against the pattern's
-        self._jacobian_rows = (pattern.indptr, pattern.indices, self.kept_row, n, self.saddle.indptr)
-        lower = np.empty(pattern.nnz, dtype=slots.dtype)
+        self._jacobian_rows = (p.indptr, p.indices, self.kept_row, n, self.saddle.indptr)
+        lower = np.empty(p.nnz, dtype=slots.dtype)
         diagonal = np.empty(self.kept_rows.size, dtype=slots.dtype)
         kernels.derived_multiplier_slots(self._jacobian_rows, self.saddle.nnz, lower, diagonal)
         if np.array_equal(lower, self._slots[1][0::2]) and np.array_equal(diagonal, self._slots[2]):
             self._slots = (self._slots[0].copy(), self._slots[1][1::2].copy(), None)
             self.saddle = replace(self.saddle, slots=None)
-        del slots, lower, diagonal
-        self._data = np.zeros(self.saddle.nnz + 1)
-        self.matrix = csr_array((self._data[:-1], self.saddle.indices, self.saddle.indptr), shape=(self.size, self.size))
 
     # ------------------------------------------------------------------ time and constraints
     def set_time(self, t: float) -> None:

@@ -57,6 +57,7 @@ from ..engine.linearization import Linearization
 from ..engine.multipliers import redundant_minimum_norm
 from ..engine.newton import NEWTON_MAXITER
 from ..engine.pattern import ConstraintPattern
+from ..engine.reduced import kept_equations
 from ..engine.saddle import DynamicSystem
 from ..errors import ConvergenceError, ModelError, RedundantConstraintWarning, warn_caller
 from ..model.mechanism import Mechanism
@@ -669,7 +670,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             shown = ", ".join(labels[:6]) + (", …" if len(labels) > 6 else "")
             warn_caller(f"{len(labels)} redundant equations left out of the equations of motion ({shown}); the forces "
                         "of a redundant set are not unique: the minimum-norm ones are given", RedundantConstraintWarning)  # fmt: skip
-        return np.setdiff1d(np.arange(self.pattern.n_equations, dtype=np.int64), self.redundant_rows)
+        return kept_equations(self.pattern.n_equations, self.redundant_rows)
 
     @property
     def redundant_labels(self) -> tuple[str, ...]:

@@ -33,7 +33,8 @@ REFINEMENT_CONTRACTION = 0.1
 #: step's first increment, predicts a move within this fraction of the acceleration bound.
 TARGET_MARGIN = 0.01
 #: `ConstraintProjections._project_together` starts each projection from its change of the
-#: step before (same h) instead of from zero (False: from zero, as `_project` does).
+#: step before (same h) instead of from zero where `RoundingFloor.starts_cold` does not
+#: predict that two solves from zero will do (False: from zero, as `_project` does).
 WARM_START = True
 #: Steps within this relative difference are the same step for `WARM_START` (the steps of a
 #: run at a fixed largest step differ in their last bits: t − t₋₁).
@@ -138,7 +139,11 @@ class ConstraintProjections:
         the next step), so that 2 passes reach the noise where 3–5 did from zero on a held
         matrix a few steps old.  At least two passes: the first only corrects that change,
         its increment measures its Δ and not its μ (a multiplier error that the next pass
-        turns into Δ through the held matrix's stale Φq; stopping there left B0 0.7 % off)."""
+        turns into Δ through the held matrix's stale Φq; stopping there left B0 0.7 % off).
+        It starts from zero instead where the contraction measured lately predicts that two
+        solves from zero will do (`RoundingFloor.starts_cold`: a 10^5-body chain at every
+        step; a 10^4-body chain after its crossing takes 3–5 from zero), as a warm start
+        takes a residual pass more."""
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
         zeros, drift_out = self._projection_work[4], self._projection_work[3]
@@ -172,12 +177,10 @@ class ConstraintProjections:
                     column.solution += column.residual
                 column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
                 column.solves += 1
-                if column.warm_started:
-                    pass
-                elif column.solves == 1:  # (from zero: the size of its change, within the contraction)
+                if not column.warm_started and column.solves == 1:  # its change, within the contraction
                     column.opening = column.size
-                elif column.solves == 2:  # the contraction `starts_cold` predicts
-                    self._floor.contracted(column.what, column.size / column.opening)
+                elif not column.warm_started and column.solves == 2 and column.opening > 0.0:
+                    self._floor.contracted(column.what, column.size / column.opening)  # (`starts_cold`)
             if moves in active:
                 v -= moves.residual[:n]
             if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):

@@ -43,7 +43,7 @@ from ..engine.linearization import Linearization
 from ..engine.newton import DEFAULT_TOLERANCE, NEWTON_MAXITER, Factorizer, NoConvergence, solve_positions
 from ..engine.ordering import hub_last_ordering, tiled_ordering
 from ..engine.pattern import build_pattern
-from ..engine.reduced import ReducedSystem
+from ..engine.reduced import ReducedSystem, kept_equations
 from ..errors import ConvergenceError, ModelError
 from ..model.mechanism import Mechanism
 from .branch_guard import guard_values, jumped
@@ -379,7 +379,7 @@ class KinematicStepper:
         self.redundant_rows = self.diagnosis.redundant_rows(
             self.assembler, t, coordinates, self.forces, tall_lu_from=self.options.thresholds.smallest_tall_lu
         )  # fmt: skip
-        kept = np.setdiff1d(np.arange(self.pattern.n_equations), self.redundant_rows)
+        kept = kept_equations(self.pattern.n_equations, self.redundant_rows)
         self.system = ReducedSystem(self.assembler, kept)
         self.factorizer = Factorizer(self.system, self.linear_solver)
         factors = getattr(self.diagnosis.redundancy_analysis, "dependency_source", None)
