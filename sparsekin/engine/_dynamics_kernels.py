@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from .._jit import JIT
-from ._kernels import _turned, point_separation, separation_rate
+from ._kernels import _turned, fill_body_turns, point_separation, separation_rate
 
 
 @njit(inline="always", **JIT)
@@ -359,23 +359,12 @@ def load_motion(coordinates, velocities, accelerations, q, qd, qdd, filled, fill
     """``q, qd, qdd = coordinates, velocities, accelerations`` (the ground's last three
     entries left as they are) and ``turns`` the cos and sin of q's angles: copied from
     `filled_turns` when `filled` (the constraints' last coordinates) is q, else computed."""
-    same = True
-    for k in range(coordinates.size):
-        q[k] = coordinates[k]
-        qd[k] = velocities[k]
-        qdd[k] = accelerations[k]
-        same = same and filled[k] == q[k]
-    for k in range(coordinates.size, q.size):
-        same = same and filled[k] == q[k]
-    if same:
+    if load_shared(coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns):
+        for k in range(coordinates.size):
+            q[k] = coordinates[k]
         for b in range(turns.shape[0]):
             turns[b, 0] = filled_turns[b, 0]
             turns[b, 1] = filled_turns[b, 1]
-    else:
-        for b in range(turns.shape[0]):
-            angle = q[3 * b + 2]
-            turns[b, 0] = math.cos(angle)
-            turns[b, 1] = math.sin(angle)
 
 
 @njit(**JIT)
@@ -393,10 +382,7 @@ def load_shared(coordinates, velocities, accelerations, q, qd, qdd, filled, fill
     if not same:
         for k in range(coordinates.size):
             q[k] = coordinates[k]
-        for b in range(turns.shape[0]):
-            angle = q[3 * b + 2]
-            turns[b, 0] = math.cos(angle)
-            turns[b, 1] = math.sin(angle)
+        fill_body_turns(q, turns)
     return same
 
 

@@ -120,4 +120,3 @@ def move_acceleration_drift(product, gamma, target_acceleration, out, weights, m
             norm = max(norm, moved)
         out[r] = drift
     return norm if probe == 0.0 else math.nan
-
