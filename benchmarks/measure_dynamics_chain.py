@@ -25,12 +25,15 @@ Commands::
     python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 1000001 --steps 20
     python3 benchmarks/measure_dynamics_chain.py against /tmp/base --bodies 100001 --rounds 3
     python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 100001 --steps 102 --step 0.98e-3
+    python3 benchmarks/measure_dynamics_chain.py windows --bodies 100001 --steps 1000
 
 (the third: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
 on the shared machine first; the last: the dynamic run of this tree and of another
 checkout, e.g. ``git archive main | tar -x -C /tmp/base``, alternately in fresh
 processes, each with its own sparsekin; the last: a shorter step, for a comparison with
-Exudyn at equal accuracy over the accuracy run's horizon, (steps + 2) steps).  Each
+Exudyn at equal accuracy over the accuracy run's horizon, (steps + 2) steps; ``windows``:
+where a long dynamic run's time goes, per window of steps — CPU, solves, the projections'
+residual passes and factorizations a step, through the flat crossing at ~0.72 s).  Each
 measurement prints one JSON line;
 ``table`` prints them and a Markdown table with the ratios of the same run.
 """
@@ -113,6 +116,44 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP
                    "factorizations": stepper.n_factorizations, "stalls": stepper.n_stalls,
                    "steps_taken": stepper.n_steps, "halvings": stepper.n_subdivisions}  # fmt: skip
     return result
+
+
+#: (first, last) step of each window of `windows` (the flat crossing at steps ~700–760).
+WINDOWS = ((1, 20), (21, 100), (101, 300), (301, 700), (701, 760), (761, 1000))
+
+
+def windows(bodies: int, steps: int) -> list[dict]:
+    """The dynamic run of `bodies` over `steps` steps of 1 ms in this process, per window of
+    `WINDOWS`: CPU a step, solves, residual passes of the projections' refinement (calls of
+    `DynamicSystem.residuals`, counted through a wrapper) and factorizations."""
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+    from sparsekin.testset import n_four_bar
+
+    stepper = GeneralizedAlphaStepper(n_four_bar((bodies - 1) // 2), STEP)
+    stepper.start(0.0)
+    residuals, passes = stepper.system.residuals, [0]
+
+    def counted(*arguments, **keywords):
+        passes[0] += 1
+        return residuals(*arguments, **keywords)
+
+    stepper.system.residuals = counted
+    per_step = []
+    for k in range(1, steps + 1):
+        before = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        stepper.advance(k * STEP)
+        after = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        per_step.append([b - a for a, b in zip(before, after)])
+    rows = []
+    for first, last in WINDOWS:
+        window = per_step[first - 1 : min(last, steps)]
+        if window:
+            cpu, solves, residual_passes, factorizations = (sum(column) for column in zip(*window))
+            rows.append({"bodies": bodies, "first": first, "last": first + len(window) - 1,
+                         "cpu_seconds_per_step": cpu / len(window), "solves_per_step": solves / len(window),
+                         "residual_passes_per_step": residual_passes / len(window),
+                         "factorizations": factorizations})  # fmt: skip
+    return rows
 
 
 def in_subprocess(*arguments: str, tree: Path = ROOT) -> dict:
@@ -301,7 +342,14 @@ def main(argv=None) -> None:
     compare.add_argument("--steps", type=int, default=20)
     compare.add_argument("--rounds", type=int, default=3)
     compare.add_argument("--append", type=Path, help="append the JSON lines to this file")
+    by_window = commands.add_parser("windows", help="a long dynamic run's cost per window of steps, this process")
+    by_window.add_argument("--bodies", type=int, default=100001, help="2N + 1")
+    by_window.add_argument("--steps", type=int, default=1000)
     arguments = parser.parse_args(argv)
+    if arguments.command == "windows":
+        for row in windows(arguments.bodies, arguments.steps):
+            print(json.dumps(row))
+        return
     if arguments.command == "against":
         rows = [row for bodies in arguments.bodies
                 for row in against(arguments.tree.resolve(), bodies, arguments.steps, arguments.rounds)]  # fmt: skip
