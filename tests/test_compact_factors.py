@@ -12,7 +12,7 @@ from scipy.sparse import csr_array, diags_array
 from scipy.sparse import random_array as sparse_random
 from scipy.sparse.linalg import spsolve
 
-from sparsekin.engine import _compact_lu_kernels, _lu_kernels, compact_factors
+from sparsekin.engine import _compact_lu_kernels, _lu_kernels, _relative_lu_kernels, compact_factors
 from sparsekin.engine.linalg import RefactorSolver
 from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 from sparsekin.testset import n_four_bar
@@ -23,11 +23,30 @@ def compact_at_once(monkeypatch):
     monkeypatch.setattr(compact_factors, "COMPACT_AFTER_SOLVES", 0)
 
 
+def structural_rows(solver: RefactorSolver) -> tuple[np.ndarray, np.ndarray]:
+    """L's and U's structural rows as indices, made from the offsets of a relative pattern
+    (whose U has counts, no row pointers), and their row pointers."""
+    if solver._relative is None:
+        return solver._l_indices, solver._u_indices, solver._u_indptr
+    rows = []
+    u_indptr = np.concatenate(([0], np.cumsum(solver._relative[1], dtype=np.int64)))
+    assert solver._u_indptr is None
+    for indptr, offsets, counts in zip((solver._l_indptr, u_indptr), (solver._l_indices, solver._u_indices),
+                                       solver._relative):  # fmt: skip
+        assert offsets.dtype == np.int8 and counts.dtype == np.uint8
+        np.testing.assert_array_equal(counts, np.diff(indptr))
+        indices = np.empty(offsets.size, dtype=np.int64)
+        _relative_lu_kernels.rows_of(indptr, offsets, indices)
+        rows.append(indices)
+    return (*rows, u_indptr)
+
+
 def structural_factors(solver: RefactorSolver, jacobian: csr_array) -> tuple:
     """The factors of `solver`'s analysis refactored afresh on its structural patterns (their
     zeros kept), as `_lu_kernels`' solves read them."""
-    lower = (solver._l_indptr, solver._l_indices, np.zeros(solver._l_indices.size))
-    upper = (solver._u_indptr, solver._u_indices, np.zeros(solver._u_indices.size), np.zeros(solver._n))
+    l_indices, u_indices, u_indptr = structural_rows(solver)
+    lower = (solver._l_indptr, l_indices, np.zeros(l_indices.size))
+    upper = (u_indptr, u_indices, np.zeros(u_indices.size), np.zeros(solver._n))
     b_rows = np.empty(jacobian.nnz, dtype=solver._b_indptr.dtype)
     _lu_kernels.fill_column_rows(solver._indices, solver._offsets, solver._b_indptr, solver._perm_r, b_rows)
     stats = np.zeros(_lu_kernels.N_STATS)
@@ -60,7 +79,7 @@ def compacted_entries(solver: RefactorSolver) -> tuple[int, int]:
     """Entries of L and U off the diagonal: compact, structural."""
     assert solver._compacted
     compact = sum(int(counts.sum()) for counts, _ in solver._compact)
-    return compact, int(solver._l_indptr[-1]) + int(solver._u_indptr[-1])
+    return compact, solver._l_indices.size + solver._u_indices.size
 
 
 def chain_saddle_matrices(loops: int, steps: int) -> list[csr_array]:
@@ -166,3 +185,47 @@ def test_compacted_after_some_solves_the_same_solutions(rng):
     solver.factor(matrix)
     assert not solver._compacted
     np.testing.assert_array_equal(solver.solve(b), first)
+
+
+def solves_of(solver: RefactorSolver, matrices: list[csr_array], rng_seed: int) -> list[np.ndarray]:
+    """Every matrix factored in turn, then solved more often than `COMPACT_AFTER_SOLVES`
+    (structural factors first, compact ones after), both ways and in pairs."""
+    rng = np.random.default_rng(rng_seed)
+    out = []
+    for matrix in matrices:
+        solver.factor(matrix)
+        out += [solver._l_values.copy(), solver._u_values.copy(), solver._u_inverse.copy()]
+        for _ in range(compact_factors.COMPACT_AFTER_SOLVES // 2 + 1):
+            b, c = rng.standard_normal((2, matrix.shape[0]))
+            out += [solver.solve(b), solver.solve(b, transposed=True)]
+            solver.solve_pair(b, c)
+            out += [b, c]
+        assert solver._compacted
+    return out
+
+
+@pytest.mark.parametrize("lean", [False, True])
+def test_relative_patterns_give_the_factors_of_absolute_ones(lean, rng, monkeypatch):
+    """L's and U's rows held as a byte each (`_relative_lu_kernels`, the chain's local order):
+    the factors and every solve bit for bit those of int32 rows, before and after the
+    compaction, and after new pivots (values that trip the guard)."""
+    matrices = chain_saddle_matrices(6, 3)
+    scaled = matrices[-1].copy()
+    scaled.data *= (10.0 ** rng.uniform(-6.0, 6.0, scaled.shape[0]))[scaled.indices]
+    matrices.append(scaled)
+    relative = RefactorSolver(lean=lean)
+    relative.factor(matrices[0])
+    assert relative._relative is not None and relative._l_indices.dtype == np.int8
+    expected_rows = structural_rows(relative)
+    got = solves_of(relative, matrices, 7)
+    assert relative.n_fallbacks == 1
+    monkeypatch.setattr(compact_factors, "relative_patterns", lambda lower, upper: None)
+    absolute = RefactorSolver(lean=lean)
+    absolute.factor(matrices[0])
+    assert absolute._relative is None
+    for rows, expected in zip((absolute._l_indices, absolute._u_indices, absolute._u_indptr), expected_rows):
+        np.testing.assert_array_equal(rows, expected)
+    expected = solves_of(absolute, matrices, 7)
+    assert absolute.n_fallbacks == 1 and len(got) == len(expected)
+    for a, b in zip(got, expected):
+        np.testing.assert_array_equal(a, b)

@@ -64,6 +64,25 @@ def compact_in_place(indptr, indices, values, counts, offsets):
         counts[j] = kept - start
 
 
+@njit(**_JIT)
+def compact_relative_in_place(structural_counts, relative, values, counts, offsets):
+    """`compact_in_place` on a relative pattern (`sparsekin.engine._relative_lu_kernels`):
+    each column's entries counted by `structural_counts`, their rows read as offsets from
+    `relative` (int8); both are left as they are."""
+    kept = 0
+    p = 0
+    for j in range(structural_counts.size):
+        start = kept
+        end = p + _wide(structural_counts[j])
+        while p < end:
+            value = values[p]
+            offsets[kept] = relative[p]
+            values[kept] = value
+            kept += value != 0.0
+            p += 1
+        counts[j] = kept - start
+
+
 @njit(inline="always", **_JIT)
 def _row(j, offset):
     """Row ``j + offset`` as an unsigned index (`_lu_kernels._index`: the paired solve was 12 %

@@ -87,12 +87,15 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
     l_indices = np.empty(max(l_capacity, n, 1), dtype=b_rows.dtype)
     u_indices = np.empty(max(u_capacity, n, 1), dtype=b_rows.dtype)
     # rows in the dtype of `b_rows` (int32 up to 2^31 entries: at a flat crossing of the
-    # 10^6-body chain these scratch arrays were 240 MB of the new pivots' peak in int64)
-    mark = np.full(n, -1, dtype=b_rows.dtype)
-    stack = np.empty(n, dtype=b_rows.dtype)  # depth-first search: node ...
+    # 10^6-body chain these scratch arrays were 240 MB of the new pivots' peak in int64), in
+    # one allocation (`_pivoting_kernels.partial_pivoting_rows`: mapped, not from the heap)
+    scratch = np.empty((4, n), dtype=b_rows.dtype)
+    mark = scratch[0]
+    mark[:] = -1
+    stack = scratch[1]  # depth-first search: node ...
     next_child = np.empty(n, dtype=np.int64)  # ... and the position of its next child in L
-    finished = np.empty(n, dtype=b_rows.dtype)  # rows < j of the pattern, in postorder
-    lower = np.empty(n, dtype=b_rows.dtype)  # rows > j of the pattern
+    finished = scratch[2]  # rows < j of the pattern, in postorder
+    lower = scratch[3]  # rows > j of the pattern
     for j in range(n):
         n_finished = 0
         n_lower = 0

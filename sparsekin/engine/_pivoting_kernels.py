@@ -69,16 +69,21 @@ def partial_pivoting_rows(values, in_factor_order, b_pattern, indices, held, thr
     n = b_indptr.size - 1
     index = indices.dtype  # rows and columns (int32 up to 2^31 rows: half the memory)
     pivot_of = np.full(n, -1, dtype=index)
-    mark = np.full(n, -1, dtype=index)
-    stack = np.empty(n, dtype=index)  # depth-first search: row ...
+    # the row scratch in one allocation: at 10^6 bodies 5 arrays of 24 MB, each under glibc's
+    # largest mmap threshold (32 MB), came from the heap and stayed resident after the
+    # crossing (the heap keeps freed chunks); one of 120 MB is mapped and given back whole
+    scratch = np.empty((5, n), dtype=index)
+    mark = scratch[0]
+    mark[:] = -1
+    stack = scratch[1]  # depth-first search: row ...
     next_child = np.empty(n, dtype=np.int64)  # ... and the position of its next child in L
-    reach = np.empty(n, dtype=index)  # the rows of column j, topological order at the end
+    reach = scratch[2]  # the rows of column j, topological order at the end
     l_indptr = np.zeros(n + 1, dtype=np.int64)
     l_rows = np.empty(max(l_capacity, n, 1), dtype=index)
     l_values = np.empty(l_rows.size)
     perm_r, perm_c = held
-    column_of = np.empty(n, dtype=index)  # column j of B is column column_of[j] of A
-    held_row = np.empty(n, dtype=index)  # column j's held pivot row
+    column_of = scratch[3]  # column j of B is column column_of[j] of A
+    held_row = scratch[4]  # column j's held pivot row
     for c in range(n):
         column_of[perm_c[c]] = c
         held_row[perm_r[c]] = c

@@ -11,15 +11,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._compact_lu_kernels import compact_in_place, offsets_fit
+from ._compact_lu_kernels import compact_in_place, compact_relative_in_place, offsets_fit
+from ._relative_lu_kernels import relative_pattern
 
-__all__ = ["COMPACT_AFTER_SOLVES", "compacted"]
+__all__ = ["COMPACT_AFTER_SOLVES", "compacted", "relative_patterns"]
 
 #: Solves of one factorization on its structural factors before it is compacted.
 COMPACT_AFTER_SOLVES = 8
 
 
-def compacted(lower: tuple, upper: tuple, arrays):
+def relative_patterns(lower: tuple, upper: tuple):
+    """L's and U's structural patterns, each ``(indptr, indices)``, as relative ones
+    (`sparsekin.engine._relative_lu_kernels`): ``((l_counts, l_offsets), (u_counts,
+    u_offsets))``, or None where a row is too far from its column or a column too long."""
+    if not all(offsets_fit(indptr, indices) for indptr, indices in (lower, upper)):
+        return None
+    patterns = tuple((np.empty(indptr.size - 1, dtype=np.uint8), np.empty(indices.size, dtype=np.int8))
+                     for indptr, indices in (lower, upper))  # fmt: skip
+    for (indptr, indices), (counts, offsets) in zip((lower, upper), patterns):
+        relative_pattern(indptr, indices, counts, offsets)
+    return patterns
+
+
+def compacted(lower: tuple, upper: tuple, arrays, relative: bool = False):
     """Compact L's and U's values in place, ``lower`` and ``upper`` each ``(indptr, indices,
     values)`` on the structural pattern.
 
@@ -27,6 +41,8 @@ def compacted(lower: tuple, upper: tuple, arrays):
     ----------
     arrays : tuple or None
         The arrays this function returned for the same pattern before, or None.
+    relative : bool
+        The patterns are relative ones (`relative_patterns`): ``(counts, offsets, values)``.
 
     Returns
     -------
@@ -35,10 +51,11 @@ def compacted(lower: tuple, upper: tuple, arrays):
         if the pattern's offsets or counts do not fit in a byte (`offsets_fit`).
     """
     if arrays is None:
-        if not all(offsets_fit(indptr, indices) for indptr, indices, _ in (lower, upper)):
+        if not (relative or all(offsets_fit(indptr, indices) for indptr, indices, _ in (lower, upper))):
             return False
-        arrays = tuple((np.zeros(indptr.size - 1, dtype=np.uint8), np.zeros(indices.size, dtype=np.int8))
+        arrays = tuple((np.zeros(indptr.size - (not relative), dtype=np.uint8), np.zeros(indices.size, dtype=np.int8))
                        for indptr, indices, _ in (lower, upper))  # fmt: skip
+    kernel = compact_relative_in_place if relative else compact_in_place
     for (indptr, indices, values), (counts, offsets) in zip((lower, upper), arrays):
-        compact_in_place(indptr, indices, values, counts, offsets)
+        kernel(indptr, indices, values, counts, offsets)
     return arrays

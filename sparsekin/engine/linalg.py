@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from . import _compact_lu_kernels, _lu_kernels, _pivoting_kernels, compact_factors
+from . import _compact_lu_kernels, _lu_kernels, _pivoting_kernels, _relative_lu_kernels, compact_factors
 
 if TYPE_CHECKING:
     from scipy.sparse import csc_array, csr_array
@@ -396,6 +396,7 @@ class RefactorSolver:
         self._n = -1
         self._indptr = self._indices = None
         self._l_indices = self._u_indices = None  # L's and U's patterns, made by `_analyse`
+        self._relative = None  # their counts when their rows are offsets (`_relative_lu_kernels`)
         self._factored = False
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
@@ -431,7 +432,7 @@ class RefactorSolver:
     def nnz_factors(self) -> int:
         """Entries of L and U in the structural patterns, diagonal counted once."""
         self._require_analysis()
-        return int(self._l_indptr[-1]) + int(self._u_indptr[-1]) + self._n  # each may be int32
+        return self._l_indices.size + self._u_indices.size + self._n
 
     def suggest(self, perm_r: np.ndarray, perm_c: np.ndarray) -> None:
         """A pivot order for the next new pattern, instead of SuperLU's (`sparsekin.engine.ordering`).
@@ -440,7 +441,7 @@ class RefactorSolver:
         guard; if the guard rejects it, SuperLU decides as usual.  The permutations follow
         `perm_r` and `perm_c`'s convention, for ``A = jacobian.T``.
         """
-        self._suggested = (np.asarray(perm_r, dtype=np.int64), np.asarray(perm_c, dtype=np.int64))
+        self._suggested = (np.array(perm_r, dtype=np.int64), np.array(perm_c, dtype=np.int64))  # (copies: held)
 
     def factor(self, jacobian: csr_array) -> None:
         """Factor `jacobian` (square CSR): refactor if its pattern is the analysed one.
@@ -606,12 +607,13 @@ class RefactorSolver:
         non-finite matrix) goes to SuperLU as before, with the held patterns back."""
         self.n_fallbacks += 1
         held_perm_r, l_capacity, u_capacity = self._perm_r, self._l_indices.size, self._u_indices.size
-        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None  # freed first
+        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None  # freed first
         self._l_values = self._u_values = self._compact = None
         perm_r, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
             values, in_factor_order, (self._b_indptr, self._offsets), self._indices, (held_perm_r, self._perm_c),
-            NEW_PIVOT_THRESHOLD, l_capacity, self._zeroed_work()
-        )  # (the kernel leaves the work array zero)
+            NEW_PIVOT_THRESHOLD, l_capacity + l_capacity // 4, self._zeroed_work()
+        )  # (the kernel leaves the work array zero; L a quarter larger than the held factors' mapped,
+        # not copied: at the chain's crossing 6 % more, and doubling held 3 of its L at once)
         if bad_column < 0:
             self._analyse(perm_r, self._perm_c, l_entries, u_entries)
             if self._numeric(values, in_factor_order):
@@ -683,9 +685,9 @@ class RefactorSolver:
             self._value_positions = None  # made when asked for (`value_positions`)
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
-        self._perm_r = perm_r.astype(index)
+        self._perm_r = perm_r.astype(index, copy=False)  # (new pivots: the kernel's own array)
         # the last pattern's, freed before the new one is made
-        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = None
+        self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None
         self._l_values = self._u_values = self._compact = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
         # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain);
@@ -702,6 +704,11 @@ class RefactorSolver:
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
         del l_indptr, u_indptr
+        # rows a byte each where they fit (a local order: the chain's), not 4 (`_relative_lu_kernels`)
+        relative = compact_factors.relative_patterns((self._l_indptr, self._l_indices), (self._u_indptr, self._u_indices))
+        if relative is not None:
+            (l_counts, self._l_indices), (u_counts, self._u_indices) = relative
+            self._relative, self._u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
         self._allocate_values()
         self._u_inverse = np.zeros(n)
         # the refactorization's accumulator (zero between its columns) and the solves'
@@ -728,12 +735,14 @@ class RefactorSolver:
         work = self._zeroed_work()
         b_pattern = (self._b_indptr, self._b_rows, self._offsets)
         lower = (self._l_indptr, self._l_indices, self._l_values)
-        upper = (self._u_indptr, self._u_indices, self._u_values, self._u_inverse)
+        kernels, u_columns = (_lu_kernels, self._u_indptr) if self._relative is None else (_relative_lu_kernels,
+                                                                                            self._relative[1])  # fmt: skip
+        upper = (u_columns, self._u_indices, self._u_values, self._u_inverse)
         if self.lean:
             rows = (self._indices, self._perm_r)
-            _lu_kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats)
+            kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats)
         else:
-            _lu_kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats)
+            kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats)
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
         if bad_column >= 0 or non_finite != 0.0:
@@ -750,12 +759,15 @@ class RefactorSolver:
         self._solves_since_factor += n_rhs
         if (not self._compacted and self._compact is not False
                 and self._solves_since_factor > compact_factors.COMPACT_AFTER_SOLVES):  # fmt: skip
-            self._compact = compact_factors.compacted((self._l_indptr, self._l_indices, self._l_values),
-                                                      (self._u_indptr, self._u_indices, self._u_values), self._compact)
+            l_columns, u_columns = (self._l_indptr, self._u_indptr) if self._relative is None else self._relative
+            self._compact = compact_factors.compacted((l_columns, self._l_indices, self._l_values),
+                                                      (u_columns, self._u_indices, self._u_values), self._compact,
+                                                      self._relative is not None)  # fmt: skip
             self._compacted = self._compact is not False
-        if self._compacted:
-            return _compact_lu_kernels, (self._perm_r, self._perm_c, (*self._compact[0], self._l_values),
-                                         (*self._compact[1], self._u_values, self._u_inverse))  # fmt: skip
+        if self._compacted or self._relative is not None:  # (relative: every entry, the structural solve's steps)
+            lower, upper = self._compact if self._compacted else zip(self._relative, (self._l_indices, self._u_indices))
+            return _compact_lu_kernels, (self._perm_r, self._perm_c, (*lower, self._l_values),
+                                         (*upper, self._u_values, self._u_inverse))  # fmt: skip
         return _lu_kernels, (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
                              (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
 
