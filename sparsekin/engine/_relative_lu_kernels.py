@@ -103,14 +103,14 @@ def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, wor
         u_start = u_end
         u_end += _wide(u_counts[j])
         for p in range(u_start, u_end):  # in topological order
-            k = j + _wide(u_offsets[p])
-            x_k = work[_index(k)]
-            work[_index(k)] = 0.0
+            k = _index(j + _wide(u_offsets[p]))
+            x_k = work[k]
+            work[k] = 0.0
             u_values[p] = x_k
             max_u = max(max_u, abs(x_k))
             probe += 0.0 * x_k
             for q in range(_wide(l_indptr[k]), _wide(l_indptr[k + 1])):
-                work[_index(k + _wide(l_offsets[q]))] -= l_values[q] * x_k
+                work[k + _index(l_offsets[q])] -= l_values[q] * x_k  # (L's offsets are positive)
         pivot = work[j]
         work[j] = 0.0
         if not (pivot != 0.0 and abs(pivot) < math.inf):  # NaN fails both tests
