@@ -26,8 +26,11 @@ def relative_patterns(lower: tuple, upper: tuple):
     u_offsets))``, or None where a row is too far from its column or a column too long."""
     if not all(offsets_fit(indptr, indices) for indptr, indices in (lower, upper)):
         return None
-    patterns = tuple((np.empty(indptr.size - 1, dtype=np.uint8), np.empty(indices.size, dtype=np.int8))
-                     for indptr, indices in (lower, upper))  # fmt: skip
+    sizes = [size for indptr, indices in (lower, upper) for size in (indptr.size - 1, indices.size)]
+    block = np.empty(sum(sizes), dtype=np.uint8)  # one allocation: mapped, not from the heap
+    ends = np.cumsum(sizes)
+    views = [block[end - size : end] for size, end in zip(sizes, ends)]
+    patterns = ((views[0], views[1].view(np.int8)), (views[2], views[3].view(np.int8)))
     for (indptr, indices), (counts, offsets) in zip((lower, upper), patterns):
         relative_pattern(indptr, indices, counts, offsets)
     return patterns

@@ -700,15 +700,15 @@ class RefactorSolver:
         )
         self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
         del b_rows
-        # int32 row pointers when every entry fits (checked on the last, the largest)
-        self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
-        self._u_indptr = u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
-        del l_indptr, u_indptr
         # rows a byte each where they fit (a local order: the chain's), not 4 (`_relative_lu_kernels`)
-        relative = compact_factors.relative_patterns((self._l_indptr, self._l_indices), (self._u_indptr, self._u_indices))
+        relative = compact_factors.relative_patterns((l_indptr, self._l_indices), (u_indptr, self._u_indices))
         if relative is not None:
             (l_counts, self._l_indices), (u_counts, self._u_indices) = relative
-            self._relative, self._u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
+            self._relative, u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
+        # int32 row pointers when every entry fits (checked on the last, the largest)
+        self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
+        self._u_indptr = None if u_indptr is None else u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
+        del l_indptr, u_indptr
         self._allocate_values()
         self._u_inverse = np.zeros(n)
         # the refactorization's accumulator (zero between its columns) and the solves'
