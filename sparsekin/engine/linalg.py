@@ -304,7 +304,8 @@ class RefactorSolver:
     (`sparsekin.engine._pivoting_kernels`: no SuperLU factors held on top of the caller's
     arrays) and analyses them; only a column without a nonzero candidate goes to a fresh
     SuperLU factorization.  A factorization solved often is solved without its exact zeros
-    (`sparsekin.engine.compact_factors`).
+    (`sparsekin.engine.compact_factors`); patterns whose rows lie within a byte of their
+    column are held as such offsets (`sparsekin.engine._relative_lu_kernels`).
 
     Parameters
     ----------
