@@ -185,7 +185,7 @@ def _add_transposed_pairs(indptr, indices, values, weights, out):
 
 @njit(**JIT)
 def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers, scale, residual, kept_rows,
-                     all_kept, applied, rhs):  # fmt: skip
+                     all_kept, applied, direct, rhs):  # fmt: skip
     """Newton's right-hand side ``rhs = [scale · (M q̈ + h − Q + Φqᵀλ); −Φ of the kept
     rows]`` in one call; whether its first n entries are finite.
 
@@ -195,17 +195,28 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     constraints' last fill was at q: the forces then read the fill's own (equal) arrays.
     `motion` is ``(coordinates, velocities, accelerations, q, qd, qdd, filled,
     filled_turns, turns)`` as for `load_motion`; `jacobian` ``(indptr, indices, values)``
-    of Φq; `applied` (n_coordinates + 3) scratch."""
+    of Φq; `applied` (n_coordinates + 3) scratch, used only where `rhs` has fewer than
+    n_coordinates + 3 entries (else the forces are made in ``rhs[:n + 3]``, whose last
+    three the −Φ rows overwrite); `direct`: no load reads the ground's velocity or
+    acceleration (no spring or rotational spring on it), so that the forces read
+    `velocities` and `accelerations` themselves, not copies with the ground appended
+    (`DynamicSystem`; two state-sized copies fewer a call)."""
     coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns = motion
     n = coordinates.size
-    same = True
-    for k in range(n):
-        qd[k] = velocities[k]
-        qdd[k] = accelerations[k]
-        same = same and filled[k] == coordinates[k]
+    differ = False  # (no early exit: a test per entry that does not wait on the one before)
+    if direct:
+        rates, second = velocities, accelerations
+        for k in range(n):
+            differ |= filled[k] != coordinates[k]
+    else:
+        rates, second = qd, qdd
+        for k in range(n):
+            qd[k] = velocities[k]
+            qdd[k] = accelerations[k]
+            differ |= filled[k] != coordinates[k]
     for k in range(n, filled.size):
-        same = same and filled[k] == q[k]
-    if same:
+        differ |= filled[k] != q[k]
+    if not differ:
         at, turned = filled, filled_turns
     else:
         at, turned = q, turns
@@ -215,18 +226,19 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
             angle = q[3 * b + 2]
             turns[b, 0] = math.cos(angle)
             turns[b, 1] = math.sin(angle)
-    fill_applied_forces(loads, at, qd, qdd, turned, law_values, True, applied)
+    forces = rhs[: n + 3] if rhs.size >= n + 3 else applied
+    fill_applied_forces(loads, at, rates, second, turned, law_values, True, forces)
     out = rhs[:n]
     if actuators[1][actuators[1].size - 1] > 0:  # actuators: Q gains F ∇s first, as in `fill_motion_forces`
         for k in range(n):
-            out[k] = applied[k]
+            out[k] = forces[k]
         _actuator_gradients(actuators, at, turned)
         add_transposed_product(actuators[1], actuators[2], actuators[3], law_values, out)
         for k in range(n):
             out[k] = -out[k]
     else:
         for k in range(n):
-            out[k] = -applied[k]
+            out[k] = -forces[k]
     _add_transposed_pairs(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
     p0 = p1 = 0.0  # two lanes: a sum of zeros (NaN if any entry is not finite) in any order
     for k in range(0, n - n % 2, 2):

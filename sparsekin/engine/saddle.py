@@ -142,6 +142,11 @@ class DynamicSystem:
         self._actuator_weights = np.zeros(n_laws)
         self._actuator_arrays = actuator_kernel_arrays(self.actuators, n_laws, pattern.n_bodies)
         arrays = self.loads.arrays
+        # whether the loads read no velocity or acceleration of the ground (body n_bodies): Newton's
+        # right-hand side then reads the state's, not copies with the ground appended
+        pairs = (arrays.spring.body_i, arrays.spring.body_j, arrays.torsion.body_i, arrays.torsion.body_j)
+        self._direct_motion = arrays.masses.mass.size <= pattern.n_bodies and all(
+            bool(np.all(bodies < pattern.n_bodies)) for bodies in pairs)  # fmt: skip
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
@@ -302,7 +307,7 @@ class DynamicSystem:
         return _motion_kernels.newton_rhs_fused(self.loads.arrays, self._actuator_arrays, motion, self.law_values,
                                                 (p.indptr, p.indices, self.assembler.values), multipliers, scale,
                                                 self.assembler.residual, kept, kept.size == p.n_equations,
-                                                self._applied, rhs)  # fmt: skip
+                                                self._applied, self._direct_motion, rhs)  # fmt: skip
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
