@@ -410,3 +410,13 @@ class DynamicSystem:
             self.pattern.driven_row, self.assembler.velocity_rhs,
         )  # fmt: skip
         return power, dissipated
+
+    def powers_and_energies(self, coordinates, velocities, multipliers) -> tuple[tuple, tuple]:
+        """`powers` and `energies` at one state, its motion loaded once: ``((power,
+        dissipated), (kinetic, potential, elastic))``, each bit for bit its own call."""
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
+        arrays = self.loads.arrays
+        powers = _motion_kernels.motion_powers(arrays, self._actuator_arrays, q, self._qd, turns, self.law_values,
+                                               multipliers, self.pattern.driven_row, self.assembler.velocity_rhs)  # fmt: skip
+        return powers, kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion,
+                                                         q, self._qd, turns)  # fmt: skip
