@@ -12,7 +12,8 @@ functions, so the two paths evaluate the same arithmetic in the same order:
   inertial forces;
 * `motion_powers` — the power of the loads, actuators and drivers, and that dissipated.
 
-`newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call.
+`newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call;
+`fill_coincidences_newton_rhs` the constraints' refill and it in one pass (chains of joints).
 
 Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` with the
 ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
@@ -44,7 +45,7 @@ from ._dynamics_kernels import (
     fill_torsion_triplets,
 )
 from ._force_kernels import fill_applied_forces
-from ._kernels import residual_jacobian
+from ._kernels import _gap, _turned, fill_body_turns, residual_jacobian
 from ._projection_kernels import fill_inertia_values
 
 
@@ -251,3 +252,74 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     for k in range(rhs.size - n):
         rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
     return p0 + p1 == 0.0
+
+
+@njit(**JIT)
+def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, residual, jac_data, velocities,
+                                 accelerations, law_values, multipliers, scale, rhs):  # fmt: skip
+    """`_kernels.fill_residual_jacobian` at `q` (the coordinates with the ground appended)
+    and then `newton_rhs_fused` (the state's velocities and accelerations read directly, no
+    actuator, every equation kept) in one pass over the constraints: ``(weighted norm of Φ,
+    whether the first n entries of rhs are finite)``.  For equations that are all point
+    coincidences, their rows in the coincidences' order (`DynamicSystem`): each joint's
+    Φqᵀλ terms are added as its Jacobian entries are made, the x row's then the y row's on
+    each column, rows in order — the additions of `_add_transposed_pairs`, bit for bit,
+    without reading Φq again."""
+    n = velocities.size
+    fill_body_turns(q, turns)
+    forces = rhs[: n + 3]  # (its last three: the first −Φ rows, written below)
+    fill_applied_forces(loads, q, velocities, accelerations, turns, law_values, True, forces)
+    out = rhs[:n]
+    for k in range(n):
+        out[k] = -forces[k]
+    c = coincidence
+    for k in range(c.row.size):  # `_kernels.fill_coincidence`, and Φqᵀλ of its two rows
+        bi, bj = c.body_i[k], c.body_j[k]
+        i, j, r = 3 * bi, 3 * bj, c.row[k]
+        ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])
+        bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])
+        residual[r] = _gap(q[i], ax, q[j], bx)
+        residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
+        s = c.slots[k]
+        jac_data[s[0]] = 1.0
+        jac_data[s[1]] = -ay
+        jac_data[s[2]] = -1.0
+        jac_data[s[3]] = by
+        jac_data[s[4]] = 1.0
+        jac_data[s[5]] = ax
+        jac_data[s[6]] = -1.0
+        jac_data[s[7]] = -bx
+        w0, w1 = multipliers[r], multipliers[r + 1]
+        if w0 != 0.0:  # (a row of λ = 0 adds nothing, as in `_add_transposed_pairs`)
+            if i < n:
+                out[i] += 1.0 * w0
+                out[i + 2] += -ay * w0
+            if j < n:
+                out[j] += -1.0 * w0
+                out[j + 2] += by * w0
+        if w1 != 0.0:
+            if i < n:
+                out[i + 1] += 1.0 * w1
+                out[i + 2] += ax * w1
+            if j < n:
+                out[j + 1] += -1.0 * w1
+                out[j + 2] += -bx * w1
+    norm, finite = 0.0, True  # `residual_jacobian`'s norm, and −Φ into rhs
+    for r in range(residual.size):
+        residual[r] -= target[r]
+        weighted = abs(residual[r]) * weights[r]
+        if not weighted <= norm:  # larger, or NaN
+            if math.isfinite(weighted):
+                norm = weighted
+            else:
+                finite = False
+        rhs[n + r] = -residual[r]
+    p0 = p1 = 0.0  # as `newton_rhs_fused`
+    for k in range(0, n - n % 2, 2):
+        p0 += 0.0 * out[k]
+        p1 += 0.0 * out[k + 1]
+        out[k], out[k + 1] = out[k] * scale, out[k + 1] * scale
+    for k in range(n - n % 2, n):
+        p0 += 0.0 * out[k]
+        out[k] = out[k] * scale
+    return norm if finite else math.nan, p0 + p1 == 0.0

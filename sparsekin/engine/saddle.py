@@ -147,6 +147,13 @@ class DynamicSystem:
         pairs = (arrays.spring.body_i, arrays.spring.body_j, arrays.torsion.body_i, arrays.torsion.body_j)
         self._direct_motion = arrays.masses.mass.size <= pattern.n_bodies and all(
             bool(np.all(bodies < pattern.n_bodies)) for bodies in pairs)  # fmt: skip
+        # whether the refill of the constraints and Newton's right-hand side can be one pass
+        # (`fill_constraints_newton_rhs`): every equation a kept row of a point coincidence, in their order
+        primitives, c = pattern.primitives, pattern.primitives.coincidence
+        self._coincidence_rows = (self._direct_motion and self.actuators is None and m == 2 * c.row.size
+                                  and self.kept_rows.size == m and bool(np.array_equal(c.row, np.arange(0, m, 2)))
+                                  and primitives.projection.row.size == primitives.distance.row.size == 0
+                                  and primitives.combination.row.size == 0)  # fmt: skip
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
@@ -308,6 +315,21 @@ class DynamicSystem:
                                                 (p.indptr, p.indices, self.assembler.values), multipliers, scale,
                                                 self.assembler.residual, kept, kept.size == p.n_equations,
                                                 self._applied, self._direct_motion, rhs)  # fmt: skip
+
+    def fill_constraints_newton_rhs(self, coordinates, velocities, accelerations, multipliers, scale: float,
+                                    rhs: np.ndarray) -> tuple[float, bool] | None:  # fmt: skip
+        """`fill_constraints` and then `newton_rhs` at one state, in one pass over the
+        constraints where every equation is a point coincidence's (a chain of joints:
+        `_motion_kernels.fill_coincidences_newton_rhs`, the same numbers): ``(the weighted
+        norm of Phi, whether rhs is finite)``; None (nothing done) for other models."""
+        if not self._coincidence_rows:
+            return None
+        assembler = self.assembler
+        q, turns, target, jacobian = assembler.fill_arrays(coordinates)
+        return _motion_kernels.fill_coincidences_newton_rhs(self.loads.arrays, self.pattern.primitives.coincidence,
+                                                            q, turns, target, assembler.weights, assembler.residual,
+                                                            jacobian, velocities, accelerations, self.law_values,
+                                                            multipliers, scale, rhs)  # fmt: skip
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""

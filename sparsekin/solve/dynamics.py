@@ -486,15 +486,17 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         q_size = _dynamics_kernels.weighted_norm(q, weights)  # then from `newton_update`
-        for iteration in range(max_iterations + 1):
-            phi_norm = system.fill_constraints(q)
+        for iteration in range(max_iterations + 1):  # (Φ and the right-hand side in one pass where they will be)
+            fused = None if settled or iteration == max_iterations else system.fill_constraints_newton_rhs(
+                q, v, a, lam, -1.0 / beta_prime, rhs)  # fmt: skip
+            phi_norm = system.fill_constraints(q) if fused is None else fused[0]
             floor = ROUNDING * (1.0 + q_size)
             stall = STALL * math.sqrt(n) * floor
             if settled and self._constraints_met(phi_norm, max(bound, floor, stalled)):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
-            finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs)  # (the residual scaled, −Φ)
+            finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs) if fused is None else fused[1]  # (the residual scaled, −Φ)
             if not (math.isfinite(phi_norm) and finite):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
