@@ -254,6 +254,95 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     return p0 + p1 == 0.0
 
 
+@njit(inline="always", **JIT)
+def _fill_joint(c, k, q, turns, residual, jac_data):
+    """`_kernels.fill_coincidence` of the k-th coincidence: its two rows of Φ and eight entries
+    of Φq; returns ``(i, j, r, ax, ay, bx, by)``: its bodies' first columns, its first row,
+    and its two arms."""
+    bi, bj = c.body_i[k], c.body_j[k]
+    i, j, r = 3 * bi, 3 * bj, c.row[k]
+    ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])
+    bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])
+    residual[r] = _gap(q[i], ax, q[j], bx)
+    residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
+    s = c.slots[k]
+    jac_data[s[0]] = 1.0
+    jac_data[s[1]] = -ay
+    jac_data[s[2]] = -1.0
+    jac_data[s[3]] = by
+    jac_data[s[4]] = 1.0
+    jac_data[s[5]] = ax
+    jac_data[s[6]] = -1.0
+    jac_data[s[7]] = -bx
+    return i, j, r, ax, ay, bx, by
+
+
+@njit(inline="always", **JIT)
+def _residual_norm(residual, target, weights):
+    """``residual −= target`` and its weighted norm, as `_kernels.residual_jacobian`."""
+    norm, finite = 0.0, True
+    for r in range(residual.size):
+        residual[r] -= target[r]
+        weighted = abs(residual[r]) * weights[r]
+        if not weighted <= norm:  # larger, or NaN
+            if math.isfinite(weighted):
+                norm = weighted
+            else:
+                finite = False
+    return norm if finite else math.nan
+
+
+@njit(inline="always", **JIT)
+def _joint_products(i, j, n, ax, ay, bx, by, x):
+    """Φq x on a joint's two rows (`_fill_joint`'s entries), each summed over its columns in
+    ascending order from 0 (`_dynamics_kernels.fill_row_products`' sums; the ground's columns,
+    from n on, are not in Φq)."""
+    if j >= n:
+        tx = (0.0 + 1.0 * x[i]) + -ay * x[i + 2]
+        ty = (0.0 + 1.0 * x[i + 1]) + ax * x[i + 2]
+    elif i >= n:
+        tx = (0.0 + -1.0 * x[j]) + by * x[j + 2]
+        ty = (0.0 + -1.0 * x[j + 1]) + -bx * x[j + 2]
+    elif i < j:
+        tx = (((0.0 + 1.0 * x[i]) + -ay * x[i + 2]) + -1.0 * x[j]) + by * x[j + 2]
+        ty = (((0.0 + 1.0 * x[i + 1]) + ax * x[i + 2]) + -1.0 * x[j + 1]) + -bx * x[j + 2]
+    else:
+        tx = (((0.0 + -1.0 * x[j]) + by * x[j + 2]) + 1.0 * x[i]) + -ay * x[i + 2]
+        ty = (((0.0 + -1.0 * x[j + 1]) + -bx * x[j + 2]) + 1.0 * x[i + 1]) + ax * x[i + 2]
+    return tx, ty
+
+
+@njit(**JIT)
+def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residual, jac_data, velocities, velocity_rhs,
+                             velocity_drift, accelerations, acceleration_product, target_acceleration, acceleration_rhs,
+                             acceleration_drift):  # fmt: skip
+    """`_kernels.fill_residual_jacobian` at `q` (equations as for
+    `fill_coincidences_newton_rhs`), and with each joint's rows, in the same pass, the
+    projections' targets (`_dynamics_kernels.fill_drift_pair`'s numbers): ``velocity_drift =
+    Φq q̇ − velocity_rhs``, ``acceleration_product = Φq q̈``, the acceleration right-hand
+    side γ + `target_acceleration` at (q, q̇) into `acceleration_rhs` (`_kernels.fill_gamma`
+    and the sum of `Assembler.fill_acceleration_rhs`; `qd` the velocities with the ground
+    appended, copied there) and ``acceleration_drift = Φq q̈ − acceleration_rhs``; returns
+    the weighted norm of Φ."""
+    n = velocities.size
+    fill_body_turns(q, turns)
+    for k in range(n):
+        qd[k] = velocities[k]
+    c = coincidence
+    for k in range(c.row.size):
+        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
+        vx, vy = _joint_products(i, j, n, ax, ay, bx, by, velocities)
+        velocity_drift[r], velocity_drift[r + 1] = vx - velocity_rhs[r], vy - velocity_rhs[r + 1]
+        px, py = _joint_products(i, j, n, ax, ay, bx, by, accelerations)
+        acceleration_product[r], acceleration_product[r + 1] = px, py
+        wi2, wj2 = qd[i + 2] ** 2, qd[j + 2] ** 2  # γ = a ω_i² − b ω_j², as `_kernels.fill_coincidence_gamma`
+        gx = (ax * wi2 - bx * wj2) + target_acceleration[r]
+        gy = (ay * wi2 - by * wj2) + target_acceleration[r + 1]
+        acceleration_rhs[r], acceleration_rhs[r + 1] = gx, gy
+        acceleration_drift[r], acceleration_drift[r + 1] = px - gx, py - gy
+    return _residual_norm(residual, target, weights)
+
+
 @njit(**JIT)
 def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, residual, jac_data, velocities,
                                  accelerations, law_values, multipliers, scale, rhs):  # fmt: skip
@@ -274,21 +363,7 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
         out[k] = -forces[k]
     c = coincidence
     for k in range(c.row.size):  # `_kernels.fill_coincidence`, and Φqᵀλ of its two rows
-        bi, bj = c.body_i[k], c.body_j[k]
-        i, j, r = 3 * bi, 3 * bj, c.row[k]
-        ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])
-        bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])
-        residual[r] = _gap(q[i], ax, q[j], bx)
-        residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
-        s = c.slots[k]
-        jac_data[s[0]] = 1.0
-        jac_data[s[1]] = -ay
-        jac_data[s[2]] = -1.0
-        jac_data[s[3]] = by
-        jac_data[s[4]] = 1.0
-        jac_data[s[5]] = ax
-        jac_data[s[6]] = -1.0
-        jac_data[s[7]] = -bx
+        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
         w0, w1 = multipliers[r], multipliers[r + 1]
         if w0 != 0.0:  # (a row of λ = 0 adds nothing, as in `_add_transposed_pairs`)
             if i < n:
@@ -304,15 +379,8 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
             if j < n:
                 out[j + 1] += -1.0 * w1
                 out[j + 2] += -bx * w1
-    norm, finite = 0.0, True  # `residual_jacobian`'s norm, and −Φ into rhs
-    for r in range(residual.size):
-        residual[r] -= target[r]
-        weighted = abs(residual[r]) * weights[r]
-        if not weighted <= norm:  # larger, or NaN
-            if math.isfinite(weighted):
-                norm = weighted
-            else:
-                finite = False
+    norm = _residual_norm(residual, target, weights)
+    for r in range(residual.size):  # −Φ
         rhs[n + r] = -residual[r]
     p0 = p1 = 0.0  # as `newton_rhs_fused`
     for k in range(0, n - n % 2, 2):
@@ -322,4 +390,4 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
     for k in range(n - n % 2, n):
         p0 += 0.0 * out[k]
         out[k] = out[k] * scale
-    return norm if finite else math.nan, p0 + p1 == 0.0
+    return norm, p0 + p1 == 0.0

@@ -325,11 +325,29 @@ class DynamicSystem:
         if not self._coincidence_rows:
             return None
         assembler = self.assembler
-        q, turns, target, jacobian = assembler.fill_arrays(coordinates)
+        q, turns, target, jacobian, _, _ = assembler.fill_arrays(coordinates)
         return _motion_kernels.fill_coincidences_newton_rhs(self.loads.arrays, self.pattern.primitives.coincidence,
                                                             q, turns, target, assembler.weights, assembler.residual,
                                                             jacobian, velocities, accelerations, self.law_values,
                                                             multipliers, scale, rhs)  # fmt: skip
+
+    def fill_constraints_drifts(self, coordinates, velocities, accelerations, velocity_drift: np.ndarray,
+                                acceleration_product: np.ndarray, acceleration_drift: np.ndarray) -> float | None:  # fmt: skip
+        """`fill_constraints`, and (every equation) ``velocity_drift = Phi_q qd + Phi_t``,
+        ``acceleration_product = Phi_q qdd``, the assembler's acceleration right-hand side at
+        (q, qd) (`Assembler.fill_acceleration_rhs`) and ``acceleration_drift = Phi_q qdd −
+        it`` (the numbers of `velocity_drift`, `jacobian_product` and the subtraction) in the
+        same pass, for the models of `fill_constraints_newton_rhs`: the weighted norm of Phi;
+        None (nothing done) for other models."""
+        if not self._coincidence_rows:
+            return None
+        assembler = self.assembler
+        q, turns, target, jacobian, qd, target_acceleration = assembler.fill_arrays(coordinates)
+        return _motion_kernels.fill_coincidences_drifts(self.pattern.primitives.coincidence, q, qd, turns, target,
+                                                        assembler.weights, assembler.residual, jacobian, velocities,
+                                                        assembler.velocity_rhs, velocity_drift, accelerations,
+                                                        acceleration_product, target_acceleration,
+                                                        assembler.acceleration_rhs, acceleration_drift)  # fmt: skip
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""

@@ -267,6 +267,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._recorded: dict = {}
         # (a step that ends a sample makes `_publish`'s drift and energies by the way)
         self._until, self._publishes, self._velocity_drift, self._step_energies = None, False, None, None
+        self._drifts_made = False  # (`_refill`)
 
     # ------------------------------------------------------------------ public
     @property
@@ -486,17 +487,16 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         q_size = _dynamics_kernels.weighted_norm(q, weights)  # then from `newton_update`
-        for iteration in range(max_iterations + 1):  # (Φ and the right-hand side in one pass where they will be)
-            fused = None if settled or iteration == max_iterations else system.fill_constraints_newton_rhs(
-                q, v, a, lam, -1.0 / beta_prime, rhs)  # fmt: skip
-            phi_norm = system.fill_constraints(q) if fused is None else fused[0]
+        for iteration in range(max_iterations + 1):  # (Φ with what follows it where it can: `_refill`)
+            phi_norm, finite = self._refill(q, v, a, lam, -1.0 / beta_prime, settled, iteration == max_iterations)
             floor = ROUNDING * (1.0 + q_size)
             stall = STALL * math.sqrt(n) * floor
             if settled and self._constraints_met(phi_norm, max(bound, floor, stalled)):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
-            finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs) if fused is None else fused[1]  # (the residual scaled, −Φ)
+            if finite is None:  # (the residual scaled, −Φ)
+                finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs)
             if not (math.isfinite(phi_norm) and finite):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
@@ -624,7 +624,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         drift, bound, noise = self._acceleration_target(q, v, a, coefficients, self._projection_work[2])
         return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
 
-    def _acceleration_target(self, q, v, a, coefficients, out) -> tuple:
+    def _acceleration_target(self, q, v, a, coefficients, out, made: bool = False) -> tuple:
         """The acceleration projection's drift Φq q̈ − γ(q, v) (every equation, into `out`),
         bound and noise.  The index-3 accelerations and multipliers carry an oscillation that
         ρ∞ = 1 does not damp (with ã = q̈, a_{n+1} = 4 (q_{n+1} − q_n − h q̇_n) / h² − a_n:
@@ -634,9 +634,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         projects the accelerations for the same reason.  The drift left is at most
         ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
         the next step, tolerance · h per second like the others.  (With `out` None: γ made,
-        None in the drift's place.)"""
+        unless `made` (there already), None in the drift's place.)"""
         assembler = self.assembler
-        assembler.fill_acceleration_rhs(q, v)
+        if not made:
+            assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′

@@ -285,15 +285,43 @@ class ConstraintProjections:
         noise)`` each), both drifts in one pass over Φq (`fill_drift_pair`: the same numbers),
         Φq q̈ kept for the acceleration drifts at moved velocities (`_moved_acceleration_drift`)."""
         self._projection_step = h  # (`_project_together` starts from the last changes at the same h only)
-        if self._pair_work is None:  # the accelerations' solution and residual, and Φq q̈ (made at the first call)
+        velocity = self._velocity_target(v, coefficients, h, drift=False)
+        made = self._drifts_made  # (both drifts, Φq q̈ and γ at (q, v) made with Newton's last refill: `_refill`)
+        acceleration = self._acceleration_target(q, v, a, coefficients, None, made)  # γ at (q, v), bound, noise
+        p, assembler, work, pair = self.pattern, self.assembler, self._projection_work, self._pair_arrays()
+        if not made:
+            _dynamics_kernels.fill_drift_pair(p.indptr, p.indices, assembler.values, v, assembler.velocity_rhs,
+                                              work[2], a, assembler.acceleration_rhs, work[3], pair[2])  # fmt: skip
+        self._drifts_made = False
+        return (work[2], *velocity[1:]), (work[3], *acceleration[1:])
+
+    def _pair_arrays(self) -> tuple:
+        """The accelerations' solution and residual, and Φq q̈ (`_pair_work`, made at the first call)."""
+        if self._pair_work is None:
             size, m = self.system.size, self.pattern.n_equations
             self._pair_work = (np.zeros(size), np.zeros(size), np.zeros(m))
-        velocity = self._velocity_target(v, coefficients, h, drift=False)
-        acceleration = self._acceleration_target(q, v, a, coefficients, None)  # γ at (q, v), bound, noise
-        p, assembler, work = self.pattern, self.assembler, self._projection_work
-        _dynamics_kernels.fill_drift_pair(p.indptr, p.indices, assembler.values, v, assembler.velocity_rhs, work[2],
-                                          a, assembler.acceleration_rhs, work[3], self._pair_work[2])  # fmt: skip
-        return (work[2], *velocity[1:]), (work[3], *acceleration[1:])
+        return self._pair_work
+
+    def _refill(self, q, v, a, lam, scale: float, settled: bool, last: bool) -> tuple:
+        """Φ and Φq at Newton's iterate q: ``(the weighted norm of Φ, whether Newton's
+        right-hand side is finite, None where it is not made)``, in one pass with what follows
+        where the model allows it (`DynamicSystem.fill_constraints_newton_rhs`): Newton's
+        right-hand side (scaled by `scale`, into ``_rhs``) where Newton goes on (not
+        `settled`, not the `last` iterate); on the large path, where it may stop (`settled`),
+        the projections' drifts, Φq q̈ and γ at (q, v, q̈), which `_paired_targets` takes
+        (`_drifts_made`: the iterate that ends Newton is the last refill)."""
+        system, self._drifts_made = self.system, False
+        if not (settled or last):
+            made = system.fill_constraints_newton_rhs(q, v, a, lam, scale, self._rhs)
+            if made is not None:
+                return made
+        elif settled and self._floor.enabled:
+            work = self._projection_work
+            norm = system.fill_constraints_drifts(q, v, a, work[2], self._pair_arrays()[2], work[3])
+            if norm is not None:
+                self._drifts_made = True
+                return norm, None
+        return system.fill_constraints(q), None
 
     def _moved_acceleration_drift(self, q, v, out):
         """The acceleration drift Φq q̈ − γ(q, v) of `_project_together` at the velocities `v`
