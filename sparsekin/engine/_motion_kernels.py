@@ -13,7 +13,8 @@ functions, so the two paths evaluate the same arithmetic in the same order:
 * `motion_powers` — the power of the loads, actuators and drivers, and that dissipated.
 
 `newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call;
-`fill_coincidences_newton_rhs` the constraints' refill and it in one pass (chains of joints).
+for a chain of joints `fill_coincidences_newton_rhs` is the constraints' refill and it in one
+pass, and `fill_coincidences_drifts` the refill and the projections' targets.
 
 Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` with the
 ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
