@@ -144,3 +144,52 @@ def test_the_residual_of_gravity_is_the_gradient_of_the_potential():
         gradient[k] = (plus[1] + plus[2] - minus[1] - minus[2]) / (2 * step)
     # at rest, f = −Q = ∇(potential + elastic)
     np.testing.assert_allclose(_residual(system, q, zero, zero, np.zeros(0)), gradient, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("chain", [True, False])
+def test_one_pass_refill_and_newton_rhs_are_the_separate_calls(chain):
+    """`DynamicSystem.fill_constraints_newton_rhs` (a chain of point coincidences: the refill
+    of Φ and Φq and Newton's right-hand side in one pass) gives, bit for bit, Φ, Φq, its
+    norm and the right-hand side of `fill_constraints` then `newton_rhs`, and that right-hand
+    side is ``[scale · residual; −Φ]`` of `residual` (Φqᵀλ row after row); a system with an
+    equation left out does not take it (None).  `fill_constraints_drifts` (the refill with
+    Φq q̇ + Φt, Φq q̈, γ and Φq q̈ − γ) gives those of `velocity_drift`, `jacobian_product` and
+    `Assembler.fill_acceleration_rhs`."""
+    from sparsekin.testset import n_four_bar
+
+    joints = [sk.Revolute(("b2", "b1"), at="Q"), sk.Revolute(("b3", "b2"), at="R"), sk.Revolute(("ground", "b3"), at="S")]
+    discretization = discretize(n_four_bar(20) if chain else model(joints))  # (the ground first, bodies in both orders)
+    system = DynamicSystem(discretization)
+    assert system._coincidence_rows
+    n, m = system.n, discretization.constraints.n_equations
+    rng = np.random.default_rng(5)
+    q = discretization.constraints.initial_coordinates[:n] + 1e-3 * rng.standard_normal(n)
+    v, a = rng.standard_normal(n), rng.standard_normal(n)
+    lam = rng.standard_normal(m)
+    lam[::7] = 0.0  # (rows of λ = 0 add nothing)
+    system.set_time(0.0)
+    phi = system.fill_constraints(q)
+    separate = np.zeros(system.size)
+    assert system.newton_rhs(q, v, a, lam, -0.7, separate)
+    values, residual = system.assembler.values.copy(), system.assembler.residual.copy()
+    system.fill_constraints(q + 1e-3)  # (another state in the arrays first)
+    fused = np.zeros(system.size)
+    assert system.fill_constraints_newton_rhs(q, v, a, lam, -0.7, fused) == (phi, True)
+    for one, other in ((separate, fused), (values, system.assembler.values), (residual, system.assembler.residual)):
+        assert np.array_equal(one.view(np.int64), other.view(np.int64))
+    expected = np.concatenate([-0.7 * system.residual(q, v, a, lam, np.zeros(n)), -residual])
+    assert np.array_equal(expected.view(np.int64), fused.view(np.int64))
+    assert DynamicSystem(discretization, np.arange(m - 1)).fill_constraints_newton_rhs(q, v, a, lam[:-1], -0.7,
+                                                                                        fused[:-1]) is None  # fmt: skip
+    # the refill with the projections' drifts, Φq q̈ and γ (`fill_constraints_drifts`): the same numbers
+    system.assembler.fill_acceleration_rhs(q, v)
+    gamma = system.assembler.acceleration_rhs.copy()
+    drift, product = system.velocity_drift(v), system.jacobian_product(a)
+    acceleration = system.jacobian_product(a, gamma)
+    system.fill_constraints(q + 1e-3)
+    system.assembler.fill_acceleration_rhs(q + 1e-3, v + 1.0)
+    made = np.zeros(m), np.zeros(m), np.zeros(m)
+    assert system.fill_constraints_drifts(q, v, a, *made) == phi
+    for one, other in ((drift, made[0]), (product, made[1]), (acceleration, made[2]), (values, system.assembler.values),
+                       (gamma, system.assembler.acceleration_rhs)):  # fmt: skip
+        assert np.array_equal(one.view(np.int64), other.view(np.int64))

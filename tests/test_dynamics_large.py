@@ -736,6 +736,27 @@ def test_refinement_passes_are_the_numpy_passes_bit_for_bit():
     assert np.array_equal(moved_drift, expected)
 
 
+def test_sample_drift_and_energies_made_by_the_step_are_the_published_ones():
+    """The last step of an `advance` makes the velocities' drift with the projections' drifts
+    left, and the energies with the powers (`_publishes`): the recorded sample equals, bit
+    for bit, what `_publish` makes afresh at the same state, one step or three per sample."""
+    from sparsekin.solve.dynamics import GeneralizedAlphaStepper
+
+    options = SolveOptions(1e-10, thresholds=Thresholds(saddle_dense_max_size=0))
+    stepper = GeneralizedAlphaStepper(discretize(n_four_bar(100)), 1e-3, options=options)
+    stepper.start(0.0)
+    made, t = 0, 0.0
+    for steps in (1, 1, 3, 1, 3, 1, 1, 3):
+        t += steps * 1e-3
+        stepper.advance(t)
+        made += stepper._velocity_drift is not None and stepper._step_energies is not None
+        recorded = stepper.recorded()
+        stepper._publish()  # Φ refilled at q, the drift and energies made again
+        for key, values in stepper.recorded().items():
+            assert np.array_equal(values, recorded[key]), key
+    assert made >= 4  # (the drift needs both projections tested in one pass: most steps)
+
+
 def test_projections_together_land_on_both_constraints():
     """The large path's paired projections (`_project_together`): from velocities and
     accelerations off their constraints, the velocities on Φq q̇ + Φt = 0 and the

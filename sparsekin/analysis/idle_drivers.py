@@ -21,6 +21,7 @@ from scipy import sparse
 from scipy.sparse.linalg import splu
 
 from ..engine.pattern import build_point_map
+from ..engine.reduced import kept_equations
 from ..model.geometry import to_global
 
 __all__ = ["IDLE_SPEED", "MOST_CHECKED_COORDINATES", "MOST_CHECKED_ROWS", "idle_drivers"]
@@ -36,10 +37,11 @@ def idle_drivers(mechanism, pattern, jacobian, redundant_rows: np.ndarray, coord
     """The labels of the drivers whose unit rate moves no named point (``drivers[0]
     (rotational crank–ground)``).  Empty when every driver moves a point, or when the check
     does not apply (see the module)."""
+    if pattern.n_coordinates > MOST_CHECKED_COORDINATES:  # before any pass over the equations
+        return ()
     driven = np.setdiff1d(pattern.driven_row, redundant_rows)
-    kept = np.setdiff1d(np.arange(pattern.n_equations), redundant_rows)
-    if (not driven.size or driven.size > MOST_CHECKED_ROWS or kept.size != pattern.n_coordinates
-            or pattern.n_coordinates > MOST_CHECKED_COORDINATES):  # fmt: skip
+    kept = kept_equations(pattern.n_equations, redundant_rows)
+    if not driven.size or driven.size > MOST_CHECKED_ROWS or kept.size != pattern.n_coordinates:
         return ()
     names = build_point_map(mechanism)
     square = sparse.csc_array(sparse.csr_array(jacobian)[kept])

@@ -99,7 +99,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser, with one subparser per entry of `SUBCOMMANDS`."""
     parser = argparse.ArgumentParser(
-        prog=PROGRAM, description="Kinematic analysis of planar linkages described in a TOML model file."
+        prog=PROGRAM, description="Kinematics and dynamics of planar linkages described in a TOML model file."
     )
     subparsers = parser.add_subparsers(title="commands", dest="command", required=True, metavar="COMMAND")
     for add_subcommand in SUBCOMMANDS:

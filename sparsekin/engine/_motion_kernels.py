@@ -12,7 +12,9 @@ functions, so the two paths evaluate the same arithmetic in the same order:
   inertial forces;
 * `motion_powers` — the power of the loads, actuators and drivers, and that dissipated.
 
-`newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call.
+`newton_rhs_fused` (the Python stepper's only) is Newton's right-hand side in one call;
+for a chain of joints `fill_coincidences_newton_rhs` is the constraints' refill and it in one
+pass, and `fill_coincidences_drifts` the refill and the projections' targets.
 
 Arguments as in `sparsekin.engine._dynamics_kernels` (``q``, ``qd``, ``qdd`` with the
 ground appended, ``turns`` filled at ``q``).  ``actuators`` is the tuple ``(primitives,
@@ -44,7 +46,7 @@ from ._dynamics_kernels import (
     fill_torsion_triplets,
 )
 from ._force_kernels import fill_applied_forces
-from ._kernels import residual_jacobian
+from ._kernels import _gap, _turned, fill_body_turns, residual_jacobian
 from ._projection_kernels import fill_inertia_values
 
 
@@ -185,7 +187,7 @@ def _add_transposed_pairs(indptr, indices, values, weights, out):
 
 @njit(**JIT)
 def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers, scale, residual, kept_rows,
-                     all_kept, applied, rhs):  # fmt: skip
+                     all_kept, applied, direct, rhs):  # fmt: skip
     """Newton's right-hand side ``rhs = [scale · (M q̈ + h − Q + Φqᵀλ); −Φ of the kept
     rows]`` in one call; whether its first n entries are finite.
 
@@ -195,17 +197,28 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     constraints' last fill was at q: the forces then read the fill's own (equal) arrays.
     `motion` is ``(coordinates, velocities, accelerations, q, qd, qdd, filled,
     filled_turns, turns)`` as for `load_motion`; `jacobian` ``(indptr, indices, values)``
-    of Φq; `applied` (n_coordinates + 3) scratch."""
+    of Φq; `applied` (n_coordinates + 3) scratch, used only where `rhs` has fewer than
+    n_coordinates + 3 entries (else the forces are made in ``rhs[:n + 3]``, whose last
+    three the −Φ rows overwrite); `direct`: no load reads the ground's velocity or
+    acceleration (no spring or rotational spring on it), so that the forces read
+    `velocities` and `accelerations` themselves, not copies with the ground appended
+    (`DynamicSystem`; two state-sized copies fewer a call)."""
     coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns = motion
     n = coordinates.size
-    same = True
-    for k in range(n):
-        qd[k] = velocities[k]
-        qdd[k] = accelerations[k]
-        same = same and filled[k] == coordinates[k]
+    differ = False  # (no early exit: a test per entry that does not wait on the one before)
+    if direct:
+        rates, second = velocities, accelerations
+        for k in range(n):
+            differ |= filled[k] != coordinates[k]
+    else:
+        rates, second = qd, qdd
+        for k in range(n):
+            qd[k] = velocities[k]
+            qdd[k] = accelerations[k]
+            differ |= filled[k] != coordinates[k]
     for k in range(n, filled.size):
-        same = same and filled[k] == q[k]
-    if same:
+        differ |= filled[k] != q[k]
+    if not differ:
         at, turned = filled, filled_turns
     else:
         at, turned = q, turns
@@ -215,18 +228,19 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
             angle = q[3 * b + 2]
             turns[b, 0] = math.cos(angle)
             turns[b, 1] = math.sin(angle)
-    fill_applied_forces(loads, at, qd, qdd, turned, law_values, True, applied)
+    forces = rhs[: n + 3] if rhs.size >= n + 3 else applied
+    fill_applied_forces(loads, at, rates, second, turned, law_values, True, forces)
     out = rhs[:n]
     if actuators[1][actuators[1].size - 1] > 0:  # actuators: Q gains F ∇s first, as in `fill_motion_forces`
         for k in range(n):
-            out[k] = applied[k]
+            out[k] = forces[k]
         _actuator_gradients(actuators, at, turned)
         add_transposed_product(actuators[1], actuators[2], actuators[3], law_values, out)
         for k in range(n):
             out[k] = -out[k]
     else:
         for k in range(n):
-            out[k] = -applied[k]
+            out[k] = -forces[k]
     _add_transposed_pairs(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
     p0 = p1 = 0.0  # two lanes: a sum of zeros (NaN if any entry is not finite) in any order
     for k in range(0, n - n % 2, 2):
@@ -239,3 +253,142 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     for k in range(rhs.size - n):
         rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
     return p0 + p1 == 0.0
+
+
+@njit(inline="always", **JIT)
+def _fill_joint(c, k, q, turns, residual, jac_data):
+    """`_kernels.fill_coincidence` of the k-th coincidence: its two rows of Φ and eight entries
+    of Φq; returns ``(i, j, r, ax, ay, bx, by)``: its bodies' first columns, its first row,
+    and its two arms."""
+    bi, bj = c.body_i[k], c.body_j[k]
+    i, j, r = 3 * bi, 3 * bj, c.row[k]
+    ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])
+    bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])
+    residual[r] = _gap(q[i], ax, q[j], bx)
+    residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
+    s = c.slots[k]
+    jac_data[s[0]] = 1.0
+    jac_data[s[1]] = -ay
+    jac_data[s[2]] = -1.0
+    jac_data[s[3]] = by
+    jac_data[s[4]] = 1.0
+    jac_data[s[5]] = ax
+    jac_data[s[6]] = -1.0
+    jac_data[s[7]] = -bx
+    return i, j, r, ax, ay, bx, by
+
+
+@njit(inline="always", **JIT)
+def _residual_norm(residual, target, weights):
+    """``residual −= target`` and its weighted norm, as `_kernels.residual_jacobian`."""
+    norm, finite = 0.0, True
+    for r in range(residual.size):
+        residual[r] -= target[r]
+        weighted = abs(residual[r]) * weights[r]
+        if not weighted <= norm:  # larger, or NaN
+            if math.isfinite(weighted):
+                norm = weighted
+            else:
+                finite = False
+    return norm if finite else math.nan
+
+
+@njit(inline="always", **JIT)
+def _joint_products(i, j, n, ax, ay, bx, by, x):
+    """Φq x on a joint's two rows (`_fill_joint`'s entries), each summed over its columns in
+    ascending order from 0 (`_dynamics_kernels.fill_row_products`' sums; the ground's columns,
+    from n on, are not in Φq)."""
+    if j >= n:
+        tx = (0.0 + 1.0 * x[i]) + -ay * x[i + 2]
+        ty = (0.0 + 1.0 * x[i + 1]) + ax * x[i + 2]
+    elif i >= n:
+        tx = (0.0 + -1.0 * x[j]) + by * x[j + 2]
+        ty = (0.0 + -1.0 * x[j + 1]) + -bx * x[j + 2]
+    elif i < j:
+        tx = (((0.0 + 1.0 * x[i]) + -ay * x[i + 2]) + -1.0 * x[j]) + by * x[j + 2]
+        ty = (((0.0 + 1.0 * x[i + 1]) + ax * x[i + 2]) + -1.0 * x[j + 1]) + -bx * x[j + 2]
+    else:
+        tx = (((0.0 + -1.0 * x[j]) + by * x[j + 2]) + 1.0 * x[i]) + -ay * x[i + 2]
+        ty = (((0.0 + -1.0 * x[j + 1]) + -bx * x[j + 2]) + 1.0 * x[i + 1]) + ax * x[i + 2]
+    return tx, ty
+
+
+@njit(**JIT)
+def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residual, jac_data, velocities, velocity_rhs,
+                             velocity_drift, accelerations, acceleration_product, target_acceleration, acceleration_rhs,
+                             acceleration_drift):  # fmt: skip
+    """`_kernels.fill_residual_jacobian` at `q` (equations as for
+    `fill_coincidences_newton_rhs`), and with each joint's rows, in the same pass, the
+    projections' targets (`_dynamics_kernels.fill_drift_pair`'s numbers): ``velocity_drift =
+    Φq q̇ − velocity_rhs``, ``acceleration_product = Φq q̈``, the acceleration right-hand
+    side γ + `target_acceleration` at (q, q̇) into `acceleration_rhs` (`_kernels.fill_gamma`
+    and the sum of `Assembler.fill_acceleration_rhs`; `qd` the velocities with the ground
+    appended, copied there) and ``acceleration_drift = Φq q̈ − acceleration_rhs``; returns
+    the weighted norm of Φ."""
+    n = velocities.size
+    fill_body_turns(q, turns)
+    for k in range(n):
+        qd[k] = velocities[k]
+    c = coincidence
+    for k in range(c.row.size):
+        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
+        vx, vy = _joint_products(i, j, n, ax, ay, bx, by, velocities)
+        velocity_drift[r], velocity_drift[r + 1] = vx - velocity_rhs[r], vy - velocity_rhs[r + 1]
+        px, py = _joint_products(i, j, n, ax, ay, bx, by, accelerations)
+        acceleration_product[r], acceleration_product[r + 1] = px, py
+        wi2, wj2 = qd[i + 2] ** 2, qd[j + 2] ** 2  # γ = a ω_i² − b ω_j², as `_kernels.fill_coincidence_gamma`
+        gx = (ax * wi2 - bx * wj2) + target_acceleration[r]
+        gy = (ay * wi2 - by * wj2) + target_acceleration[r + 1]
+        acceleration_rhs[r], acceleration_rhs[r + 1] = gx, gy
+        acceleration_drift[r], acceleration_drift[r + 1] = px - gx, py - gy
+    return _residual_norm(residual, target, weights)
+
+
+@njit(**JIT)
+def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, residual, jac_data, velocities,
+                                 accelerations, law_values, multipliers, scale, rhs):  # fmt: skip
+    """`_kernels.fill_residual_jacobian` at `q` (the coordinates with the ground appended)
+    and then `newton_rhs_fused` (the state's velocities and accelerations read directly, no
+    actuator, every equation kept) in one pass over the constraints: ``(weighted norm of Φ,
+    whether the first n entries of rhs are finite)``.  For equations that are all point
+    coincidences, their rows in the coincidences' order (`DynamicSystem`): each joint's
+    Φqᵀλ terms are added as its Jacobian entries are made, the x row's then the y row's on
+    each column, rows in order — the additions of `_add_transposed_pairs`, bit for bit,
+    without reading Φq again."""
+    n = velocities.size
+    fill_body_turns(q, turns)
+    forces = rhs[: n + 3]  # (its last three: the first −Φ rows, written below)
+    fill_applied_forces(loads, q, velocities, accelerations, turns, law_values, True, forces)
+    out = rhs[:n]
+    for k in range(n):
+        out[k] = -forces[k]
+    c = coincidence
+    for k in range(c.row.size):  # `_kernels.fill_coincidence`, and Φqᵀλ of its two rows
+        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
+        w0, w1 = multipliers[r], multipliers[r + 1]
+        if w0 != 0.0:  # (a row of λ = 0 adds nothing, as in `_add_transposed_pairs`)
+            if i < n:
+                out[i] += 1.0 * w0
+                out[i + 2] += -ay * w0
+            if j < n:
+                out[j] += -1.0 * w0
+                out[j + 2] += by * w0
+        if w1 != 0.0:
+            if i < n:
+                out[i + 1] += 1.0 * w1
+                out[i + 2] += ax * w1
+            if j < n:
+                out[j + 1] += -1.0 * w1
+                out[j + 2] += -bx * w1
+    norm = _residual_norm(residual, target, weights)
+    for r in range(residual.size):  # −Φ
+        rhs[n + r] = -residual[r]
+    p0 = p1 = 0.0  # as `newton_rhs_fused`
+    for k in range(0, n - n % 2, 2):
+        p0 += 0.0 * out[k]
+        p1 += 0.0 * out[k + 1]
+        out[k], out[k + 1] = out[k] * scale, out[k + 1] * scale
+    for k in range(n - n % 2, n):
+        p0 += 0.0 * out[k]
+        out[k] = out[k] * scale
+    return norm, p0 + p1 == 0.0

@@ -146,6 +146,15 @@ class Assembler:
             self._primitives, q, self._turns, self._target, self.weights, self.residual, self._jac_buffer
         )
 
+    def fill_arrays(self, coordinates: np.ndarray) -> tuple:
+        """For a refill elsewhere (`DynamicSystem.fill_constraints_newton_rhs`): the kernels' q
+        with `coordinates` copied in, the turns, the targets and the Jacobian's buffer (its
+        values and the discard slot), to be filled as `fill_residual_jacobian` does, and the
+        velocities with the ground appended and the targets' second derivative (for a γ made
+        there as `fill_acceleration_rhs` does)."""
+        self._q[:-3] = coordinates
+        return self._q, self._turns, self._target, self._jac_buffer, self._qd, self._target_acceleration
+
     def filled_motion(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The coordinates and velocities of the last `fill_acceleration_rhs`, with the
         ground appended as a body of zeros, and ``(cos, sin)`` of every body's angle there

@@ -142,6 +142,18 @@ class DynamicSystem:
         self._actuator_weights = np.zeros(n_laws)
         self._actuator_arrays = actuator_kernel_arrays(self.actuators, n_laws, pattern.n_bodies)
         arrays = self.loads.arrays
+        # whether the loads read no velocity or acceleration of the ground (body n_bodies): Newton's
+        # right-hand side then reads the state's, not copies with the ground appended
+        pairs = (arrays.spring.body_i, arrays.spring.body_j, arrays.torsion.body_i, arrays.torsion.body_j)
+        self._direct_motion = arrays.masses.mass.size <= pattern.n_bodies and all(
+            bool(np.all(bodies < pattern.n_bodies)) for bodies in pairs)  # fmt: skip
+        # whether the refill of the constraints and Newton's right-hand side can be one pass
+        # (`fill_constraints_newton_rhs`): every equation a kept row of a point coincidence, in their order
+        primitives, c = pattern.primitives, pattern.primitives.coincidence
+        self._coincidence_rows = (self._direct_motion and self.actuators is None and m == 2 * c.row.size
+                                  and self.kept_rows.size == m and bool(np.array_equal(c.row, np.arange(0, m, 2)))
+                                  and primitives.projection.row.size == primitives.distance.row.size == 0
+                                  and primitives.combination.row.size == 0)  # fmt: skip
         count = (9 * pattern.n_bodies + arrays.force.body.size + 36 * arrays.spring.body_i.size
                  + 4 * arrays.torsion.body_i.size + kernels.hessian_entries(pattern.primitives)
                  + 2 * pattern.nnz + self.kept_rows.size)  # fmt: skip
@@ -302,7 +314,40 @@ class DynamicSystem:
         return _motion_kernels.newton_rhs_fused(self.loads.arrays, self._actuator_arrays, motion, self.law_values,
                                                 (p.indptr, p.indices, self.assembler.values), multipliers, scale,
                                                 self.assembler.residual, kept, kept.size == p.n_equations,
-                                                self._applied, rhs)  # fmt: skip
+                                                self._applied, self._direct_motion, rhs)  # fmt: skip
+
+    def fill_constraints_newton_rhs(self, coordinates, velocities, accelerations, multipliers, scale: float,
+                                    rhs: np.ndarray) -> tuple[float, bool] | None:  # fmt: skip
+        """`fill_constraints` and then `newton_rhs` at one state, in one pass over the
+        constraints where every equation is a point coincidence's (a chain of joints:
+        `_motion_kernels.fill_coincidences_newton_rhs`, the same numbers): ``(the weighted
+        norm of Phi, whether rhs is finite)``; None (nothing done) for other models."""
+        if not self._coincidence_rows:
+            return None
+        assembler = self.assembler
+        q, turns, target, jacobian, _, _ = assembler.fill_arrays(coordinates)
+        return _motion_kernels.fill_coincidences_newton_rhs(self.loads.arrays, self.pattern.primitives.coincidence,
+                                                            q, turns, target, assembler.weights, assembler.residual,
+                                                            jacobian, velocities, accelerations, self.law_values,
+                                                            multipliers, scale, rhs)  # fmt: skip
+
+    def fill_constraints_drifts(self, coordinates, velocities, accelerations, velocity_drift: np.ndarray,
+                                acceleration_product: np.ndarray, acceleration_drift: np.ndarray) -> float | None:  # fmt: skip
+        """`fill_constraints`, and (every equation) ``velocity_drift = Phi_q qd + Phi_t``,
+        ``acceleration_product = Phi_q qdd``, the assembler's acceleration right-hand side at
+        (q, qd) (`Assembler.fill_acceleration_rhs`) and ``acceleration_drift = Phi_q qdd −
+        it`` (the numbers of `velocity_drift`, `jacobian_product` and the subtraction) in the
+        same pass, for the models of `fill_constraints_newton_rhs`: the weighted norm of Phi;
+        None (nothing done) for other models."""
+        if not self._coincidence_rows:
+            return None
+        assembler = self.assembler
+        q, turns, target, jacobian, qd, target_acceleration = assembler.fill_arrays(coordinates)
+        return _motion_kernels.fill_coincidences_drifts(self.pattern.primitives.coincidence, q, qd, turns, target,
+                                                        assembler.weights, assembler.residual, jacobian, velocities,
+                                                        assembler.velocity_rhs, velocity_drift, accelerations,
+                                                        acceleration_product, target_acceleration,
+                                                        assembler.acceleration_rhs, acceleration_drift)  # fmt: skip
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
@@ -405,3 +450,13 @@ class DynamicSystem:
             self.pattern.driven_row, self.assembler.velocity_rhs,
         )  # fmt: skip
         return power, dissipated
+
+    def powers_and_energies(self, coordinates, velocities, multipliers) -> tuple[tuple, tuple]:
+        """`powers` and `energies` at one state, its motion loaded once: ``((power,
+        dissipated), (kinetic, potential, elastic))``, each bit for bit its own call."""
+        q, turns = self._shared(coordinates, velocities, self._qdd[:-3])
+        arrays = self.loads.arrays
+        powers = _motion_kernels.motion_powers(arrays, self._actuator_arrays, q, self._qd, turns, self.law_values,
+                                               multipliers, self.pattern.driven_row, self.assembler.velocity_rhs)  # fmt: skip
+        return powers, kernels.kinetic_potential_elastic(arrays.masses, arrays.gravity, arrays.spring, arrays.torsion,
+                                                         q, self._qd, turns)  # fmt: skip

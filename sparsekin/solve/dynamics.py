@@ -265,6 +265,9 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         self._factored, self._good = False, 0  # good steps in a row at a reduced step
         self._balance0: float | None = None
         self._recorded: dict = {}
+        # (a step that ends a sample makes `_publish`'s drift and energies by the way)
+        self._until, self._publishes, self._velocity_drift, self._step_energies = None, False, None, None
+        self._drifts_made = False  # (`_refill`)
 
     # ------------------------------------------------------------------ public
     @property
@@ -356,6 +359,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         if not t > now:
             raise ValueError(f"`t` must be after the current time {now!r}, got {t!r}.")
         step, good, before = self._state.step, self._good, self.n_newton  # good steps counted across samples
+        self._until = t  # (a step that ends there makes the drift `_publish` records: `_paired_drift_lefts`)
         if self.controller is not None:  # rtol: every step chosen by its error estimate
             step = advance_controlled(self, t, MAX_HALVINGS, GROWTH_AFTER)
         while self._state.time < t:
@@ -427,14 +431,18 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         (`recorded`)."""
         state, system = self._state, self.system
         q, v = state.coordinates, state.velocities
+        stepped = phi is not None  # (then the drift and energies the step made where it did: `_publishes`)
         phi = system.fill_constraints(q) if phi is None else phi
         p, assembler = self.pattern, system.assembler  # ‖Φq q̇ + Φt‖ of every equation (one pass if all are kept)
-        if system.kept_rows.size == p.n_equations:  # kept_row is then every row's own index
+        if stepped and self._velocity_drift is not None:  # made with the drifts left (`_paired_drift_lefts`)
+            drift = self._velocity_drift
+        elif system.kept_rows.size == p.n_equations:  # kept_row is then every row's own index
             drift = _dynamics_kernels.drift_left_norm(p.indptr, p.indices, assembler.values, system.kept_row, v,
                                                       assembler.velocity_rhs, assembler.weights)  # fmt: skip
         else:
             drift = _dynamics_kernels.weighted_norm(system.velocity_drift(v, self._projection_work[3]), assembler.weights)
-        kinetic, potential, elastic = system.energies(q, v)
+        energies = self._step_energies if stepped else None
+        kinetic, potential, elastic = system.energies(q, v) if energies is None else energies
         balance = kinetic + potential + elastic + state.dissipated - state.work
         if self._balance0 is None:
             self._balance0 = balance
@@ -455,6 +463,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         # extrapolated from the one before where that paid (`RoundingFloor.extrapolates`)
         # (into arrays of states let go of that no one holds: `StateArrays`)
         q, v, a = self._arrays.step_begins(n)
+        self._publishes, self._velocity_drift, self._step_energies = t_next == self._until, None, None
         extrapolate = (self._previous is not None and h <= EXTRAPOLATION_RATIO * self._previous[1]
                        and self._floor.extrapolates())  # fmt: skip
         start = state.newton_start
@@ -478,15 +487,16 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         bound = step_velocity_bound(tol, h) / gamma_prime
         max_iterations = self.options.max_iterations
         q_size = _dynamics_kernels.weighted_norm(q, weights)  # then from `newton_update`
-        for iteration in range(max_iterations + 1):
-            phi_norm = system.fill_constraints(q)
+        for iteration in range(max_iterations + 1):  # (Φ with what follows it where it can: `_refill`)
+            phi_norm, finite = self._refill(q, v, a, lam, -1.0 / beta_prime, settled, iteration == max_iterations)
             floor = ROUNDING * (1.0 + q_size)
             stall = STALL * math.sqrt(n) * floor
             if settled and self._constraints_met(phi_norm, max(bound, floor, stalled)):
                 break
             if iteration == max_iterations:
                 raise _StepFailed(f"no convergence in {max_iterations} corrections")
-            finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs)  # (the residual scaled, −Φ)
+            if finite is None:  # (the residual scaled, −Φ)
+                finite = system.newton_rhs(q, v, a, lam, -1.0 / beta_prime, rhs)
             if not (math.isfinite(phi_norm) and finite):
                 raise _StepFailed("non-finite residual")
             if not self._factored:
@@ -555,7 +565,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         newton, newton_lam = a, None
         if change is not None:
             a, lam, newton_lam = self._apply_acceleration_change(a, lam, change)
-        power = system.powers(q, v, lam)
+        if self._publishes:  # (`_publish` takes the energies at this state: the motion loaded once)
+            power, self._step_energies = system.powers_and_energies(q, v, lam)
+        else:
+            power = system.powers(q, v, lam)
         work = state.work + 0.5 * h * (self._power[0] + power[0])
         dissipated = state.dissipated + 0.5 * h * (self._power[1] + power[1])
         self._power = power
@@ -611,7 +624,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         drift, bound, noise = self._acceleration_target(q, v, a, coefficients, self._projection_work[2])
         return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
 
-    def _acceleration_target(self, q, v, a, coefficients, out) -> tuple:
+    def _acceleration_target(self, q, v, a, coefficients, out, made: bool = False) -> tuple:
         """The acceleration projection's drift Φq q̈ − γ(q, v) (every equation, into `out`),
         bound and noise.  The index-3 accelerations and multipliers carry an oscillation that
         ρ∞ = 1 does not damp (with ã = q̈, a_{n+1} = 4 (q_{n+1} − q_n − h q̇_n) / h² − a_n:
@@ -621,9 +634,10 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         projects the accelerations for the same reason.  The drift left is at most
         ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
         the next step, tolerance · h per second like the others.  (With `out` None: γ made,
-        None in the drift's place.)"""
+        unless `made` (there already), None in the drift's place.)"""
         assembler = self.assembler
-        assembler.fill_acceleration_rhs(q, v)
+        if not made:
+            assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
@@ -646,20 +660,6 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         lam *= h / previous[1]
         lam += start
         return lam
-
-    def _apply_acceleration_change(self, a, lam, change) -> tuple:
-        """q̈ less the projection's change and λ less its multipliers, in arrays of their own
-        (`StateArrays`) where Newton's stay for the next step's Newton to start from: returns
-        the projected q̈ and λ and Newton's λ (on the dense path None, λ changed in place)."""
-        projected = np.subtract(a, change[: a.size], out=self._arrays.take(a.size))
-        newton_lam = None
-        if self._floor.enabled:
-            newton_lam, lam = lam, self._arrays.copy_of(lam)
-        if self.system.kept_rows.size == self.pattern.n_equations:
-            lam -= change[a.size :]
-        else:
-            lam[self.system.kept_rows] -= change[a.size :]
-        return projected, lam, newton_lam
 
     # ------------------------------------------------------------------ start
     def _kept_rows(self, t: float) -> np.ndarray:

@@ -8,8 +8,8 @@ converged state; on the large path both in one refinement, `_project_together`, 
 solving the two right-hand sides in one pass over the factors); the stepper chooses their
 targets, bounds and noise.  It uses the
 stepper's ``system``, ``solver``, ``assembler``, ``pattern``, ``_floor``, ``_weights``,
-``_projection_work``, ``_pair_work``, ``_last_projections``, ``_projection_step``, ``_factor``
-and ``n_singular_projections``.
+``_projection_work``, ``_pair_work``, ``_last_projections``, ``_projection_step``, ``_factor``,
+``_publishes`` and ``n_singular_projections``, and sets its ``_velocity_drift``.
 """
 
 from __future__ import annotations
@@ -112,6 +112,22 @@ class ConstraintProjections:
             return solution
         raise _StepFailed(f"the {what} projection does not converge (increment {size:.3g})")
 
+    def _apply_acceleration_change(self, a, lam, change) -> tuple:
+        """q̈ less the projection's change and λ less its multipliers, in arrays of their own
+        (`StateArrays`) where Newton's stay for the next step's Newton to start from: returns
+        the projected q̈ and λ and Newton's λ (on the dense path None, λ changed in place)."""
+        projected = np.subtract(a, change[: a.size], out=self._arrays.take(a.size))
+        if self._floor.enabled and self.system.kept_rows.size == self.pattern.n_equations:  # (no copy of λ first)
+            return projected, np.subtract(lam, change[a.size :], out=self._arrays.take(lam.size)), lam
+        newton_lam = None
+        if self._floor.enabled:
+            newton_lam, lam = lam, self._arrays.copy_of(lam)
+        if self.system.kept_rows.size == self.pattern.n_equations:
+            lam -= change[a.size :]
+        else:
+            lam[self.system.kept_rows] -= change[a.size :]
+        return projected, lam, newton_lam
+
     def _project_together(self, q, v, a, lam, coefficients, velocity: tuple, acceleration: tuple):
         """Both projections of the large path in one refinement, their solves paired (one
         pass over the factors for both right-hand sides, `RefactorSolver.solve_pair`):
@@ -158,6 +174,7 @@ class ConstraintProjections:
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain = False, False, None
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
+        self._velocity_drift = None  # (the published drift: made with the drift left at the final velocities)
         if moves.warm_started or follows.warm_started:
             self._warm_residuals(q, v, lam, coefficients, moves, follows, drift_out)
             filled = True
@@ -183,12 +200,13 @@ class ConstraintProjections:
                     self._floor.contracted(column.what, column.size / column.opening)  # (`starts_cold`)
             if moves in active:
                 v -= moves.residual[:n]
+                self._velocity_drift = None
             if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):
                 # the accelerations' target at the moved velocities, and (first) how far it moved
                 moved = self._move_acceleration_target(q, v, follows, gain is None)
                 if gain is None:  # how far the target moves per velocity increment, this step
                     gain = moved / moves.size if moves.size > 0.0 else math.inf
-            restart, lefts = False, self._paired_drift_lefts(active)
+            restart, lefts = False, self._paired_drift_lefts(active, v)
             for column in active:
                 if column.warm_started and column.first:
                     column.last = column.size  # the last step's change corrected: one more pass at least
@@ -217,6 +235,7 @@ class ConstraintProjections:
                 fresh, filled = True, False
                 if moves.started and not moves.done:  # (not started: its solution is an earlier step's)
                     v += moves.solution[:n]
+                    self._velocity_drift = None
                     moves.start()
                     follows.drift = system.kept(self._moved_acceleration_drift(q, v, drift_out))
                     follows.start()
@@ -266,15 +285,43 @@ class ConstraintProjections:
         noise)`` each), both drifts in one pass over Φq (`fill_drift_pair`: the same numbers),
         Φq q̈ kept for the acceleration drifts at moved velocities (`_moved_acceleration_drift`)."""
         self._projection_step = h  # (`_project_together` starts from the last changes at the same h only)
-        if self._pair_work is None:  # the accelerations' solution and residual, and Φq q̈ (made at the first call)
+        velocity = self._velocity_target(v, coefficients, h, drift=False)
+        made = self._drifts_made  # (both drifts, Φq q̈ and γ at (q, v) made with Newton's last refill: `_refill`)
+        acceleration = self._acceleration_target(q, v, a, coefficients, None, made)  # γ at (q, v), bound, noise
+        p, assembler, work, pair = self.pattern, self.assembler, self._projection_work, self._pair_arrays()
+        if not made:
+            _dynamics_kernels.fill_drift_pair(p.indptr, p.indices, assembler.values, v, assembler.velocity_rhs,
+                                              work[2], a, assembler.acceleration_rhs, work[3], pair[2])  # fmt: skip
+        self._drifts_made = False
+        return (work[2], *velocity[1:]), (work[3], *acceleration[1:])
+
+    def _pair_arrays(self) -> tuple:
+        """The accelerations' solution and residual, and Φq q̈ (`_pair_work`, made at the first call)."""
+        if self._pair_work is None:
             size, m = self.system.size, self.pattern.n_equations
             self._pair_work = (np.zeros(size), np.zeros(size), np.zeros(m))
-        velocity = self._velocity_target(v, coefficients, h, drift=False)
-        acceleration = self._acceleration_target(q, v, a, coefficients, None)  # γ at (q, v), bound, noise
-        p, assembler, work = self.pattern, self.assembler, self._projection_work
-        _dynamics_kernels.fill_drift_pair(p.indptr, p.indices, assembler.values, v, assembler.velocity_rhs, work[2],
-                                          a, assembler.acceleration_rhs, work[3], self._pair_work[2])  # fmt: skip
-        return (work[2], *velocity[1:]), (work[3], *acceleration[1:])
+        return self._pair_work
+
+    def _refill(self, q, v, a, lam, scale: float, settled: bool, last: bool) -> tuple:
+        """Φ and Φq at Newton's iterate q: ``(the weighted norm of Φ, whether Newton's
+        right-hand side is finite, None where it is not made)``, in one pass with what follows
+        where the model allows it (`DynamicSystem.fill_constraints_newton_rhs`): Newton's
+        right-hand side (scaled by `scale`, into ``_rhs``) where Newton goes on (not
+        `settled`, not the `last` iterate); on the large path, where it may stop (`settled`),
+        the projections' drifts, Φq q̈ and γ at (q, v, q̈), which `_paired_targets` takes
+        (`_drifts_made`: the iterate that ends Newton is the last refill)."""
+        system, self._drifts_made = self.system, False
+        if not (settled or last):
+            made = system.fill_constraints_newton_rhs(q, v, a, lam, scale, self._rhs)
+            if made is not None:
+                return made
+        elif settled and self._floor.enabled:
+            work = self._projection_work
+            norm = system.fill_constraints_drifts(q, v, a, work[2], self._pair_arrays()[2], work[3])
+            if norm is not None:
+                self._drifts_made = True
+                return norm, None
+        return system.fill_constraints(q), None
 
     def _moved_acceleration_drift(self, q, v, out):
         """The acceleration drift Φq q̈ − γ(q, v) of `_project_together` at the velocities `v`
@@ -297,19 +344,26 @@ class ConstraintProjections:
             return 0.0
         return _dynamics_kernels.weighted_norm(follows.drift - before, system.kept(self.assembler.weights))
 
-    def _paired_drift_lefts(self, active) -> dict:
+    def _paired_drift_lefts(self, active, v) -> dict:
         """The drift left (`_drift_left`) of each active column of `_project_together`, by
         name, where both will test it in this pass (their increments above the bound, and
         within the noise or skipping the refinement): one pass over Φq for both
-        (`drift_left_norms`, the same numbers); else none (`_column_left` makes them)."""
+        (`drift_left_norms`, the same numbers); else none (`_column_left` makes them).  In
+        the last step of an `advance` (`_publishes`) with every equation kept, the same pass
+        makes the drift of the velocities `v` that `_publish` records (`_velocity_drift`,
+        which any later move of `v` clears): a pass over Φq fewer."""
         tested = [column for column in active if column.size > column.bound and (column.size <= column.noise or (
             column.first and self._floor.skips_refinement(column.what, column.size, column.noise)))]  # fmt: skip
         if len(tested) < 2:
             return {}
         (first, second), system, p = tested, self.system, self.pattern
+        publish = self._publishes and system.kept_rows.size == p.n_equations
         lefts = _dynamics_kernels.drift_left_norms(p.indptr, p.indices, self.assembler.values, system.kept_row,
                                                    first.solution[: system.n], first.drift, second.solution[: system.n],
-                                                   second.drift, self.assembler.weights)  # fmt: skip
+                                                   second.drift, self.assembler.weights, v,
+                                                   self.assembler.velocity_rhs, publish)  # fmt: skip
+        if publish:
+            self._velocity_drift = lefts[2]
         return {first.what: lefts[0], second.what: lefts[1]}
 
     def _column_left(self, lefts: dict, column) -> float:
