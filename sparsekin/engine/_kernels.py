@@ -90,25 +90,34 @@ def load_coordinates(coordinates, q, turns):
 
 
 # ---------------------------------------------------------------------- point coincidence
+@njit(inline="always", **JIT)
+def fill_coincidence_at(c, k, q, turns, residual, jac_data):
+    """The k-th coincidence of `fill_coincidence`: its two rows of Φ and eight entries of
+    Φq; returns ``(i, j, r, ax, ay, bx, by)``: its bodies' first columns, its first row,
+    and its two arms (for kernels that go on with the same joint)."""
+    bi, bj = c.body_i[k], c.body_j[k]
+    i, j, r = 3 * bi, 3 * bj, c.row[k]
+    ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])  # a = R_i s_i
+    bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])  # b = R_j s_j
+    residual[r] = _gap(q[i], ax, q[j], bx)
+    residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
+    s = c.slots[k]
+    jac_data[s[0]] = 1.0
+    jac_data[s[1]] = -ay
+    jac_data[s[2]] = -1.0
+    jac_data[s[3]] = by
+    jac_data[s[4]] = 1.0
+    jac_data[s[5]] = ax
+    jac_data[s[6]] = -1.0
+    jac_data[s[7]] = -bx
+    return i, j, r, ax, ay, bx, by
+
+
 @njit(**JIT)
 def fill_coincidence(q, turns, c, residual, jac_data):
     """g = r_i + R_i s_i - r_j - R_j s_j: 2 rows, 8 entries."""
     for k in range(c.row.size):
-        bi, bj = c.body_i[k], c.body_j[k]
-        i, j, r = 3 * bi, 3 * bj, c.row[k]
-        ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])  # a = R_i s_i
-        bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])  # b = R_j s_j
-        residual[r] = _gap(q[i], ax, q[j], bx)
-        residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
-        s = c.slots[k]
-        jac_data[s[0]] = 1.0
-        jac_data[s[1]] = -ay
-        jac_data[s[2]] = -1.0
-        jac_data[s[3]] = by
-        jac_data[s[4]] = 1.0
-        jac_data[s[5]] = ax
-        jac_data[s[6]] = -1.0
-        jac_data[s[7]] = -bx
+        fill_coincidence_at(c, k, q, turns, residual, jac_data)
 
 
 @njit(**JIT)

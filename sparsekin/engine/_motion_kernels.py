@@ -46,7 +46,7 @@ from ._dynamics_kernels import (
     fill_torsion_triplets,
 )
 from ._force_kernels import fill_applied_forces
-from ._kernels import _gap, _turned, fill_body_turns, residual_jacobian
+from ._kernels import fill_body_turns, fill_coincidence_at, residual_jacobian
 from ._projection_kernels import fill_inertia_values
 
 
@@ -242,40 +242,10 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
         for k in range(n):
             out[k] = -forces[k]
     _add_transposed_pairs(jacobian[0], jacobian[1], jacobian[2], multipliers, out)
-    p0 = p1 = 0.0  # two lanes: a sum of zeros (NaN if any entry is not finite) in any order
-    for k in range(0, n - n % 2, 2):
-        p0 += 0.0 * out[k]
-        p1 += 0.0 * out[k + 1]
-        out[k], out[k + 1] = out[k] * scale, out[k + 1] * scale
-    for k in range(n - n % 2, n):
-        p0 += 0.0 * out[k]
-        out[k] = out[k] * scale
+    finite = _scaled_finite(out, n, scale)
     for k in range(rhs.size - n):
         rhs[n + k] = -residual[k if all_kept else kept_rows[k]]
-    return p0 + p1 == 0.0
-
-
-@njit(inline="always", **JIT)
-def _fill_joint(c, k, q, turns, residual, jac_data):
-    """`_kernels.fill_coincidence` of the k-th coincidence: its two rows of Φ and eight entries
-    of Φq; returns ``(i, j, r, ax, ay, bx, by)``: its bodies' first columns, its first row,
-    and its two arms."""
-    bi, bj = c.body_i[k], c.body_j[k]
-    i, j, r = 3 * bi, 3 * bj, c.row[k]
-    ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])
-    bx, by = _turned(turns[bj, 0], turns[bj, 1], c.local_j[k])
-    residual[r] = _gap(q[i], ax, q[j], bx)
-    residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
-    s = c.slots[k]
-    jac_data[s[0]] = 1.0
-    jac_data[s[1]] = -ay
-    jac_data[s[2]] = -1.0
-    jac_data[s[3]] = by
-    jac_data[s[4]] = 1.0
-    jac_data[s[5]] = ax
-    jac_data[s[6]] = -1.0
-    jac_data[s[7]] = -bx
-    return i, j, r, ax, ay, bx, by
+    return finite
 
 
 @njit(inline="always", **JIT)
@@ -295,7 +265,7 @@ def _residual_norm(residual, target, weights):
 
 @njit(inline="always", **JIT)
 def _joint_products(i, j, n, ax, ay, bx, by, x):
-    """Φq x on a joint's two rows (`_fill_joint`'s entries), each summed over its columns in
+    """Φq x on a joint's two rows (`_kernels.fill_coincidence_at`'s entries), each summed over its columns in
     ascending order from 0 (`_dynamics_kernels.fill_row_products`' sums; the ground's columns,
     from n on, are not in Φq)."""
     if j >= n:
@@ -331,7 +301,7 @@ def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residua
         qd[k] = velocities[k]
     c = coincidence
     for k in range(c.row.size):
-        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
+        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data)
         vx, vy = _joint_products(i, j, n, ax, ay, bx, by, velocities)
         velocity_drift[r], velocity_drift[r + 1] = vx - velocity_rhs[r], vy - velocity_rhs[r + 1]
         px, py = _joint_products(i, j, n, ax, ay, bx, by, accelerations)
@@ -364,7 +334,7 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
         out[k] = -forces[k]
     c = coincidence
     for k in range(c.row.size):  # `_kernels.fill_coincidence`, and Φqᵀλ of its two rows
-        i, j, r, ax, ay, bx, by = _fill_joint(c, k, q, turns, residual, jac_data)
+        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data)
         w0, w1 = multipliers[r], multipliers[r + 1]
         if w0 != 0.0:  # (a row of λ = 0 adds nothing, as in `_add_transposed_pairs`)
             if i < n:
@@ -383,7 +353,15 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
     norm = _residual_norm(residual, target, weights)
     for r in range(residual.size):  # −Φ
         rhs[n + r] = -residual[r]
-    p0 = p1 = 0.0  # as `newton_rhs_fused`
+    finite = _scaled_finite(out, n, scale)
+    return norm, finite
+
+
+@njit(inline="always", **JIT)
+def _scaled_finite(out, n, scale) -> bool:
+    """``out[:n] *= scale``; whether every entry is finite (two lanes: a sum of zeros, NaN
+    if any entry is not, in any order)."""
+    p0 = p1 = 0.0
     for k in range(0, n - n % 2, 2):
         p0 += 0.0 * out[k]
         p1 += 0.0 * out[k + 1]
@@ -391,4 +369,4 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
     for k in range(n - n % 2, n):
         p0 += 0.0 * out[k]
         out[k] = out[k] * scale
-    return norm, p0 + p1 == 0.0
+    return p0 + p1 == 0.0
