@@ -276,8 +276,14 @@ def residual_jacobian(primitives, q, turns, target, weights, residual, jac_data)
     Python.)
     """
     _fill_all(primitives, q, turns, residual, jac_data)
-    norm = 0.0
-    finite = True
+    return residual_norm(residual, target, weights)
+
+
+@njit(inline="always", **JIT)
+def residual_norm(residual, target, weights):
+    """``residual −= target`` and its weighted norm (max |residual| · weights, NaN when any
+    entry is not finite)."""
+    norm, finite = 0.0, True
     for r in range(residual.size):
         residual[r] -= target[r]
         weighted = abs(residual[r]) * weights[r]

@@ -46,7 +46,7 @@ from ._dynamics_kernels import (
     fill_torsion_triplets,
 )
 from ._force_kernels import fill_applied_forces
-from ._kernels import fill_body_turns, fill_coincidence_at, residual_jacobian
+from ._kernels import fill_body_turns, fill_coincidence_at, residual_jacobian, residual_norm
 from ._projection_kernels import fill_inertia_values
 
 
@@ -249,21 +249,6 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
 
 
 @njit(inline="always", **JIT)
-def _residual_norm(residual, target, weights):
-    """``residual −= target`` and its weighted norm, as `_kernels.residual_jacobian`."""
-    norm, finite = 0.0, True
-    for r in range(residual.size):
-        residual[r] -= target[r]
-        weighted = abs(residual[r]) * weights[r]
-        if not weighted <= norm:  # larger, or NaN
-            if math.isfinite(weighted):
-                norm = weighted
-            else:
-                finite = False
-    return norm if finite else math.nan
-
-
-@njit(inline="always", **JIT)
 def _joint_products(i, j, n, ax, ay, bx, by, x):
     """Φq x on a joint's two rows (`_kernels.fill_coincidence_at`'s entries), each summed over its columns in
     ascending order from 0 (`_dynamics_kernels.fill_row_products`' sums; the ground's columns,
@@ -311,7 +296,7 @@ def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residua
         gy = (ay * wi2 - by * wj2) + target_acceleration[r + 1]
         acceleration_rhs[r], acceleration_rhs[r + 1] = gx, gy
         acceleration_drift[r], acceleration_drift[r + 1] = px - gx, py - gy
-    return _residual_norm(residual, target, weights)
+    return residual_norm(residual, target, weights)
 
 
 @njit(**JIT)
@@ -350,7 +335,7 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
             if j < n:
                 out[j + 1] += -1.0 * w1
                 out[j + 2] += -bx * w1
-    norm = _residual_norm(residual, target, weights)
+    norm = residual_norm(residual, target, weights)
     for r in range(residual.size):  # −Φ
         rhs[n + r] = -residual[r]
     finite = _scaled_finite(out, n, scale)
