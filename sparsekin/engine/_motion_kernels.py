@@ -27,8 +27,6 @@ whose reference counts at every call cost more than a small model's arithmetic.
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from .._jit import JIT
@@ -44,6 +42,7 @@ from ._dynamics_kernels import (
     fill_row_products,
     fill_spring_triplets,
     fill_torsion_triplets,
+    load_shared,
 )
 from ._force_kernels import fill_applied_forces
 from ._kernels import fill_body_turns, fill_coincidence_at, residual_jacobian, residual_norm
@@ -205,29 +204,14 @@ def newton_rhs_fused(loads, actuators, motion, law_values, jacobian, multipliers
     (`DynamicSystem`; two state-sized copies fewer a call)."""
     coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns = motion
     n = coordinates.size
-    differ = False  # (no early exit: a test per entry that does not wait on the one before)
-    if direct:
-        rates, second = velocities, accelerations
-        for k in range(n):
-            differ |= filled[k] != coordinates[k]
-    else:
-        rates, second = qd, qdd
-        for k in range(n):
-            qd[k] = velocities[k]
-            qdd[k] = accelerations[k]
-            differ |= filled[k] != coordinates[k]
-    for k in range(n, filled.size):
-        differ |= filled[k] != q[k]
-    if not differ:
+    if load_shared(coordinates, velocities, accelerations, q, qd, qdd, filled, filled_turns, turns, not direct):
         at, turned = filled, filled_turns
     else:
         at, turned = q, turns
-        for k in range(n):
-            q[k] = coordinates[k]
-        for b in range(turns.shape[0]):
-            angle = q[3 * b + 2]
-            turns[b, 0] = math.cos(angle)
-            turns[b, 1] = math.sin(angle)
+    if direct:
+        rates, second = velocities, accelerations
+    else:
+        rates, second = qd, qdd
     forces = rhs[: n + 3] if rhs.size >= n + 3 else applied
     fill_applied_forces(loads, at, rates, second, turned, law_values, True, forces)
     out = rhs[:n]
