@@ -26,7 +26,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT
 from ._lu_kernels import STAT_BAD_COLUMN, STAT_MAX_ABS_B, STAT_MAX_ABS_U, STAT_MIN_PIVOT_RATIO, STAT_NON_FINITE
-from ._lu_kernels import _index, _wide
+from ._lu_kernels import _index, _wide, scatter_column
 
 
 @njit(**_JIT)
@@ -64,10 +64,9 @@ def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper,
 @njit(**_JIT)
 def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, work, stats):
     """`_lu_kernels._left_looking_lu` (see there), L's and U's rows read as ``column + offset``."""
-    b_indptr, offsets = b_pattern[0], b_pattern[2]
     l_indptr, l_offsets, l_values = lower
     u_counts, u_offsets, u_values, u_inverse = upper
-    n = b_indptr.size - 1
+    n = b_pattern[0].size - 1
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
@@ -75,31 +74,7 @@ def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, wor
     stats[STAT_BAD_COLUMN] = -1.0
     u_end = 0  # U's column j ends here
     for j in range(n):
-        shift = offsets[j]
-        if rows is None:
-            b_rows = b_pattern[1]
-            if in_factor_order:
-                for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
-                    value = values[p]
-                    work[_index(b_rows[p])] += value  # repeated entries add up
-                    max_b = max(max_b, abs(value))
-            else:
-                for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
-                    value = values[p + shift]
-                    work[_index(b_rows[p])] += value
-                    max_b = max(max_b, abs(value))
-        else:
-            indices, perm_r = rows
-            if in_factor_order:
-                for p in range(_wide(b_indptr[j]), _wide(b_indptr[j + 1])):
-                    value = values[p]
-                    work[_index(perm_r[_index(indices[p + shift])])] += value
-                    max_b = max(max_b, abs(value))
-            else:
-                for p in range(_wide(b_indptr[j]) + shift, _wide(b_indptr[j + 1]) + shift):
-                    value = values[p]
-                    work[_index(perm_r[_index(indices[p])])] += value
-                    max_b = max(max_b, abs(value))
+        max_b = scatter_column(values, in_factor_order, b_pattern, rows, j, work, max_b)
         u_start = u_end
         u_end += _wide(u_counts[j])
         for p in range(u_start, u_end):  # in topological order
