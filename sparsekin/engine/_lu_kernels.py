@@ -639,6 +639,24 @@ def ordered_columns(indptr, indices, order):
 
 
 @njit(**_JIT)
+def fill_column_layout(indptr, perm_c, b_indptr, offsets):
+    """Column j of B (A's columns in the order `perm_c`: column c of A is column
+    ``perm_c[c]`` of B) is column c of A, i.e. row c of the CSR matrix whose transpose A
+    is (row pointers `indptr`), its entries in the CSR order: a contiguous run of the CSR
+    values.  Fills B's column pointers `b_indptr` (n + 1) and ``offsets[j] = indptr[c] -
+    b_indptr[j]``, where that run starts after B's column j."""
+    n = perm_c.size
+    column_of = np.empty(n, dtype=np.int64)
+    for c in range(n):
+        column_of[perm_c[c]] = c
+    b_indptr[0] = 0
+    for j in range(n):
+        c = column_of[j]
+        b_indptr[j + 1] = b_indptr[j] + (indptr[c + 1] - indptr[c])
+        offsets[j] = indptr[c] - b_indptr[j]
+
+
+@njit(**_JIT)
 def fill_column_rows(indices, offsets, b_indptr, perm_r, b_rows):
     """``b_rows[p] = perm_r[indices[p + offsets[j]]]`` for the entries p of each column j of
     B: B's row indices, permuted, read from the CSR indices of the matrix whose transpose
