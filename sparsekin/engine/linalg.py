@@ -693,16 +693,22 @@ class RefactorSolver:
         self._b_rows = None
         b_rows = np.empty(nnz, dtype=index)
         _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
-        l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, b_rows, l_capacity, u_capacity
+        # (untrimmed: trimming copied L's and U's rows, which the relative patterns then replace)
+        l_indptr, l_indices, u_indptr, u_indices = _lu_kernels.analyse_lu_pattern(
+            self._b_indptr, b_rows, l_capacity, u_capacity, False
         )
         self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
         del b_rows
         # rows a byte each where they fit (a local order: the chain's), not 4 (`_relative_lu_kernels`)
-        relative = compact_factors.relative_patterns((l_indptr, self._l_indices), (u_indptr, self._u_indices))
+        relative = compact_factors.relative_patterns((l_indptr, l_indices[: l_indptr[-1]]),
+                                                     (u_indptr, u_indices[: u_indptr[-1]]))  # fmt: skip
         if relative is not None:
             (l_counts, self._l_indices), (u_counts, self._u_indices) = relative
             self._relative, u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
+        else:  # trimmed (no copy where the capacity was exact)
+            self._l_indices, self._u_indices = (rows if rows.size == indptr[-1] else rows[: indptr[-1]].copy()
+                                                for indptr, rows in ((l_indptr, l_indices), (u_indptr, u_indices)))
+        del l_indices, u_indices
         # int32 row pointers when every entry fits (checked on the last, the largest)
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = None if u_indptr is None else u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)
