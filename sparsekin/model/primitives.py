@@ -389,15 +389,18 @@ def _csr_pattern(rows, columns, n_columns, indptr, slots):
     nnz = indptr[n_rows]
     indices = np.empty(nnz, dtype=indptr.dtype)
     entry = np.empty(nnz, dtype=slots.dtype)  # the entry at each position
-    fill = indptr[:n_rows].copy()
+    # row r's next free place in indptr[r] (no scratch array of n_rows), moved back after
     for e in range(rows.size):
         if columns[e] < n_columns:
-            position = fill[rows[e]]
+            position = indptr[rows[e]]
             indices[position] = columns[e]
             entry[position] = e
-            fill[rows[e]] += 1
+            indptr[rows[e]] += 1
         else:
             slots[e] = nnz
+    for r in range(n_rows, 0, -1):
+        indptr[r] = indptr[r - 1]
+    indptr[0] = 0
     for r in range(n_rows):
         for position in range(indptr[r] + 1, indptr[r + 1]):
             column, moved = indices[position], entry[position]
