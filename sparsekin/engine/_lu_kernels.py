@@ -64,14 +64,16 @@ N_STATS = 5
 
 
 @njit(**_JIT)
-def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
+def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity, trim=True):
     """Structural patterns of L and U for ``B = L U`` with the diagonal as pivot sequence.
 
     Left-looking symbolic factorization (Gilbert–Peierls): the pattern of column j is the
     set of rows reachable from the rows of ``B(:, j)`` in the graph of the columns of L
     already found.  The diagonal is always kept.  This one kernel allocates and returns
     its outputs, whose sizes only the analysis finds (it grows them by doubling from the
-    capacities given, and trims them).
+    capacities given, and trims them unless `trim` is False: then ``l_indices`` and
+    ``u_indices`` may be longer than ``l_indptr[n]`` and ``u_indptr[n]``, the caller's to
+    trim or to drop).
 
     Returns
     -------
@@ -148,9 +150,9 @@ def analyse_lu_pattern(b_indptr, b_rows, l_capacity, u_capacity):
         for t in range(n_finished):
             u_indices[start + t] = finished[n_finished - 1 - t]
         u_indptr[j + 1] = start + n_finished
-    if l_indptr[n] < l_indices.size:  # trimmed (no copy when the capacity was exact)
+    if trim and l_indptr[n] < l_indices.size:  # trimmed (no copy when the capacity was exact)
         l_indices = l_indices[: l_indptr[n]].copy()
-    if u_indptr[n] < u_indices.size:
+    if trim and u_indptr[n] < u_indices.size:
         u_indices = u_indices[: u_indptr[n]].copy()
     return l_indptr, l_indices, u_indptr, u_indices
 
@@ -636,6 +638,24 @@ def ordered_columns(indptr, indices, order):
             gather[q] = p
             start[indices[p]] = q + 1
     return c_indptr, c_indices, gather
+
+
+@njit(**_JIT)
+def fill_column_layout(indptr, perm_c, b_indptr, offsets):
+    """Column j of B (A's columns in the order `perm_c`: column c of A is column
+    ``perm_c[c]`` of B) is column c of A, i.e. row c of the CSR matrix whose transpose A
+    is (row pointers `indptr`), its entries in the CSR order: a contiguous run of the CSR
+    values.  Fills B's column pointers `b_indptr` (n + 1) and ``offsets[j] = indptr[c] -
+    b_indptr[j]``, where that run starts after B's column j."""
+    n = perm_c.size
+    column_of = np.empty(n, dtype=np.int64)
+    for c in range(n):
+        column_of[perm_c[c]] = c
+    b_indptr[0] = 0
+    for j in range(n):
+        c = column_of[j]
+        b_indptr[j + 1] = b_indptr[j] + (indptr[c + 1] - indptr[c])
+        offsets[j] = indptr[c] - b_indptr[j]
 
 
 @njit(**_JIT)

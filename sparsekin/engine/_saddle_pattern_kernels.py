@@ -67,7 +67,7 @@ def coordinate_block_rows(rows, cols, count, n):
                 columns[unique] = columns[k]  # unique <= k: compaction in place
                 unique += 1
     start[n] = unique
-    return True, start, columns[:unique].copy()
+    return True, start, columns[:unique]  # (a view: the caller drops it after the fill, no copy)
 
 
 @njit(**JIT)
@@ -76,9 +76,10 @@ def saddle_rows(block_start, indptr, indices, kept_row, n, saddle_indptr):
     columns (`block_start` of `coordinate_block_rows`) and one column per kept equation that
     holds it; a kept equation's row its Jacobian columns below n and its diagonal.  False
     if a Jacobian row (`indptr`, `indices`) is not strictly ascending or the kept equations'
-    indices (`kept_row`, −1: left out) do not ascend with their rows."""
+    indices (`kept_row`, −1: left out) do not ascend with their rows.  `saddle_indptr` must be
+    zero on entry (it holds the counts on the way)."""
     size = saddle_indptr.size - 1
-    counts = np.zeros(size, dtype=np.int64)
+    counts = saddle_indptr[1:]  # (row r's count in place of its end; zero on entry)
     for j in range(n):
         counts[j] = block_start[j + 1] - block_start[j]
     last_kept = -1
@@ -100,7 +101,7 @@ def saddle_rows(block_start, indptr, indices, kept_row, n, saddle_indptr):
         counts[n + kept] = own
     saddle_indptr[0] = 0
     for row in range(size):
-        saddle_indptr[row + 1] = saddle_indptr[row] + counts[row]
+        saddle_indptr[row + 1] += saddle_indptr[row]
     return True
 
 

@@ -637,12 +637,12 @@ class RefactorSolver:
                 lu, perm_c = self._splu_in_column_order(matrix)
             else:
                 lu = _splu(matrix, pivots_only=True)
-                perm_c = lu.perm_c.astype(np.int64)
+                perm_c = lu.perm_c.copy()  # (copies: SuperLU's arrays hold its factors)
         except RuntimeError as error:  # "Factor is exactly singular"
             if self._l_indices is not None:
                 self._allocate_values()
             raise SingularMatrix(str(error)) from error
-        perm_r = lu.perm_r.astype(np.int64)
+        perm_r = lu.perm_r.copy()
         capacity = lu.nnz // 2
         del lu
         self._analyse(perm_r, perm_c, capacity, capacity)
@@ -676,13 +676,10 @@ class RefactorSolver:
             # Column j of B is column c = column_of[j] of A, i.e. row c of the CSR Jacobian,
             # its entries in the CSR order: a contiguous run of jacobian.data, which starts
             # `offsets[j]` after B's column j (n offsets instead of a gather index per entry).
-            column_of = np.empty(n, dtype=np.int64)
-            column_of[perm_c] = np.arange(n)
-            b_indptr = np.zeros(n + 1, dtype=np.int64)
-            np.cumsum(np.diff(indptr)[column_of], out=b_indptr[1:])
-            self._offsets = (indptr[column_of] - b_indptr[:-1]).astype(index)  # |offset| < nnz
-            del column_of
-            self._b_indptr = b_indptr.astype(index)  # its last entry is nnz
+            # (one kernel: the permutation's inverse, a cumulative sum and a difference in numpy
+            # made seven temporaries of n, each a fresh mapping at 10^6 bodies)
+            self._b_indptr, self._offsets = np.empty(n + 1, dtype=index), np.empty(n, dtype=index)  # |offset| < nnz
+            _lu_kernels.fill_column_layout(indptr, perm_c, self._b_indptr, self._offsets)
             self._value_positions = None  # made when asked for (`value_positions`)
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
@@ -696,16 +693,22 @@ class RefactorSolver:
         self._b_rows = None
         b_rows = np.empty(nnz, dtype=index)
         _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
-        l_indptr, self._l_indices, u_indptr, self._u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, b_rows, l_capacity, u_capacity
+        # (untrimmed: trimming copied L's and U's rows, which the relative patterns then replace)
+        l_indptr, l_indices, u_indptr, u_indices = _lu_kernels.analyse_lu_pattern(
+            self._b_indptr, b_rows, l_capacity, u_capacity, False
         )
         self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
         del b_rows
         # rows a byte each where they fit (a local order: the chain's), not 4 (`_relative_lu_kernels`)
-        relative = compact_factors.relative_patterns((l_indptr, self._l_indices), (u_indptr, self._u_indices))
+        relative = compact_factors.relative_patterns((l_indptr, l_indices[: l_indptr[-1]]),
+                                                     (u_indptr, u_indices[: u_indptr[-1]]))  # fmt: skip
         if relative is not None:
             (l_counts, self._l_indices), (u_counts, self._u_indices) = relative
             self._relative, u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
+        else:  # trimmed (no copy where the capacity was exact)
+            self._l_indices, self._u_indices = (rows if rows.size == indptr[-1] else rows[: indptr[-1]].copy()
+                                                for indptr, rows in ((l_indptr, l_indices), (u_indptr, u_indices)))
+        del l_indices, u_indices
         # int32 row pointers when every entry fits (checked on the last, the largest)
         self._l_indptr = l_indptr.astype(_index_dtype(int(l_indptr[-1])), copy=False)
         self._u_indptr = None if u_indptr is None else u_indptr.astype(_index_dtype(int(u_indptr[-1])), copy=False)

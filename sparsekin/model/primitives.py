@@ -231,24 +231,26 @@ def pack(blocks, n_rows: int, frames: np.ndarray, shapes=None) -> PackedEquation
     term_column = (3 * m.body + m.coordinate)[terms].astype(np.int64)
     term_coefficient = m.coefficient[terms].astype(float)
 
-    # (row, column) of every Jacobian entry, block by block, in kernel slot order.
-    c_columns = np.where(_COINCIDENCE_COLUMNS < 3, 3 * c.body_i[:, None], 3 * c.body_j[:, None] - 3) + _COINCIDENCE_COLUMNS
-    c_rows = c.row[:, None] + _COINCIDENCE_ROW_OFFSETS
-    p_columns = _pair_columns(p.body_i, p.body_j)
-    d_columns = _pair_columns(d.body_i, d.body_j)
-    rows = np.concatenate([
-        c_rows.ravel(), np.repeat(p.row, 6), np.repeat(m.row, counts), np.repeat(d.row, 6),
-    ])  # fmt: skip
-    columns = np.concatenate([c_columns.ravel(), p_columns.ravel(), term_column, d_columns.ravel()])
+    # (row, column) of every Jacobian entry, block by block, in kernel slot order (one kernel:
+    # at 10^6 bodies numpy's (k, 8) arrays, their sums and concatenations were ~0.6 GB of
+    # fresh memory, whose first touch was most of the start's `pack`)
+    n_entries = 8 * c.row.size + 6 * (p.row.size + d.row.size) + term_column.size
+    entry_index = np.int32 if max(3 * n + 6, n_rows, n_entries) < 2**31 - 1 else np.int64
+    rows, columns = np.empty(n_entries, dtype=entry_index), np.empty(n_entries, dtype=entry_index)
+    _entry_rows_columns((c.row, c.body_i, c.body_j), (p.row, p.body_i, p.body_j), (m.row, counts), term_column,
+                        (d.row, d.body_i, d.body_j), (_COINCIDENCE_COLUMNS, _COINCIDENCE_ROW_OFFSETS), rows, columns)  # fmt: skip
 
     n_coordinates = 3 * n
-    indptr = np.zeros(n_rows + 1, dtype=np.int64)
-    slots = np.empty(rows.size, dtype=np.int64)
+    # int32 when every index fits: half the memory traffic (the slots too: they are below nnz
+    # + 1, the discard slot); made so when the entries' count says so (nnz is at most that:
+    # at 10^6 bodies three int64 arrays and their casts were 0.1 s of the start)
+    index = np.int32 if max(n_coordinates, rows.size) < 2**31 - 1 else np.int64
+    indptr = np.zeros(n_rows + 1, dtype=np.int64)  # (cast after: made int32, the 10^6 start's peak was 8 MB higher)
+    slots = np.empty(rows.size, dtype=index)
     indices = _csr_pattern(rows, columns, n_coordinates, indptr, slots)
-    if max(n_coordinates, indices.size) < 2**31 - 1:  # int32 when every index fits: half the memory traffic
-        # (the slots too: they are below nnz + 1, the discard slot)
-        indices, indptr, slots = indices.astype(np.int32), indptr.astype(np.int32), slots.astype(np.int32)
-    ends = np.cumsum([c_rows.size, 6 * p.row.size, term_column.size])
+    if max(n_coordinates, indices.size) < 2**31 - 1:
+        indices, indptr, slots = (array.astype(np.int32, copy=False) for array in (indices, indptr, slots))
+    ends = np.cumsum([8 * c.row.size, 6 * p.row.size, term_column.size])
 
     drawn_local = LocalCoordinates(frames)
 
@@ -323,8 +325,50 @@ def _empty(name: str, kind) -> np.ndarray:
     return np.zeros(0, dtype=float if name == "rolling" else np.int64)
 
 
-def _pair_columns(body_i: np.ndarray, body_j: np.ndarray) -> np.ndarray:
-    return np.concatenate([3 * body_i[:, None] + np.arange(3), 3 * body_j[:, None] + np.arange(3)], axis=1)
+@njit(**JIT)
+def _entry_rows_columns(coincidences, projections, combinations, term_column, distances, coincidence_layout, rows,
+                        columns):  # fmt: skip
+    """The row and column of every Jacobian entry, in kernel slot order, into `rows` and
+    `columns`: a coincidence's 8 (`_COINCIDENCE_COLUMNS` within ``(x_i, y_i, angle_i, x_j,
+    y_j, angle_j)`` on the rows `_COINCIDENCE_ROW_OFFSETS` after its first), a projection's
+    6 (those six), each combination's terms (`term_column`, ``counts`` of them on its row),
+    a distance's 6.  ``coincidences`` and the others are ``(row, body_i, body_j)``,
+    ``combinations`` ``(row, counts)``; the ground's columns are from ``3 n_bodies`` on."""
+    offsets, row_offsets = coincidence_layout
+    row, body_i, body_j = coincidences
+    e = 0
+    for k in range(row.size):
+        for s in range(offsets.size):
+            offset = offsets[s]
+            rows[e] = row[k] + row_offsets[s]
+            columns[e] = 3 * body_i[k] + offset if offset < 3 else 3 * body_j[k] - 3 + offset
+            e += 1
+    row, body_i, body_j = projections
+    e = _pair_entries(row, body_i, body_j, rows, columns, e)
+    row, counts = combinations
+    t = 0
+    for k in range(row.size):
+        for _ in range(counts[k]):
+            rows[e] = row[k]
+            columns[e] = term_column[t]
+            e += 1
+            t += 1
+    row, body_i, body_j = distances
+    _pair_entries(row, body_i, body_j, rows, columns, e)
+
+
+@njit(**JIT)
+def _pair_entries(row, body_i, body_j, rows, columns, e):
+    """A projection's or a distance's six entries (x_i, y_i, angle_i, x_j, y_j, angle_j) for
+    each of its rows, from entry `e` on; returns the entry after them."""
+    for k in range(row.size):
+        for s in range(3):
+            rows[e], columns[e] = row[k], 3 * body_i[k] + s
+            e += 1
+        for s in range(3):
+            rows[e], columns[e] = row[k], 3 * body_j[k] + s
+            e += 1
+    return e
 
 
 @njit(**JIT)
@@ -333,8 +377,8 @@ def _csr_pattern(rows, columns, n_columns, indptr, slots):
 
     Fills `indptr` (n_rows + 1) and, for every entry, its position in the CSR values
     (`slots`; entries in a column from `n_columns` on — the ground's — get the discard
-    position nnz); returns `indices`, sorted within rows.  Linear time: a counting sort by
-    row, then an insertion sort of each row's few entries by column.
+    position nnz); returns `indices` (of `slots`' dtype), sorted within rows.  Linear time:
+    a counting sort by row, then an insertion sort of each row's few entries by column.
     """
     n_rows = indptr.size - 1
     for e in range(rows.size):
@@ -343,17 +387,20 @@ def _csr_pattern(rows, columns, n_columns, indptr, slots):
     for r in range(n_rows):
         indptr[r + 1] += indptr[r]
     nnz = indptr[n_rows]
-    indices = np.empty(nnz, dtype=np.int64)
-    entry = np.empty(nnz, dtype=np.int64)  # the entry at each position
-    fill = indptr[:n_rows].copy()
+    indices = np.empty(nnz, dtype=slots.dtype)
+    entry = np.empty(nnz, dtype=slots.dtype)  # the entry at each position
+    # row r's next free place in indptr[r] (no scratch array of n_rows), moved back after
     for e in range(rows.size):
         if columns[e] < n_columns:
-            position = fill[rows[e]]
+            position = indptr[rows[e]]
             indices[position] = columns[e]
             entry[position] = e
-            fill[rows[e]] += 1
+            indptr[rows[e]] += 1
         else:
             slots[e] = nnz
+    for r in range(n_rows, 0, -1):
+        indptr[r] = indptr[r - 1]
+    indptr[0] = 0
     for r in range(n_rows):
         for position in range(indptr[r] + 1, indptr[r + 1]):
             column, moved = indices[position], entry[position]

@@ -11,8 +11,8 @@ from ..engine.pattern import ConstraintPattern
 from ..errors import ModelError
 from ..model.mechanism import Mechanism
 
-__all__ = ["REDUNDANCY_CHECK_COORDINATES", "assembled", "initial_velocities", "redundant_equations", "redundant_rows",
-           "undetermined"]
+__all__ = ["REDUNDANCY_CHECK_COORDINATES", "assembled", "initial_momenta", "initial_velocities", "redundant_equations",
+           "redundant_rows", "undetermined"]
 
 #: Models up to this many coordinates are always searched for redundant equations at the
 #: start (larger ones when they have at least as many equations as coordinates).
@@ -59,10 +59,11 @@ def assembled(system, pattern: ConstraintPattern, t: float, tolerance: float, ma
     kept = system.kept_rows
     q = pattern.initial_coordinates.copy()
     system.set_time(t)
-    metric = diags(pattern.coordinate_weights**2)
+    metric = None  # (made at the first correction: a drawing on its constraints needs none)
     for _ in range(max_corrections):
         if system.fill_constraints(q) <= tolerance:
             return q
+        metric = diags(pattern.coordinate_weights**2) if metric is None else metric
         jacobian = system.assembler.jacobian[kept]
         matrix = bmat([[metric, jacobian.T], [jacobian, None]], format="csr")
         solver = SuperLUSolver()
@@ -73,6 +74,16 @@ def assembled(system, pattern: ConstraintPattern, t: float, tolerance: float, ma
         q += solver.solve(np.concatenate([np.zeros(q.size), -system.assembler.residual[kept]]))[: q.size]
     raise ModelError(f"the drawing cannot be assembled at t = {t:g} s: the constraints are off by "
                      f"{system.fill_constraints(q):.3g} (relative) after {max_corrections} corrections")  # fmt: skip
+
+
+def initial_momenta(matrix, velocities: np.ndarray, n_kept: int) -> np.ndarray:
+    """M q̇ for the saddle `matrix` S (its first n rows, M's, times the `velocities`, the
+    multipliers' part zero).  Zeros without the product where every velocity is zero: the
+    product's entries are then +0.0 too (each a sum started at +0.0; S is finite, factored),
+    and at 10^6 bodies it was 0.2 s of the start."""
+    if not velocities.any():
+        return np.zeros(velocities.size)
+    return (matrix @ np.concatenate([velocities, np.zeros(n_kept)]))[: velocities.size]
 
 
 def initial_velocities(mechanism: Mechanism, n: int) -> np.ndarray:

@@ -65,7 +65,7 @@ from ..results.dynamics import DynamicsResult
 from ..results.recording import open_recorder
 from ..results.schema import DRIFT, ENERGY, FORCES
 from ._compiled_dynamics import block_stepper
-from ._dynamics_start import assembled, initial_velocities, redundant_equations, undetermined
+from ._dynamics_start import assembled, initial_momenta, initial_velocities, redundant_equations, undetermined
 from ._state_arrays import StateArrays
 from .error_control import StepFailed as _StepFailed
 from .error_control import StepSizeController, advance_controlled, step_velocity_bound
@@ -317,18 +317,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         masses = system.loads.arrays.masses
         self._regularization = REGULARIZATION * max(float(masses.mass.max(initial=0.0)),
                                                     float(masses.inertia.max(initial=0.0)), 1e-300)  # fmt: skip
+        # (Φ and Φq at q, at time t: `assembled` returns once they are within the tolerance there)
         q = assembled(self.system, self.pattern, t, self.tolerance, 2 * self.options.max_iterations)
-        system.set_time(t)
-        system.fill_constraints(q)
         # velocities: smallest mass-weighted change of the given ones; then accelerations, λ
         matrix = system.fill_matrix(q, np.zeros(n), np.zeros(n), np.zeros(m), 1.0, 0.0, 0.0)
         try:
             self.solver.factor(matrix)
-            given = initial_velocities(self.mechanism, n)
-            momenta = (matrix @ np.concatenate([given, np.zeros(kept.size)]))[:n]  # M given, without a copy of M
-            rhs = np.concatenate([momenta, system.assembler.velocity_rhs[kept]])
+            rhs = np.concatenate([initial_momenta(matrix, initial_velocities(self.mechanism, n), kept.size),
+                                  system.assembler.velocity_rhs[kept]])  # fmt: skip
             v = self.solver.solve(rhs)[:n].copy()
-            system.fill_constraints(q)
             applied = system.applied_forces(q, v, np.zeros(n), np.zeros(n))
             system.assembler.fill_acceleration_rhs(q, v)
             solution = self.solver.solve(np.concatenate([applied, system.assembler.acceleration_rhs[kept]]))
