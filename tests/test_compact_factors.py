@@ -229,3 +229,32 @@ def test_relative_patterns_give_the_factors_of_absolute_ones(lean, rng, monkeypa
     assert absolute.n_fallbacks == 1 and len(got) == len(expected)
     for a, b in zip(got, expected):
         np.testing.assert_array_equal(a, b)
+
+
+def test_solve_with_inverse_permutations_is_the_scattered_solve(rng, compact_at_once):
+    """`solve_lu_transposed_inverted` (the right-hand side read through perm_c's inverse, the
+    solution written through perm_r's) against `solve_lu_transposed` (scatter and gather
+    passes) on a chain's compact factors: the same numbers, in place too, NaN reported."""
+    jacobian = chain_saddle_matrices(6, 3)[-1]
+    solver = RefactorSolver()
+    solver.factor(jacobian)
+    solver.solve(rng.standard_normal(jacobian.shape[0]))  # compacted
+    kernels, factors = solver._solve_factors(1)
+    assert kernels is _compact_lu_kernels
+    perm_r, perm_c = factors[:2]
+    inverses = (np.empty_like(perm_r), np.empty_like(perm_c))
+    _compact_lu_kernels.inverse_permutation(perm_r, inverses[0])
+    _compact_lu_kernels.inverse_permutation(perm_c, inverses[1])
+    np.testing.assert_array_equal(perm_r[inverses[0]], np.arange(perm_r.size))
+    np.testing.assert_array_equal(inverses, solver._inverse_permutations())
+    n, probe = jacobian.shape[0], np.zeros(1)
+    for b in (rng.standard_normal(n), np.where(np.arange(n) == n // 2, np.nan, 1.0)):
+        expected, out = np.empty(n), np.empty(n)
+        _compact_lu_kernels.solve_lu_transposed(factors, b, np.zeros(n), expected, probe)
+        expected_probe = probe[0]
+        _compact_lu_kernels.solve_lu_transposed_inverted(factors, inverses, b, np.zeros(n), out, probe)
+        np.testing.assert_array_equal(out, expected)
+        assert np.isnan(expected_probe) == np.isnan(probe[0]) and (probe[0] == 0.0) == (expected_probe == 0.0)
+        in_place = b.copy()
+        _compact_lu_kernels.solve_lu_transposed_inverted(factors, inverses, in_place, np.zeros(n), in_place, probe)
+        np.testing.assert_array_equal(in_place, expected)

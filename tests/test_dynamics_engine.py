@@ -179,6 +179,12 @@ def test_one_pass_refill_and_newton_rhs_are_the_separate_calls(chain):
         assert np.array_equal(one.view(np.int64), other.view(np.int64))
     expected = np.concatenate([-0.7 * system.residual(q, v, a, lam, np.zeros(n)), -residual])
     assert np.array_equal(expected.view(np.int64), fused.view(np.int64))
+    # again, after another state's refill: Φq's constant entries (a joint's ±1) not written again
+    system.fill_constraints(q + 2e-3)
+    assert not system._constants(system.assembler._jac_buffer)
+    assert system.fill_constraints_newton_rhs(q, v, a, lam, -0.7, fused) == (phi, True)
+    assert np.array_equal(values.view(np.int64), system.assembler.values.view(np.int64))
+    assert np.array_equal(expected.view(np.int64), fused.view(np.int64))
     assert DynamicSystem(discretization, np.arange(m - 1)).fill_constraints_newton_rhs(q, v, a, lam[:-1], -0.7,
                                                                                         fused[:-1]) is None  # fmt: skip
     # the refill with the projections' drifts, Φq q̈ and γ (`fill_constraints_drifts`): the same numbers

@@ -206,3 +206,46 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
         second[j] = other
         p = start
     probe[0] = _finish(second, perm_r, x1) + _finish(work, perm_r, x0)
+
+
+@njit(**_JIT)
+def inverse_permutation(permutation, out):
+    """``out[permutation[i]] = i``: the inverse of a permutation (`out` of its dtype and size)."""
+    for i in range(permutation.size):
+        out[permutation[i]] = i
+
+
+@njit(**_JIT)
+def solve_lu_transposed_inverted(factors, inverses, rhs, work, out, probe):
+    """`solve_lu_transposed` with the permutations' inverses ``(inverse_r, inverse_c)``
+    (`inverse_permutation` of ``perm_r`` and ``perm_c``): column j of U's sweep starts from
+    ``rhs[inverse_c[j]]`` and L's sweep writes each unknown to ``out[inverse_r[j]]`` as it is
+    made, instead of a scatter and a gather of their own (two passes over n-sized arrays
+    fewer: the same numbers; `out` may be `rhs`, every entry of which U's sweep reads before
+    L's writes the first)."""
+    perm_r, perm_c, (l_counts, l_offsets, l_values), (u_counts, u_offsets, u_values, u_inverse) = factors
+    inverse_r, inverse_c = inverses
+    n = rhs.size
+    p = 0
+    for j in range(n):  # U^T y = Pc^T rhs
+        total = rhs[inverse_c[j]]
+        end = p + _wide(u_counts[j])
+        while p < end:
+            total -= u_values[p] * work[_row(j, u_offsets[p])]
+            p += 1
+        work[j] = total * u_inverse[j]
+    p = 0
+    for j in range(n):
+        p += _wide(l_counts[j])
+    check = 0.0
+    for j in range(n - 1, -1, -1):  # L^T z = y, and x = Pr^T z
+        total = work[j]
+        start = p - _wide(l_counts[j])
+        for q in range(start, p):
+            total -= l_values[q] * work[_row(j, l_offsets[q])]
+        work[j] = total
+        out[inverse_r[j]] = total
+        check += 0.0 * total
+        p = start
+    probe[0] = check
+

@@ -91,10 +91,12 @@ def load_coordinates(coordinates, q, turns):
 
 # ---------------------------------------------------------------------- point coincidence
 @njit(inline="always", **JIT)
-def fill_coincidence_at(c, k, q, turns, residual, jac_data):
+def fill_coincidence_at(c, k, q, turns, residual, jac_data, constants=True):
     """The k-th coincidence of `fill_coincidence`: its two rows of Φ and eight entries of
-    Φq; returns ``(i, j, r, ax, ay, bx, by)``: its bodies' first columns, its first row,
-    and its two arms (for kernels that go on with the same joint)."""
+    Φq (without `constants`, the four that turn with the bodies only: the ±1 on their x and
+    y columns are left as an earlier fill of `jac_data` wrote them); returns ``(i, j, r, ax,
+    ay, bx, by)``: its bodies' first columns, its first row, and its two arms (for kernels
+    that go on with the same joint)."""
     bi, bj = c.body_i[k], c.body_j[k]
     i, j, r = 3 * bi, 3 * bj, c.row[k]
     ax, ay = _turned(turns[bi, 0], turns[bi, 1], c.local_i[k])  # a = R_i s_i
@@ -102,13 +104,14 @@ def fill_coincidence_at(c, k, q, turns, residual, jac_data):
     residual[r] = _gap(q[i], ax, q[j], bx)
     residual[r + 1] = _gap(q[i + 1], ay, q[j + 1], by)
     s = c.slots[k]
-    jac_data[s[0]] = 1.0
+    if constants:
+        jac_data[s[0]] = 1.0
+        jac_data[s[2]] = -1.0
+        jac_data[s[4]] = 1.0
+        jac_data[s[6]] = -1.0
     jac_data[s[1]] = -ay
-    jac_data[s[2]] = -1.0
     jac_data[s[3]] = by
-    jac_data[s[4]] = 1.0
     jac_data[s[5]] = ax
-    jac_data[s[6]] = -1.0
     jac_data[s[7]] = -bx
     return i, j, r, ax, ay, bx, by
 

@@ -255,7 +255,7 @@ def _joint_products(i, j, n, ax, ay, bx, by, x):
 @njit(**JIT)
 def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residual, jac_data, velocities, velocity_rhs,
                              velocity_drift, accelerations, acceleration_product, target_acceleration, acceleration_rhs,
-                             acceleration_drift):  # fmt: skip
+                             acceleration_drift, constants):  # fmt: skip
     """`_kernels.fill_residual_jacobian` at `q` (equations as for
     `fill_coincidences_newton_rhs`), and with each joint's rows, in the same pass, the
     projections' targets (`_dynamics_kernels.fill_drift_pair`'s numbers): ``velocity_drift =
@@ -263,14 +263,15 @@ def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residua
     side γ + `target_acceleration` at (q, q̇) into `acceleration_rhs` (`_kernels.fill_gamma`
     and the sum of `Assembler.fill_acceleration_rhs`; `qd` the velocities with the ground
     appended, copied there) and ``acceleration_drift = Φq q̈ − acceleration_rhs``; returns
-    the weighted norm of Φ."""
+    the weighted norm of Φ.  Φq's constant entries are written only with `constants`
+    (`fill_coincidence_at`)."""
     n = velocities.size
     fill_body_turns(q, turns)
     for k in range(n):
         qd[k] = velocities[k]
     c = coincidence
     for k in range(c.row.size):
-        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data)
+        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data, constants)
         vx, vy = _joint_products(i, j, n, ax, ay, bx, by, velocities)
         velocity_drift[r], velocity_drift[r + 1] = vx - velocity_rhs[r], vy - velocity_rhs[r + 1]
         px, py = _joint_products(i, j, n, ax, ay, bx, by, accelerations)
@@ -285,7 +286,7 @@ def fill_coincidences_drifts(coincidence, q, qd, turns, target, weights, residua
 
 @njit(**JIT)
 def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, residual, jac_data, velocities,
-                                 accelerations, law_values, multipliers, scale, rhs):  # fmt: skip
+                                 accelerations, law_values, multipliers, scale, rhs, constants):  # fmt: skip
     """`_kernels.fill_residual_jacobian` at `q` (the coordinates with the ground appended)
     and then `newton_rhs_fused` (the state's velocities and accelerations read directly, no
     actuator, every equation kept) in one pass over the constraints: ``(weighted norm of Φ,
@@ -293,7 +294,8 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
     coincidences, their rows in the coincidences' order (`DynamicSystem`): each joint's
     Φqᵀλ terms are added as its Jacobian entries are made, the x row's then the y row's on
     each column, rows in order — the additions of `_add_transposed_pairs`, bit for bit,
-    without reading Φq again."""
+    without reading Φq again.  Φq's constant entries are written only with `constants`
+    (`fill_coincidence_at`)."""
     n = velocities.size
     fill_body_turns(q, turns)
     forces = rhs[: n + 3]  # (its last three: the first −Φ rows, written below)
@@ -303,7 +305,7 @@ def fill_coincidences_newton_rhs(loads, coincidence, q, turns, target, weights, 
         out[k] = -forces[k]
     c = coincidence
     for k in range(c.row.size):  # `_kernels.fill_coincidence`, and Φqᵀλ of its two rows
-        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data)
+        i, j, r, ax, ay, bx, by = fill_coincidence_at(c, k, q, turns, residual, jac_data, constants)
         w0, w1 = multipliers[r], multipliers[r + 1]
         if w0 != 0.0:  # (a row of λ = 0 adds nothing, as in `_add_transposed_pairs`)
             if i < n:

@@ -398,6 +398,7 @@ class RefactorSolver:
         self._indptr = self._indices = None
         self._l_indices = self._u_indices = None  # L's and U's patterns, made by `_analyse`
         self._relative = None  # their counts when their rows are offsets (`_relative_lu_kernels`)
+        self._inverses = None  # (perm_r, perm_c, their inverses) for the compact solves (`_inverse_permutations`)
         self._factored = False
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
@@ -519,6 +520,9 @@ class RefactorSolver:
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
         kernels, factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
         kernel = kernels.solve_lu if transposed else kernels.solve_lu_transposed
+        if kernel is _compact_lu_kernels.solve_lu_transposed:  # (no scatter and gather passes of their own)
+            inverses, inverted = self._inverse_permutations(), _compact_lu_kernels.solve_lu_transposed_inverted
+            kernel = lambda factors, rhs, work, out, probe: inverted(factors, inverses, rhs, work, out, probe)  # noqa: E731
         self._work_is_zero = False
         finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
@@ -609,7 +613,7 @@ class RefactorSolver:
         self.n_fallbacks += 1
         held_perm_r, l_capacity, u_capacity = self._perm_r, self._l_indices.size, self._u_indices.size
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None  # freed first
-        self._l_values = self._u_values = self._compact = None
+        self._l_values = self._u_values = self._compact = self._inverses = None
         perm_r, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
             values, in_factor_order, (self._b_indptr, self._offsets), self._indices, (held_perm_r, self._perm_c),
             NEW_PIVOT_THRESHOLD, l_capacity + l_capacity // 4, self._zeroed_work()
@@ -631,7 +635,7 @@ class RefactorSolver:
         # the old factors' values go before SuperLU makes its own factors (held across it,
         # they would add to the peak); their patterns stay, for a refactorization after a
         # failure here
-        self._l_values = self._u_values = self._compact = None
+        self._l_values = self._u_values = self._compact = self._inverses = None
         try:
             if self.ordering == "metis":
                 lu, perm_c = self._splu_in_column_order(matrix)
@@ -686,7 +690,7 @@ class RefactorSolver:
         self._perm_r = perm_r.astype(index, copy=False)  # (new pivots: the kernel's own array)
         # the last pattern's, freed before the new one is made
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None
-        self._l_values = self._u_values = self._compact = None
+        self._l_values = self._u_values = self._compact = self._inverses = None
         # B's rows, a permuted copy of the pattern: reading them through perm_r and the
         # matrix's own indices instead made the refactorization 10-30 % slower (10^5 chain);
         # `lean` does, and holds them for the analysis only
@@ -774,6 +778,17 @@ class RefactorSolver:
                                          (*upper, self._u_values, self._u_inverse))  # fmt: skip
         return _lu_kernels, (self._perm_r, self._perm_c, (self._l_indptr, self._l_indices, self._l_values),
                              (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
+
+    def _inverse_permutations(self) -> tuple:
+        """The inverses of ``perm_r`` and ``perm_c`` (`_compact_lu_kernels.inverse_permutation`),
+        made again when the permutations are new arrays (each `_analyse` makes them)."""
+        held = self._inverses
+        if held is None or held[0] is not self._perm_r or held[1] is not self._perm_c:
+            inverses = (np.empty_like(self._perm_r), np.empty_like(self._perm_c))
+            _compact_lu_kernels.inverse_permutation(self._perm_r, inverses[0])
+            _compact_lu_kernels.inverse_permutation(self._perm_c, inverses[1])
+            self._inverses = held = (self._perm_r, self._perm_c, inverses)
+        return held[2]
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth

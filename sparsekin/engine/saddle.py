@@ -166,6 +166,7 @@ class DynamicSystem:
         self._vals = np.zeros(block_count)
         self._block_count = 0  # triplets of the coordinate block at the last `product` or `residuals`
         self._block_compact = False  # the last of them `residuals`'s: the bodies' inertia in `_inertia`
+        self._constants_in = None  # the buffer in which a fused refill wrote Φq's constant entries (`_constants`)
         self._scratch = (np.zeros(6), np.zeros(6), np.zeros((2, 6)), np.zeros((6, 6)), np.zeros((6, 6)))
         # one run at the drawing fixes the pattern
         drawn = pattern.initial_coordinates
@@ -326,10 +327,12 @@ class DynamicSystem:
             return None
         assembler = self.assembler
         q, turns, target, jacobian, _, _ = assembler.fill_arrays(coordinates)
-        return _motion_kernels.fill_coincidences_newton_rhs(self.loads.arrays, self.pattern.primitives.coincidence,
+        made = _motion_kernels.fill_coincidences_newton_rhs(self.loads.arrays, self.pattern.primitives.coincidence,
                                                             q, turns, target, assembler.weights, assembler.residual,
                                                             jacobian, velocities, accelerations, self.law_values,
-                                                            multipliers, scale, rhs)  # fmt: skip
+                                                            multipliers, scale, rhs, self._constants(jacobian))  # fmt: skip
+        self._constants_in = jacobian
+        return made
 
     def fill_constraints_drifts(self, coordinates, velocities, accelerations, velocity_drift: np.ndarray,
                                 acceleration_product: np.ndarray, acceleration_drift: np.ndarray) -> float | None:  # fmt: skip
@@ -343,11 +346,21 @@ class DynamicSystem:
             return None
         assembler = self.assembler
         q, turns, target, jacobian, qd, target_acceleration = assembler.fill_arrays(coordinates)
-        return _motion_kernels.fill_coincidences_drifts(self.pattern.primitives.coincidence, q, qd, turns, target,
+        norm = _motion_kernels.fill_coincidences_drifts(self.pattern.primitives.coincidence, q, qd, turns, target,
                                                         assembler.weights, assembler.residual, jacobian, velocities,
                                                         assembler.velocity_rhs, velocity_drift, accelerations,
                                                         acceleration_product, target_acceleration,
-                                                        assembler.acceleration_rhs, acceleration_drift)  # fmt: skip
+                                                        assembler.acceleration_rhs, acceleration_drift,
+                                                        self._constants(jacobian))  # fmt: skip
+        self._constants_in = jacobian
+        return norm
+
+    def _constants(self, jacobian: np.ndarray) -> bool:
+        """Whether the fused refills must write Φq's constant entries (a joint's ±1) into
+        `jacobian`, the assembler's buffer: unless one of them filled this buffer already, in
+        CSR order (every fill writes the same constants there; the refill is bound by memory,
+        and these are 4 of a joint's 8 entries and of the slots read)."""
+        return self._constants_in is not jacobian or self.assembler.csr_positions is not None
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
