@@ -247,14 +247,15 @@ def test_solve_with_inverse_permutations_is_the_scattered_solve(rng, compact_at_
     _compact_lu_kernels.inverse_permutation(perm_c, inverses[1])
     np.testing.assert_array_equal(perm_r[inverses[0]], np.arange(perm_r.size))
     np.testing.assert_array_equal(inverses, solver._inverse_permutations())
+    inverted = inverses + factors[2:]
     n, probe = jacobian.shape[0], np.zeros(1)
     for b in (rng.standard_normal(n), np.where(np.arange(n) == n // 2, np.nan, 1.0)):
         expected, out = np.empty(n), np.empty(n)
         _compact_lu_kernels.solve_lu_transposed(factors, b, np.zeros(n), expected, probe)
         expected_probe = probe[0]
-        _compact_lu_kernels.solve_lu_transposed_inverted(factors, inverses, b, np.zeros(n), out, probe)
+        _compact_lu_kernels.solve_lu_transposed_inverted(inverted, b, np.zeros(n), out, probe)
         np.testing.assert_array_equal(out, expected)
         assert np.isnan(expected_probe) == np.isnan(probe[0]) and (probe[0] == 0.0) == (expected_probe == 0.0)
         in_place = b.copy()
-        _compact_lu_kernels.solve_lu_transposed_inverted(factors, inverses, in_place, np.zeros(n), in_place, probe)
+        _compact_lu_kernels.solve_lu_transposed_inverted(inverted, in_place, np.zeros(n), in_place, probe)
         np.testing.assert_array_equal(in_place, expected)

@@ -216,15 +216,15 @@ def inverse_permutation(permutation, out):
 
 
 @njit(**_JIT)
-def solve_lu_transposed_inverted(factors, inverses, rhs, work, out, probe):
-    """`solve_lu_transposed` with the permutations' inverses ``(inverse_r, inverse_c)``
-    (`inverse_permutation` of ``perm_r`` and ``perm_c``): column j of U's sweep starts from
-    ``rhs[inverse_c[j]]`` and L's sweep writes each unknown to ``out[inverse_r[j]]`` as it is
-    made, instead of a scatter and a gather of their own (two passes over n-sized arrays
-    fewer: the same numbers; `out` may be `rhs`, every entry of which U's sweep reads before
-    L's writes the first)."""
-    perm_r, perm_c, (l_counts, l_offsets, l_values), (u_counts, u_offsets, u_values, u_inverse) = factors
-    inverse_r, inverse_c = inverses
+def solve_lu_transposed_inverted(factors, rhs, work, out, probe):
+    """`solve_lu_transposed` on factors that carry the permutations' inverses in place of
+    the permutations, ``(inverse_r, inverse_c, lower, upper)`` (`inverse_permutation` of
+    ``perm_r`` and ``perm_c``): column j of U's sweep starts from ``rhs[inverse_c[j]]`` and
+    L's sweep writes each unknown to ``out[inverse_r[j]]`` as it is made, instead of a
+    scatter and a gather of their own (two passes over n-sized arrays fewer: the same
+    numbers; `out` may be `rhs`, every entry of which U's sweep reads before L's writes the
+    first)."""
+    inverse_r, inverse_c, (l_counts, l_offsets, l_values), (u_counts, u_offsets, u_values, u_inverse) = factors
     n = rhs.size
     p = 0
     for j in range(n):  # U^T y = Pc^T rhs
@@ -248,4 +248,3 @@ def solve_lu_transposed_inverted(factors, inverses, rhs, work, out, probe):
         check += 0.0 * total
         p = start
     probe[0] = check
-

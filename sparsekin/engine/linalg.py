@@ -520,9 +520,8 @@ class RefactorSolver:
         # A = jacobian.T: jacobian @ x = rhs is the transposed system of the factors.
         kernels, factors = self._solve_factors(1 if rhs.ndim == 1 else rhs.shape[1])
         kernel = kernels.solve_lu if transposed else kernels.solve_lu_transposed
-        if kernel is _compact_lu_kernels.solve_lu_transposed:  # (no scatter and gather passes of their own)
-            inverses, inverted = self._inverse_permutations(), _compact_lu_kernels.solve_lu_transposed_inverted
-            kernel = lambda factors, rhs, work, out, probe: inverted(factors, inverses, rhs, work, out, probe)  # noqa: E731
+        if kernel is _compact_lu_kernels.solve_lu_transposed:  # the permutations' inverses: no scatter and gather passes
+            kernel, factors = _compact_lu_kernels.solve_lu_transposed_inverted, self._inverse_permutations() + factors[2:]
         self._work_is_zero = False
         finite = solve_factored(kernel, factors, rhs, out, self._work, self._probe)
         self.n_solves += 1 if rhs.ndim == 1 else rhs.shape[1]
