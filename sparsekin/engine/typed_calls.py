@@ -13,11 +13,14 @@ numbers, of the same numba type (dtype, dimensions, contiguity, writeability: `_
 otherwise the very object it was then; anything else goes through the dispatcher (which
 compiles a new specialization if it must), whose types are held for the next call.  The
 same compiled code runs on the same arguments: the results are the same bits.  Arrays are
-not held (`sparsekin.solve._state_arrays` reuses a state's arrays by their reference
-count); after `MAX_MISSES` calls through the dispatcher every call goes there.
+held by weak references only (`sparsekin.solve._state_arrays` reuses a state's arrays by
+their reference count): the array of the last typing is not looked at again.  After
+`MAX_MISSES` calls through the dispatcher every call goes there.
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 
@@ -55,7 +58,7 @@ class TypedCall:
     -----
     The arguments of the last call through the dispatcher that are not arrays, numbers or
     tuples of numbers are held and compared by identity (a model's NamedTuples, which its
-    system holds anyway).
+    system holds anyway); its arrays by weak references (the same array is not typed again).
     """
 
     __slots__ = ("kernel", "_entry", "_held", "_keys", "_misses")
@@ -72,7 +75,7 @@ class TypedCall:
                     if value is not held:
                         break
                 elif type(value) is np.ndarray:
-                    if (value.dtype, value.ndim, value.flags.num & _LAYOUT) != key:
+                    if held() is not value and (value.dtype, value.ndim, value.flags.num & _LAYOUT) != key:
                         break
                 elif _key(value) != key:
                     break
@@ -95,7 +98,8 @@ class TypedCall:
             self._entry = None
             return
         keys = tuple(_key(value) for value in args)
-        self._held = tuple(value if key is None else None for value, key in zip(args, keys))
+        self._held = tuple(value if key is None else weakref.ref(value) if type(value) is np.ndarray else None
+                           for value, key in zip(args, keys))  # fmt: skip
         self._entry, self._keys = compiled.entry_point, keys
 
 
