@@ -6,7 +6,9 @@ on every entry as the NumPy expressions and kernels they replace (bit for bit).
   − S x`` of one or two columns in one pass over S, each body's inertia block held as its
   six values (not nine triplets of 16 bytes each);
 * `move_acceleration_drift` — the acceleration drift Φq q̈ − γ at moved velocities from γ
-  and the kept Φq q̈, and how far it moved, in one pass.
+  and the kept Φq q̈, and how far it moved, in one pass;
+* `add_increments` — after a solve, each column's solution moved by its increment, the
+  increments' sizes and the velocities moved, in one call (five NumPy and kernel calls).
 
 Symbols as in `sparsekin.engine._dynamics_kernels`: S the saddle matrix [[A, Φqᵀ], [Φq, 0]],
 its leading block A as the bodies' inertia blocks and triplets (``rows``, ``cols``,
@@ -22,7 +24,7 @@ import math
 from numba import njit
 
 from .._jit import JIT
-from ._dynamics_kernels import inertia_block
+from ._dynamics_kernels import inertia_block, weighted_norm
 
 
 @njit(**JIT)
@@ -124,3 +126,32 @@ def move_acceleration_drift(product, gamma, target_acceleration, out, weights, m
             norm = max(norm, moved)
         out[r] = drift
     return norm if probe == 0.0 else math.nan
+
+
+@njit(**JIT)
+def add_increments(solution0, increment0, first0, solution1, increment1, first1, both, weights, n, velocities, moves):
+    """After a solve of the refinement's columns: ``solution0 += increment0`` (``0 + increment0``
+    where `first0`, its first solve from zero), the weighted size of ``increment0[:n]``
+    (`weighted_norm` with the coordinates' `weights`), the same for column 1 when `both`,
+    and with `moves` (column 0 is the velocities') ``velocities -= increment0[:n]``: the
+    NumPy expressions' numbers, one call.  Returns the two sizes (the second 0 unless `both`)."""
+    _add_increment(solution0, increment0, first0)
+    size0 = weighted_norm(increment0[:n], weights)
+    size1 = 0.0
+    if both:
+        _add_increment(solution1, increment1, first1)
+        size1 = weighted_norm(increment1[:n], weights)
+    if moves:
+        for k in range(n):
+            velocities[k] -= increment0[k]
+    return size0, size1
+
+
+@njit(inline="always", **JIT)
+def _add_increment(solution, increment, first):
+    if first:
+        for k in range(solution.size):
+            solution[k] = 0.0 + increment[k]
+    else:
+        for k in range(solution.size):
+            solution[k] += increment[k]

@@ -15,6 +15,7 @@ import numpy as np
 
 from . import _kernels, _projection_kernels
 from .discretization import Discretization, DriverLaws
+from .typed_calls import TypedCall
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_array
@@ -65,6 +66,7 @@ class Assembler:
         self.values = self._jac_buffer[: pattern.nnz]
         self._csr = None  # the CSR array over `values`, made when first asked for (`jacobian`)
         self._primitives = pattern.primitives
+        self._fill_gamma_kernel = TypedCall(_kernels.fill_gamma)  # (the primitives' typing held: `typed_calls`)
         self._csr_position = None  # where each CSR value is in `values`, after fill_in_order
         self.weights = pattern.residual_weights
         self.residual = np.zeros(n_equations)
@@ -183,4 +185,4 @@ class Assembler:
         q, qd, turns = self._q, self._qd, self._turns
         _kernels.load_coordinates(coordinates, q, turns)  # (at the last refill's q: its turns, as they are)
         qd[:-3] = velocities
-        _kernels.fill_gamma(self._primitives, q, qd, turns, self.acceleration_rhs)
+        self._fill_gamma_kernel(self._primitives, q, qd, turns, self.acceleration_rhs)

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..engine import _dynamics_kernels
+from ..engine import _dynamics_kernels, _projection_kernels
 from .error_control import StepFailed as _StepFailed
 
 __all__ = ["PROJECTION_ITERATIONS", "REFINEMENT_CONTRACTION", "SAME_STEP", "TARGET_MARGIN", "WARM_START",
@@ -172,7 +172,7 @@ class ConstraintProjections:
         moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm_moves)
         follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm_follows)
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
-        fresh, filled, gain = False, False, None
+        fresh, filled, gain, paired = False, False, None, hasattr(self.solver, "solve_pair")
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
         self._velocity_drift = None  # (the published drift: made with the drift left at the final velocities)
         if moves.warm_started or follows.warm_started:
@@ -182,24 +182,26 @@ class ConstraintProjections:
             active = [column for column in columns if column.active]
             if not active:
                 break
-            if len(active) == 2 and hasattr(self.solver, "solve_pair"):
+            if len(active) == 2 and paired:
                 self.solver.solve_pair(moves.residual, follows.residual)
             else:
                 for column in active:
                     self.solver.solve(column.residual, out=column.residual)
-            for column in active:  # (a first solve since `start`: its solution is its increment, 0 + increment)
-                if column.first and not column.warm_started:
-                    np.add(0.0, column.residual, out=column.solution)
-                else:
-                    column.solution += column.residual
-                column.size = _dynamics_kernels.weighted_norm(column.residual[:n], self._weights)
+            # each solution += its increment (a first solve since `start`: 0 + increment), the increments'
+            # sizes, and the velocities moved by theirs, in one call
+            first, second = active[0], active[-1]
+            first.size, size = _projection_kernels.add_increments(
+                first.solution, first.residual, first.first and not first.warm_started, second.solution,
+                second.residual, second.first and not second.warm_started, second is not first, self._weights, n, v,
+                first is moves)  # fmt: skip
+            second.size = size if second is not first else first.size
+            for column in active:
                 column.solves += 1
                 if not column.warm_started and column.solves == 1:  # its change, within the contraction
                     column.opening = column.size
                 elif not column.warm_started and column.solves == 2 and column.opening > 0.0:
                     self._floor.contracted(column.what, column.size / column.opening)  # (`starts_cold`)
-            if moves in active:
-                v -= moves.residual[:n]
+            if moves in active:  # (moved by `add_increments`)
                 self._velocity_drift = None
             if moves in active and (gain is None or gain * moves.size > TARGET_MARGIN * follows.bound):
                 # the accelerations' target at the moved velocities, and (first) how far it moved
