@@ -100,3 +100,11 @@ def test_typed_calls_of_a_module():
     calls = TypedCalls(module)
     assert calls.first_entry(np.arange(1.0, 3.0)) == 1.0
     assert calls.first_entry is calls.first_entry  # one per kernel, made once
+
+
+def test_a_plain_function_is_called_as_it_is():
+    """Under ``NUMBA_DISABLE_JIT=1`` the kernels are plain functions (CI runs the dynamics
+    tests so): nothing to type, every call goes to the function."""
+    call = TypedCall(first_entry.py_func)
+    assert call(np.arange(3.0, 5.0)) == 3.0 and call(np.arange(2)) == 0
+    assert call._entry is None and call._misses > typed_calls.MAX_MISSES

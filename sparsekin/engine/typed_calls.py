@@ -65,7 +65,9 @@ class TypedCall:
 
     def __init__(self, kernel) -> None:
         self.kernel = kernel
-        self._entry, self._held, self._keys, self._misses = None, (), (), 0
+        self._entry, self._held, self._keys = None, (), ()
+        # a plain function (``NUMBA_DISABLE_JIT=1``) or a dispatcher without what `_bind` reads: always called as it is
+        self._misses = 0 if hasattr(kernel, "overloads") and hasattr(kernel, "typeof_pyval") else MAX_MISSES
 
     def __call__(self, *args):
         entry = self._entry
@@ -92,15 +94,19 @@ class TypedCall:
     def _bind(self, args: tuple) -> None:
         """Hold the entry point of `args`' types (compiled by the call just made)."""
         kernel = self.kernel
-        signature = tuple(kernel.typeof_pyval(value) for value in args)
-        compiled = kernel.overloads.get(signature)
-        if compiled is None:  # (a conversion numba made on the way: always through the dispatcher)
+        try:
+            signature = tuple(kernel.typeof_pyval(value) for value in args)
+            compiled = kernel.overloads.get(signature)
+            entry = None if compiled is None else compiled.entry_point
+        except (AttributeError, TypeError, ValueError):  # (numba's internals changed: the dispatcher from now on)
+            compiled, entry, self._misses = None, None, MAX_MISSES
+        if entry is None:  # (a conversion numba made on the way: always through the dispatcher)
             self._entry = None
             return
         keys = tuple(_key(value) for value in args)
         self._held = tuple(value if key is None else weakref.ref(value) if type(value) is np.ndarray else None
                            for value, key in zip(args, keys))  # fmt: skip
-        self._entry, self._keys = compiled.entry_point, keys
+        self._entry, self._keys = entry, keys
 
 
 class TypedCalls:
