@@ -38,7 +38,7 @@ Exudyn at equal accuracy over the accuracy run's horizon, (steps + 2) steps; ``w
 where a long dynamic run's time goes, per window of steps — CPU, solves, the projections'
 residual passes and factorizations a step, through the flat crossing at ~0.72 s; the last:
 the kinematic and dynamic runs with each tolerance given to both steppers in turn —
-``--tolerance`` of ``one``, ``table`` and ``against``, default the steppers' own, 1e-12 and
+``--tolerance`` of ``one``, ``table``, ``against`` and ``windows``, default the steppers' own, 1e-12 and
 1e-10 — and no Exudyn run unless ``default`` is among them: Exudyn keeps its own settings).
 Each measurement prints one JSON line (with ``tolerance`` where one was given); ``table``
 prints them and a Markdown table with the ratios of the same run, the lines of a given
@@ -137,14 +137,16 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP
 WINDOWS = ((1, 20), (21, 100), (101, 300), (301, 700), (701, 760), (761, 1000))
 
 
-def windows(bodies: int, steps: int) -> list[dict]:
-    """The dynamic run of `bodies` over `steps` steps of 1 ms in this process, per window of
-    `WINDOWS`: CPU a step, solves, residual passes of the projections' refinement (calls of
-    `DynamicSystem.residuals`, counted through a wrapper) and factorizations."""
+def windows(bodies: int, steps: int, tolerance: float | None = None) -> list[dict]:
+    """The dynamic run of `bodies` over `steps` steps of 1 ms in this process (at `tolerance`,
+    None: the default), per window of `WINDOWS`: CPU a step, solves, residual passes of the
+    projections' refinement (calls of `DynamicSystem.residuals`, counted through a wrapper),
+    factorizations and halvings."""
     from sparsekin.solve.dynamics import GeneralizedAlphaStepper
     from sparsekin.testset import n_four_bar
 
-    stepper = GeneralizedAlphaStepper(n_four_bar((bodies - 1) // 2), STEP)
+    given = {} if tolerance is None else {"tolerance": tolerance}
+    stepper = GeneralizedAlphaStepper(n_four_bar((bodies - 1) // 2), STEP, **given)
     stepper.start(0.0)
     residuals, passes = stepper.system.residuals, [0]
 
@@ -155,19 +157,21 @@ def windows(bodies: int, steps: int) -> list[dict]:
     stepper.system.residuals = counted
     per_step = []
     for k in range(1, steps + 1):
-        before = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        before = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations,
+                  stepper.n_subdivisions)  # fmt: skip
         stepper.advance(k * STEP)
-        after = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        after = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations,
+                 stepper.n_subdivisions)  # fmt: skip
         per_step.append([b - a for a, b in zip(before, after)])
     rows = []
     for first, last in WINDOWS:
         window = per_step[first - 1 : min(last, steps)]
         if window:
-            cpu, solves, residual_passes, factorizations = (sum(column) for column in zip(*window))
-            rows.append({"bodies": bodies, "first": first, "last": first + len(window) - 1,
+            cpu, solves, residual_passes, factorizations, halvings = (sum(column) for column in zip(*window))
+            rows.append({"bodies": bodies, **given, "first": first, "last": first + len(window) - 1,
                          "cpu_seconds_per_step": cpu / len(window), "solves_per_step": solves / len(window),
                          "residual_passes_per_step": residual_passes / len(window),
-                         "factorizations": factorizations})  # fmt: skip
+                         "factorizations": factorizations, "halvings": halvings})  # fmt: skip
     return rows
 
 
@@ -309,39 +313,53 @@ def markdown(rows: list[dict]) -> str:
 
 def tolerance_markdown(rows: list[dict]) -> str:
     """The lines of a tolerance given (``tolerance``, the same to both steppers), one table row
-    per size and tolerance: times and their ratio as in `markdown`, the dynamic CPU time
-    against the dynamic line at the dynamic default (1e-10) among them, the largest drifts
-    over the steps (as energy.csv: lengths over the model size; the step's bound is tolerance ·
-    h for the velocities), halvings and stalls; then the accuracy runs and the load."""
+    per size and tolerance, the medians of its lines (the rounds of `table`): times and their
+    ratio as in `markdown`, the dynamic CPU time against the dynamic lines at the dynamic
+    default (1e-10) among them, the largest drifts over the steps of any round (as energy.csv:
+    lengths over the model size; the step's bound is tolerance · h for the velocities), the
+    most halvings and stalls; then the accuracy runs' medians and the load."""
+    import statistics
+
     from sparsekin.solve.dynamics import DEFAULT_TOLERANCE
 
     rows = [row for row in rows if "tolerance" in row]
-    default = {row["bodies"]: row for row in rows if row["analysis"] == "dynamic"
-               and row["tolerance"] == DEFAULT_TOLERANCE and not row.get("accuracy_run")}  # fmt: skip
     if not rows:
         return ""
-    lines = ["| bodies | tolerance | kinematic | dynamic | dynamic / kinematic | CPU: dynamic / kinematic "
+
+    def lines_of(analysis: str, bodies: int, tolerance: float, accuracy_run: bool = False) -> list[dict]:
+        return [row for row in rows if (row["analysis"], row["bodies"], row["tolerance"], bool(row.get("accuracy_run")))
+                == (analysis, bodies, tolerance, accuracy_run)]  # fmt: skip
+
+    def median(lines: list[dict], key: str) -> float | None:
+        values = [row[key] for row in lines if key in row]
+        return statistics.median(values) if values else None
+
+    lines = ["| bodies | tolerance | rounds | kinematic | dynamic | dynamic / kinematic | CPU: dynamic / kinematic "
              "| CPU: dynamic / dynamic at 1e-10 | ‖Φ‖ | ‖Φq q̇ + Φt‖ | halvings | stalls | peak dynamic |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     timed = [row for row in rows if not row.get("accuracy_run")]
     for bodies, tolerance in sorted({(row["bodies"], row["tolerance"]) for row in timed}, key=lambda k: (k[0], -k[1])):
-        by = {row["analysis"]: row for row in timed if row["bodies"] == bodies and row["tolerance"] == tolerance}
-        kin, dyn = by.get("kinematic", {}), by.get("dynamic", {})
-        cpu = kin.get("cpu_seconds_per_step"), dyn.get("cpu_seconds_per_step")
-        base = default.get(bodies, {}).get("cpu_seconds_per_step")
-        cells = [f"{bodies}", f"{tolerance:g}", *(_seconds(row.get("seconds_per_step")) for row in (kin, dyn)),
-                 f"{dyn['seconds_per_step'] / kin['seconds_per_step']:.2f}×" if kin and dyn else "",
-                 f"{cpu[1] / cpu[0]:.2f}×" if all(cpu) else "", f"{cpu[1] / base:.2f}" if cpu[1] and base else "",
-                 *(f"{dyn[key]:.2g}" if key in dyn else "" for key in ("drift_position", "drift_velocity")),
-                 *(f"{dyn[key]}" if key in dyn else "" for key in ("halvings", "stalls")),
-                 f"{dyn['peak_memory_mb']:.0f} MB" if dyn else ""]  # fmt: skip
+        kin, dyn = (lines_of(analysis, bodies, tolerance) for analysis in ("kinematic", "dynamic"))
+        wall = median(kin, "seconds_per_step"), median(dyn, "seconds_per_step")
+        cpu = median(kin, "cpu_seconds_per_step"), median(dyn, "cpu_seconds_per_step")
+        base = median(lines_of("dynamic", bodies, DEFAULT_TOLERANCE), "cpu_seconds_per_step")
+        cells = [f"{bodies}", f"{tolerance:g}", f"{max(len(kin), len(dyn))}", *(_seconds(value) for value in wall),
+                 f"{wall[1] / wall[0]:.2f}×" if all(wall) else "", f"{cpu[1] / cpu[0]:.2f}×" if all(cpu) else "",
+                 f"{cpu[1] / base:.2f}" if cpu[1] and base else "",
+                 *(f"{max(row[key] for row in dyn):.2g}" if dyn else "" for key in ("drift_position", "drift_velocity")),
+                 *(f"{max(row[key] for row in dyn)}" if dyn else "" for key in ("halvings", "stalls")),
+                 f"{median(dyn, 'peak_memory_mb'):.0f} MB" if dyn else ""]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
-    for row in rows:
-        if row.get("accuracy_run"):
-            cpu = row.get("cpu_seconds_per_step")
-            lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps, tolerance "
-                         f"{row['tolerance']:g}: B0 error {row['b0_error_m']:.3g} m, "
-                         f"{_seconds(row['seconds_per_step'])} per step" + (f" ({_seconds(cpu)} of CPU)" if cpu else ""))  # fmt: skip
+    accuracy = sorted({(row["bodies"], row["tolerance"]) for row in rows if row.get("accuracy_run")},
+                      key=lambda k: (k[0], -k[1]))  # fmt: skip
+    for bodies, tolerance in accuracy:
+        runs = lines_of("dynamic", bodies, tolerance, True)
+        errors = sorted(row["b0_error_m"] for row in runs)
+        cpu = median(runs, "cpu_seconds_per_step")
+        lines.append(f"\ndynamic at {bodies} bodies, {runs[0]['steps']} steps, tolerance {tolerance:g}: B0 error "
+                     f"{errors[0]:.3g}" + (f"–{errors[-1]:.3g}" if errors[-1] != errors[0] else "")
+                     + f" m, {_seconds(median(runs, 'seconds_per_step'))} per step"
+                     + (f" ({_seconds(cpu)} of CPU)" if cpu else "") + f", {len(runs)} rounds")  # fmt: skip
     loads = [row["load_average"] for row in rows if "load_average" in row]
     if loads:
         lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
@@ -369,6 +387,7 @@ def results_section(rows: list[dict]) -> list[str]:
     """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`
     (the latest of each measurement)."""
     compared = [row for row in rows if "against" in row]
+    given = [row for row in rows if "tolerance" in row and "against" not in row]  # every round: medians
     rows = latest([row for row in rows if "against" not in row])
     before = [] if not compared else [
         "", "The dynamic run against the tree before a change (`against`, the lines with ``against``",
@@ -391,7 +410,7 @@ def results_section(rows: list[dict]) -> list[str]:
         "exact answer (every crank moves as one four-bar), largest over the steps taken.",
         "",
         *markdown(rows).splitlines(),
-        *tolerance_section(rows),
+        *tolerance_section(given),
         *before,
     ]
 
@@ -403,7 +422,7 @@ def tolerance_section(rows: list[dict]) -> list[str]:
         return []
     return [
         "", "At a looser Newton and projection tolerance (`table --tolerance T ...`, given to both",
-        "sparsekin steppers; Exudyn at its own settings): per size and tolerance, its latest lines. ‖Φ‖ and",
+        "sparsekin steppers; Exudyn at its own settings): per size and tolerance, the medians of its lines. ‖Φ‖ and",
         "‖Φq q̇ + Φt‖: the largest over the run's steps, weighted as energy.csv (lengths over the model",
         "size, `length_scale_m` in the lines); a step may leave a velocity drift of tolerance · h.", "",
         *text.splitlines(),
@@ -438,9 +457,10 @@ def main(argv=None) -> None:
     by_window = commands.add_parser("windows", help="a long dynamic run's cost per window of steps, this process")
     by_window.add_argument("--bodies", type=int, default=100001, help="2N + 1")
     by_window.add_argument("--steps", type=int, default=1000)
+    by_window.add_argument("--tolerance", type=float, help="Newton and projection tolerance (default: the stepper's)")
     arguments = parser.parse_args(argv)
     if arguments.command == "windows":
-        for row in windows(arguments.bodies, arguments.steps):
+        for row in windows(arguments.bodies, arguments.steps, arguments.tolerance):
             print(json.dumps(row))
         return
     if arguments.command == "against":
