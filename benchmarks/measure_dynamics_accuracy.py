@@ -5,7 +5,9 @@ prints, per step size, B0's largest position and velocity errors over the 401 ou
 20 s against the exact reduced ODE, the largest energy error over the initial kinetic
 energy, the crank-angle spread and the wall time; ``andrews --steps 4e-5 2e-5 1e-5``
 prints the largest error of the seven angles at t = 0.03 s against the Test Set's values.
-``--rtol R`` makes the steps error-controlled (``--steps`` are then the largest steps).
+``--rtol R`` makes the steps error-controlled (``--steps`` are then the largest steps);
+``--tolerance T`` sets Newton's and the projections' tolerance of ``a02`` and ``andrews``
+(default: the library's, 1e-10); ``a02`` also prints the largest drifts of energy.csv.
 ``cost --loops 40 --t-end 2 --steps 3.5e-4 --rtol 1e-10`` compares the cost per step of
 fixed and error-controlled steps on the same (Python) stepper, rounds alternating.
 ``profile --loops 30 --steps 1e-3 --rtol 1e-10`` follows one run output by output: the
@@ -53,10 +55,11 @@ def thresholds(dense_up_to: int | None) -> Thresholds:
     return Thresholds(saddle_dense_max_size=dense_up_to, compiled_saddle_max_size=dense_up_to)
 
 
-def a02(loops: int, steps, rho: float, t_end: float, rtol: float | None = None, dense_up_to: int | None = None) -> None:
+def a02(loops: int, steps, rho: float, t_end: float, rtol: float | None = None, dense_up_to: int | None = None,
+        tolerance: float = DEFAULT_TOLERANCE) -> None:
     times = np.linspace(0.0, t_end, int(round(t_end / 0.05)) + 1)
     position, velocity = n_four_bar_b0(times, n_loops=loops)
-    options = SolveOptions(DEFAULT_TOLERANCE, thresholds=thresholds(dense_up_to))
+    options = SolveOptions(tolerance, thresholds=thresholds(dense_up_to))
     for h in steps:
         start = time.perf_counter()
         try:
@@ -73,15 +76,17 @@ def a02(loops: int, steps, rho: float, t_end: float, rtol: float | None = None, 
         print(f"h = {h:g} s: B0 position {np.abs(b0.position - position[:k]).max():.2e} m, velocity "
               f"{np.abs(b0.velocity - velocity[:k]).max():.2e} m/s, energy "
               f"{np.abs(result.energy.balance).max() / result.energy.kinetic[0]:.2e} of the initial kinetic, crank "
-              f"spread {np.ptp(cranks, axis=1).max():.1e} rad, {result.n_steps} steps, {wall:.1f} s, "
+              f"spread {np.ptp(cranks, axis=1).max():.1e} rad, drifts {result.energy.drift_position.max():.1e} "
+              f"{result.energy.drift_velocity.max():.1e}, {result.n_steps} steps, {wall:.1f} s, "
               f"{result.linear_solver}{note}")
 
 
-def andrews(steps, rtol: float | None = None) -> None:
+def andrews(steps, rtol: float | None = None, tolerance: float = DEFAULT_TOLERANCE) -> None:
     mechanism = sk.load_model(ROOT / "examples" / "dynamics" / "andrews.toml")
     for h in steps:
         start = time.perf_counter()
-        result = sk.solve_dynamics(mechanism, [0.0, 0.03], max_step=h, rtol=rtol, forces=None)
+        result = sk.solve_dynamics(mechanism, [0.0, 0.03], max_step=h, rtol=rtol, forces=None,
+                                   tolerance=tolerance)  # fmt: skip
         error = np.abs(andrews_angles_from_bodies(result.coordinates[-1, 2::3]) - ANDREWS_REFERENCE_ANGLES).max()
         print(f"h = {h:g} s: angles off by {error:.2e} rad, {result.n_steps} steps, {time.perf_counter() - start:.1f} s")
 
@@ -209,11 +214,13 @@ if __name__ == "__main__":
     parser.add_argument("--dense-up-to", type=int, default=None, help="compiled dense loop up to this saddle size")
     parser.add_argument("--angle-length", type=float, default=None, help="profile: angles weighed as this length, m")
     parser.add_argument("--quiet", action="store_true", help="profile: the summary only")
+    parser.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE, help="a02, andrews: Newton's")
     arguments = parser.parse_args()
     if arguments.reference == "cost":
         cost(arguments.loops, arguments.t_end, arguments.steps[0], arguments.rtol or 1e-10, arguments.rounds)
     elif arguments.reference == "a02":
-        a02(arguments.loops, arguments.steps, arguments.rho, arguments.t_end, arguments.rtol, arguments.dense_up_to)
+        a02(arguments.loops, arguments.steps, arguments.rho, arguments.t_end, arguments.rtol, arguments.dense_up_to,
+            arguments.tolerance)
     elif arguments.reference == "steptime":
         steptime(arguments.sizes, arguments.t_end, arguments.rtol or 1e-10, arguments.rounds)
     elif arguments.reference == "profile":
@@ -221,4 +228,4 @@ if __name__ == "__main__":
             profile(arguments.loops, step, arguments.rho, arguments.t_end, arguments.rtol, arguments.dense_up_to,
                     arguments.angle_length, arguments.quiet)  # fmt: skip
     else:
-        andrews(arguments.steps, arguments.rtol)
+        andrews(arguments.steps, arguments.rtol, arguments.tolerance)

@@ -8,7 +8,9 @@ measurement, one after the other (their peak memory is their own):
 * ``dynamic`` — `GeneralizedAlphaStepper` on `n_four_bar(N)` (gravity, released with B0 at
   1 m/s), fixed step 1 ms, one output sample per step; B0's largest position error against
   the exact answer (every crank moves as one four-bar: tests/dynamics_reference.py) over the
-  steps taken (a run that stops reports where, ``stopped``, and the error up to there);
+  steps taken (a run that stops reports where, ``stopped``, and the error up to there), and
+  the largest drifts ‖Φ‖ and ‖Φq q̇ + Φt‖ over the steps (weighted as energy.csv: lengths
+  over the model size, ``length_scale_m``);
 * ``exudyn`` — Exudyn 1.13.6 on the same chain (benchmarks/peers/exudyn_models.py
   ``timing chain``: generalized-α, modified Newton, its sparse LU, fixed 1 ms steps), the
   largest B0 error over its steps.
@@ -26,16 +28,21 @@ Commands::
     python3 benchmarks/measure_dynamics_chain.py against /tmp/base --bodies 100001 --rounds 3
     python3 benchmarks/measure_dynamics_chain.py one dynamic --bodies 100001 --steps 102 --step 0.98e-3
     python3 benchmarks/measure_dynamics_chain.py windows --bodies 100001 --steps 1000
+    python3 benchmarks/measure_dynamics_chain.py table --accuracy --tolerance 1e-10 1e-8 1e-7 1e-6 1e-5
 
 (the third: the 10^6-body run alone, a fresh process; note it in /work/notes/bigruns.txt
-on the shared machine first; the last: the dynamic run of this tree and of another
+on the shared machine first; the fourth: the dynamic run of this tree and of another
 checkout, e.g. ``git archive main | tar -x -C /tmp/base``, alternately in fresh
-processes, each with its own sparsekin; the last: a shorter step, for a comparison with
+processes, each with its own sparsekin; the fifth: a shorter step, for a comparison with
 Exudyn at equal accuracy over the accuracy run's horizon, (steps + 2) steps; ``windows``:
 where a long dynamic run's time goes, per window of steps — CPU, solves, the projections'
-residual passes and factorizations a step, through the flat crossing at ~0.72 s).  Each
-measurement prints one JSON line;
-``table`` prints them and a Markdown table with the ratios of the same run.
+residual passes and factorizations a step, through the flat crossing at ~0.72 s; the last:
+the kinematic and dynamic runs with each tolerance given to both steppers in turn —
+``--tolerance`` of ``one``, ``table``, ``against`` and ``windows``, default the steppers' own, 1e-12 and
+1e-10 — and no Exudyn run unless ``default`` is among them: Exudyn keeps its own settings).
+Each measurement prints one JSON line (with ``tolerance`` where one was given); ``table``
+prints them and a Markdown table with the ratios of the same run, the lines of a given
+tolerance in a table of their own (`tolerance_markdown`).
 """
 
 from __future__ import annotations
@@ -60,34 +67,39 @@ def peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP) -> dict:
+def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP,
+                      tolerance: float | None = None) -> dict:  # fmt: skip
     """Time per step of `analysis` ("kinematic" or "dynamic") on the chain of `bodies`, steps of
-    `step` seconds (`STEP` but for an equal-accuracy comparison)."""
+    `step` seconds (`STEP` but for an equal-accuracy comparison), Newton (and projection)
+    tolerance `tolerance` (None: the stepper's default, 1e-12 kinematic, 1e-10 dynamic)."""
     import numpy as np
 
     from sparsekin.testset import four_bar_chain, n_four_bar
 
     loops = (bodies - 1) // 2
+    given = {} if tolerance is None else {"tolerance": tolerance}
     start = time.perf_counter()
     if analysis == "kinematic":
         from sparsekin.solve.stepper import KinematicStepper
 
-        stepper = KinematicStepper(four_bar_chain(loops, 1.5))
+        stepper = KinematicStepper(four_bar_chain(loops, 1.5), **given)
     else:
         from sparsekin.solve.dynamics import GeneralizedAlphaStepper
 
-        stepper = GeneralizedAlphaStepper(n_four_bar(loops), step)
+        stepper = GeneralizedAlphaStepper(n_four_bar(loops), step, **given)
     stepper.start(0.0)
     start_seconds = time.perf_counter() - start
-    tips = []
+    tips, drifts = [], [0.0, 0.0]
 
     def advance(k: int) -> None:
         stepper.advance(k * step)
         if analysis == "dynamic":  # B0, the tip of crank0 (origin at its pivot, 1 m long)
             q = stepper.state.coordinates
             tips.append((k * step, q[0] + np.cos(q[2]), q[1] + np.sin(q[2])))
+            drifts[:] = np.maximum(drifts, stepper.recorded()[DRIFT][0])  # energy.csv's ‖Φ‖, ‖Φq q̇ + Φt‖
 
     from sparsekin.errors import ConvergenceError
+    from sparsekin.results.schema import DRIFT
 
     for k in (1, 2):
         advance(k)
@@ -101,7 +113,7 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP
     per_step = (time.perf_counter() - clock) / max(done, 1)
     cpu_per_step = (time.process_time() - cpu) / max(done, 1)  # the process's own: less moved by the load
     result = {"analysis": analysis, "bodies": bodies, "steps": done, **({"step_s": step} if step != STEP else {}),
-              "seconds_per_step": per_step,
+              **given, "seconds_per_step": per_step,
               "cpu_seconds_per_step": cpu_per_step, "start_seconds": start_seconds, "peak_memory_mb": peak_mb()}  # fmt: skip
     if stopped is not None:
         result |= {"stopped": stopped, "stopped_at_s": stepper.time}
@@ -114,7 +126,10 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP
         result["b0_error_m"] = float(np.abs(tips[:, 1:] - exact).max())
         result |= {"newton_per_step": stepper.n_newton / stepper.n_steps, "path": stepper.path,
                    "factorizations": stepper.n_factorizations, "stalls": stepper.n_stalls,
-                   "steps_taken": stepper.n_steps, "halvings": stepper.n_subdivisions}  # fmt: skip
+                   "steps_taken": stepper.n_steps, "halvings": stepper.n_subdivisions,
+                   # largest over every step (weighted as energy.csv: lengths over the model size)
+                   "drift_position": float(drifts[0]), "drift_velocity": float(drifts[1]),
+                   "length_scale_m": stepper.pattern.length_scale}  # fmt: skip
     return result
 
 
@@ -122,14 +137,16 @@ def measure_sparsekin(analysis: str, bodies: int, steps: int, step: float = STEP
 WINDOWS = ((1, 20), (21, 100), (101, 300), (301, 700), (701, 760), (761, 1000))
 
 
-def windows(bodies: int, steps: int) -> list[dict]:
-    """The dynamic run of `bodies` over `steps` steps of 1 ms in this process, per window of
-    `WINDOWS`: CPU a step, solves, residual passes of the projections' refinement (calls of
-    `DynamicSystem.residuals`, counted through a wrapper) and factorizations."""
+def windows(bodies: int, steps: int, tolerance: float | None = None) -> list[dict]:
+    """The dynamic run of `bodies` over `steps` steps of 1 ms in this process (at `tolerance`,
+    None: the default), per window of `WINDOWS`: CPU a step, solves, residual passes of the
+    projections' refinement (calls of `DynamicSystem.residuals`, counted through a wrapper),
+    factorizations and halvings."""
     from sparsekin.solve.dynamics import GeneralizedAlphaStepper
     from sparsekin.testset import n_four_bar
 
-    stepper = GeneralizedAlphaStepper(n_four_bar((bodies - 1) // 2), STEP)
+    given = {} if tolerance is None else {"tolerance": tolerance}
+    stepper = GeneralizedAlphaStepper(n_four_bar((bodies - 1) // 2), STEP, **given)
     stepper.start(0.0)
     residuals, passes = stepper.system.residuals, [0]
 
@@ -140,19 +157,21 @@ def windows(bodies: int, steps: int) -> list[dict]:
     stepper.system.residuals = counted
     per_step = []
     for k in range(1, steps + 1):
-        before = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        before = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations,
+                  stepper.n_subdivisions)  # fmt: skip
         stepper.advance(k * STEP)
-        after = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations)
+        after = (time.process_time(), stepper.solver.n_solves, passes[0], stepper.n_factorizations,
+                 stepper.n_subdivisions)  # fmt: skip
         per_step.append([b - a for a, b in zip(before, after)])
     rows = []
     for first, last in WINDOWS:
         window = per_step[first - 1 : min(last, steps)]
         if window:
-            cpu, solves, residual_passes, factorizations = (sum(column) for column in zip(*window))
-            rows.append({"bodies": bodies, "first": first, "last": first + len(window) - 1,
+            cpu, solves, residual_passes, factorizations, halvings = (sum(column) for column in zip(*window))
+            rows.append({"bodies": bodies, **given, "first": first, "last": first + len(window) - 1,
                          "cpu_seconds_per_step": cpu / len(window), "solves_per_step": solves / len(window),
                          "residual_passes_per_step": residual_passes / len(window),
-                         "factorizations": factorizations})  # fmt: skip
+                         "factorizations": factorizations, "halvings": halvings})  # fmt: skip
     return rows
 
 
@@ -168,18 +187,24 @@ def in_subprocess(*arguments: str, tree: Path = ROOT) -> dict:
             "utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "commit": commit}  # fmt: skip
 
 
-def sparsekin_row(analysis: str, bodies: int, steps: int) -> dict:
-    return in_subprocess(__file__, "one", analysis, "--bodies", str(bodies), "--steps", str(steps))
+def tolerance_arguments(tolerance: float | None) -> tuple[str, ...]:
+    return () if tolerance is None else ("--tolerance", repr(tolerance))
 
 
-def against(tree: Path, bodies: int, steps: int, rounds: int) -> list[dict]:
+def sparsekin_row(analysis: str, bodies: int, steps: int, tolerance: float | None = None) -> dict:
+    return in_subprocess(__file__, "one", analysis, "--bodies", str(bodies), "--steps", str(steps),
+                         *tolerance_arguments(tolerance))  # fmt: skip
+
+
+def against(tree: Path, bodies: int, steps: int, rounds: int, tolerance: float | None = None) -> list[dict]:
     """The dynamic run of this tree and of `tree` (another checkout, its own sparsekin; this
-    script's measurement, the same for both) alternately, `rounds` times each, fresh
-    processes: rows with ``against`` (`tree`) and ``tree`` ("this" or "other")."""
+    script's measurement, the same for both, at `tolerance`) alternately, `rounds` times each,
+    fresh processes: rows with ``against`` (`tree`) and ``tree`` ("this" or "other")."""
     rows = []
     for round_ in range(rounds):
         for name, root in (("other", tree), ("this", ROOT)):
-            arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps))
+            arguments = ("one", "dynamic", "--bodies", str(bodies), "--steps", str(steps),
+                         *tolerance_arguments(tolerance))  # fmt: skip
             row = in_subprocess(__file__, *arguments, tree=root)
             rows.append({**row, "against": str(tree), "tree": name, "round": round_})
             print(json.dumps(rows[-1]), flush=True)
@@ -194,9 +219,10 @@ def against_markdown(rows: list[dict]) -> str:
     lines = ["| bodies | commit | rounds | per step, before | per step, after | after / before | CPU after / before "
              "| peak before | peak after | after / before | load |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for bodies in sorted({row["bodies"] for row in rows}):
-        commit = [row["commit"] for row in rows if row["bodies"] == bodies][-1]
-        of_size = [row for row in rows if row["bodies"] == bodies and row["commit"] == commit]
+    for bodies, tolerance in sorted({(row["bodies"], row.get("tolerance", 0.0)) for row in rows}):
+        mine = [row for row in rows if row["bodies"] == bodies and row.get("tolerance", 0.0) == tolerance]
+        commit = mine[-1]["commit"]
+        of_size = [row for row in mine if row["commit"] == commit]
         by = {name: [row for row in of_size if row["tree"] == name] for name in ("other", "this")}
         if not (by["other"] and by["this"]):
             continue
@@ -208,7 +234,8 @@ def against_markdown(rows: list[dict]) -> str:
         if recorded:
             cpu = {name: statistics.median(row["cpu_seconds_per_step"] for row in by[name]) for name in by}
         cpu_ratio = f"{cpu['this'] / cpu['other']:.2f}" if cpu else ""
-        lines.append(f"| {bodies} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
+        label = f"{bodies} (tolerance {tolerance:g})" if tolerance else f"{bodies}"
+        lines.append(f"| {label} | {commit} | {len(by['this'])} | {_seconds(time_['other'])} "
                      f"| {_seconds(time_['this'])} | {time_['this'] / time_['other']:.2f} | {cpu_ratio} "
                      f"| {peak['other']:.0f} MB "
                      f"| {peak['this']:.0f} MB | {peak['this'] / peak['other']:.2f} "
@@ -232,22 +259,28 @@ def exudyn_row(bodies: int, steps: int) -> dict:
             "commit": row["commit"]}  # fmt: skip
 
 
-def table(accuracy: bool, sizes=SIZES) -> list[dict]:
-    """Every size, kinematic, dynamic and Exudyn in turn; with `accuracy`, the dynamic run and
-    Exudyn's over `ACCURACY_STEPS` steps at the largest size."""
-    plan = [(analysis, bodies, steps, False) for bodies, steps in sizes for analysis in ("kinematic", "dynamic", "exudyn")]
+def table(accuracy: bool, sizes=SIZES, tolerances=(None,)) -> list[dict]:
+    """Every size, kinematic and dynamic at each of `tolerances` (None: the steppers' defaults)
+    and Exudyn (at its own settings, once, with the defaults' lines) in turn; with `accuracy`,
+    the dynamic runs and Exudyn's over `ACCURACY_STEPS` steps at the largest size."""
+    peers = ("exudyn",) if None in tolerances else ()
+    plan = [(analysis, bodies, steps, False, tolerance) for bodies, steps in sizes for tolerance in tolerances
+            for analysis in ("kinematic", "dynamic", *(peers if tolerance is None else ()))]  # fmt: skip
     if accuracy:
-        plan += [(analysis, sizes[-1][0], ACCURACY_STEPS, True) for analysis in ("dynamic", "exudyn")]
+        plan += [("dynamic", sizes[-1][0], ACCURACY_STEPS, True, tolerance) for tolerance in tolerances]
+        plan += [(analysis, sizes[-1][0], ACCURACY_STEPS, True, None) for analysis in peers]
     rows = []
-    for analysis, bodies, steps, accuracy_run in plan:
-        row = exudyn_row(bodies, steps) if analysis == "exudyn" else sparsekin_row(analysis, bodies, steps)
+    for analysis, bodies, steps, accuracy_run, tolerance in plan:
+        row = exudyn_row(bodies, steps) if analysis == "exudyn" else sparsekin_row(analysis, bodies, steps, tolerance)
         rows.append({**row, "accuracy_run": accuracy_run})
         print(json.dumps(rows[-1]), flush=True)
     return rows
 
 
 def markdown(rows: list[dict]) -> str:
-    """The table of a run, with the ratios of the same run, then the accuracy runs and the load."""
+    """The table of a run at the steppers' default tolerances, with the ratios of the same run,
+    then the accuracy runs and the load (the lines of another tolerance: `tolerance_markdown`)."""
+    rows = [row for row in rows if "tolerance" not in row]
     header = ("| bodies | kinematic | dynamic | dynamic / kinematic | Exudyn | Exudyn / dynamic | CPU: dynamic / "
               "kinematic | CPU: Exudyn / dynamic | peak kinematic | peak dynamic | peak Exudyn |")  # fmt: skip
     lines = [header, "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -278,6 +311,65 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def tolerance_markdown(rows: list[dict]) -> str:
+    """The lines of a tolerance given (``tolerance``, the same to both steppers), one table row
+    per size and tolerance, the medians of its lines (the rounds of `table`): times and their
+    ratio as in `markdown`, the dynamic CPU time against the dynamic lines at the dynamic
+    default (1e-10) among them, the largest drifts over the steps of any round (as energy.csv:
+    lengths over the model size; the step's bound is tolerance · h for the velocities), the
+    most halvings and stalls; then the accuracy runs' medians and the load."""
+    import statistics
+
+    from sparsekin.solve.dynamics import DEFAULT_TOLERANCE
+
+    rows = [row for row in rows if "tolerance" in row]
+    if not rows:
+        return ""
+
+    def lines_of(analysis: str, bodies: int, tolerance: float, accuracy_run: bool = False) -> list[dict]:
+        return [row for row in rows if (row["analysis"], row["bodies"], row["tolerance"], bool(row.get("accuracy_run")))
+                == (analysis, bodies, tolerance, accuracy_run)]  # fmt: skip
+
+    def median(lines: list[dict], key: str) -> float | None:
+        values = [row[key] for row in lines if key in row]
+        return statistics.median(values) if values else None
+
+    lines = ["| bodies | tolerance | rounds | kinematic | dynamic | dynamic / kinematic | CPU: dynamic / kinematic "
+             "| CPU: dynamic / dynamic at 1e-10 | ‖Φ‖ | ‖Φq q̇ + Φt‖ | halvings | stalls | peak dynamic |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    timed = [row for row in rows if not row.get("accuracy_run")]
+    for bodies, tolerance in sorted({(row["bodies"], row["tolerance"]) for row in timed}, key=lambda k: (k[0], -k[1])):
+        kin, dyn = (lines_of(analysis, bodies, tolerance) for analysis in ("kinematic", "dynamic"))
+        wall = median(kin, "seconds_per_step"), median(dyn, "seconds_per_step")
+        cpu = median(kin, "cpu_seconds_per_step"), median(dyn, "cpu_seconds_per_step")
+        base = median(lines_of("dynamic", bodies, DEFAULT_TOLERANCE), "cpu_seconds_per_step")
+        cells = [f"{bodies}", f"{tolerance:g}", f"{max(len(kin), len(dyn))}", *(_seconds(value) for value in wall),
+                 f"{wall[1] / wall[0]:.2f}×" if all(wall) else "", f"{cpu[1] / cpu[0]:.2f}×" if all(cpu) else "",
+                 f"{cpu[1] / base:.2f}" if cpu[1] and base else "",
+                 *(f"{max(row[key] for row in dyn):.2g}" if dyn else "" for key in ("drift_position", "drift_velocity")),
+                 *(f"{max(row[key] for row in dyn)}" if dyn else "" for key in ("halvings", "stalls")),
+                 f"{median(dyn, 'peak_memory_mb'):.0f} MB" if dyn else ""]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    accuracy = sorted({(row["bodies"], row["tolerance"]) for row in rows if row.get("accuracy_run")},
+                      key=lambda k: (k[0], -k[1]))  # fmt: skip
+    for bodies, tolerance in accuracy:
+        runs = lines_of("dynamic", bodies, tolerance, True)
+        errors = sorted(row["b0_error_m"] for row in runs)
+        cpu = median(runs, "cpu_seconds_per_step")
+        lines.append(f"\ndynamic at {bodies} bodies, {runs[0]['steps']} steps, tolerance {tolerance:g}: B0 error "
+                     f"{errors[0]:.3g}" + (f"–{errors[-1]:.3g}" if errors[-1] != errors[0] else "")
+                     + f" m, {_seconds(median(runs, 'seconds_per_step'))} per step"
+                     + (f" ({_seconds(cpu)} of CPU)" if cpu else "") + f", {len(runs)} rounds")  # fmt: skip
+    loads = [row["load_average"] for row in rows if "load_average" in row]
+    if loads:
+        lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
+    runs = sorted({(row["utc"], row["commit"]) for row in rows if "utc" in row})
+    if runs:
+        commits = ", ".join(sorted({commit for _, commit in runs}))
+        lines.append(f"Taken {runs[0][0]} to {runs[-1][0]} UTC at commit {commits} (2 cores shared by six sessions).")
+    return "\n".join(lines)
+
+
 def _seconds(value: float | None) -> str:
     if value is None:
         return ""
@@ -287,7 +379,7 @@ def _seconds(value: float | None) -> str:
 def latest(rows: list[dict]) -> list[dict]:
     """The last line of each measurement (analysis, bodies, accuracy run or not), in the
     order of their last appearance: `DYNAMICS_CHAIN` keeps the earlier runs as history."""
-    last = {(row["analysis"], row["bodies"], bool(row.get("accuracy_run"))): row for row in rows}
+    last = {(row["analysis"], row["bodies"], bool(row.get("accuracy_run")), row.get("tolerance")): row for row in rows}
     return sorted(last.values(), key=rows.index)
 
 
@@ -295,6 +387,7 @@ def results_section(rows: list[dict]) -> list[str]:
     """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`
     (the latest of each measurement)."""
     compared = [row for row in rows if "against" in row]
+    given = [row for row in rows if "tolerance" in row and "against" not in row]  # every round: medians
     rows = latest([row for row in rows if "against" not in row])
     before = [] if not compared else [
         "", "The dynamic run against the tree before a change (`against`, the lines with ``against``",
@@ -317,8 +410,23 @@ def results_section(rows: list[dict]) -> list[str]:
         "exact answer (every crank moves as one four-bar), largest over the steps taken.",
         "",
         *markdown(rows).splitlines(),
+        *tolerance_section(given),
         *before,
     ]
+
+
+def tolerance_section(rows: list[dict]) -> list[str]:
+    """`results_section`'s part for the lines of another tolerance (`tolerance_markdown`)."""
+    text = tolerance_markdown(rows)
+    if not text:
+        return []
+    return [
+        "", "At a looser Newton and projection tolerance (`table --tolerance T ...`, given to both",
+        "sparsekin steppers; Exudyn at its own settings): per size and tolerance, the medians of its lines. ‖Φ‖ and",
+        "‖Φq q̇ + Φt‖: the largest over the run's steps, weighted as energy.csv (lengths over the model",
+        "size, `length_scale_m` in the lines); a step may leave a velocity drift of tolerance · h.", "",
+        *text.splitlines(),
+    ]  # fmt: skip
 
 
 #: The lines `table --out` wrote for RESULTS.md.
@@ -333,38 +441,50 @@ def main(argv=None) -> None:
     one.add_argument("--bodies", type=int, default=1001, help="2N + 1")
     one.add_argument("--steps", type=int, default=20)
     one.add_argument("--step", type=float, default=STEP, help="seconds (dynamic; default %(default)s)")
+    one.add_argument("--tolerance", type=float, help="Newton and projection tolerance (default: the stepper's)")
     run_table = commands.add_parser("table", help="every size, each measurement in a fresh process")
     run_table.add_argument("--accuracy", action="store_true", help=f"and {ACCURACY_STEPS} steps at the largest size")
     run_table.add_argument("--out", type=Path, help="also write the JSON lines here")
+    run_table.add_argument("--tolerance", type=_tolerance, nargs="+", default=[None],
+                           help="tolerances of both steppers, in turn ('default': the steppers' own)")
     compare = commands.add_parser("against", help="the dynamic run of this tree and another, alternately")
     compare.add_argument("tree", type=Path, help="the other checkout (e.g. an export of main)")
     compare.add_argument("--bodies", type=int, nargs="+", default=[10001, 100001])
     compare.add_argument("--steps", type=int, default=20)
     compare.add_argument("--rounds", type=int, default=3)
     compare.add_argument("--append", type=Path, help="append the JSON lines to this file")
+    compare.add_argument("--tolerance", type=float, help="of both trees' dynamic runs (default: the stepper's)")
     by_window = commands.add_parser("windows", help="a long dynamic run's cost per window of steps, this process")
     by_window.add_argument("--bodies", type=int, default=100001, help="2N + 1")
     by_window.add_argument("--steps", type=int, default=1000)
+    by_window.add_argument("--tolerance", type=float, help="Newton and projection tolerance (default: the stepper's)")
     arguments = parser.parse_args(argv)
     if arguments.command == "windows":
-        for row in windows(arguments.bodies, arguments.steps):
+        for row in windows(arguments.bodies, arguments.steps, arguments.tolerance):
             print(json.dumps(row))
         return
     if arguments.command == "against":
         rows = [row for bodies in arguments.bodies
-                for row in against(arguments.tree.resolve(), bodies, arguments.steps, arguments.rounds)]  # fmt: skip
+                for row in against(arguments.tree.resolve(), bodies, arguments.steps, arguments.rounds,
+                                   arguments.tolerance)]  # fmt: skip
         if arguments.append:
             with arguments.append.open("a") as out:
                 out.write("".join(json.dumps(row) + "\n" for row in rows))
         print(against_markdown(rows))
         return
     if arguments.command == "one":
-        print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps, arguments.step)))
+        print(json.dumps(measure_sparsekin(arguments.analysis, arguments.bodies, arguments.steps, arguments.step,
+                                           arguments.tolerance)))  # fmt: skip
         return
-    rows = table(arguments.accuracy)
+    rows = table(arguments.accuracy, tolerances=arguments.tolerance)
     if arguments.out:
         arguments.out.write_text("".join(json.dumps(row) + "\n" for row in rows))
-    print(markdown(rows))
+    print(markdown(rows) if None in arguments.tolerance else "")
+    print(tolerance_markdown(rows))
+
+
+def _tolerance(text: str) -> float | None:
+    return None if text == "default" else float(text)
 
 
 if __name__ == "__main__":
