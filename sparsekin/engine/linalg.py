@@ -396,10 +396,9 @@ class RefactorSolver:
         self._relative = None  # their counts when their rows are offsets (`_relative_lu_kernels`)
         self._inverses = None  # (perm_r, perm_c, their inverses) for the compact solves (`_inverse_permutations`)
         self._b_indptr = self._offsets = self._column_of = None  # B's columns in A (`_b_layout`)
-        self._factored = False
+        self._factored, self._suggested = False, None
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
-        self._suggested = None
 
     # ------------------------------------------------------------------ public
     @property
@@ -792,8 +791,9 @@ class RefactorSolver:
         for perm_c where a lean solver holds `_column_of` instead (new pivots, factor order)."""
         if self._b_indptr is not None:
             return self._b_indptr, self._offsets
-        b_indptr, offsets = np.empty(self._n + 1, dtype=self._perm_c.dtype), np.empty_like(self._perm_c)
-        _lu_kernels.fill_column_layout(self._indptr, self._perm_c, b_indptr, offsets)  # (|offset| < nnz)
+        layout = np.empty(2 * self._n + 1, dtype=self._perm_c.dtype)  # (one block: mapped, given back whole)
+        b_indptr, offsets = layout[: self._n + 1], layout[self._n + 1 :]  # (|offset| < nnz)
+        _lu_kernels.fill_column_layout(self._indptr, self._perm_c, b_indptr, offsets)
         return b_indptr, offsets
 
     def _guard_accepts(self) -> bool:

@@ -127,11 +127,12 @@ class DynamicSystem:
         self.actuators = self.loads.actuators
         n, m = pattern.n_coordinates, pattern.n_equations
         self.n = n
-        self.kept_rows = np.arange(m, dtype=np.int64) if kept_rows is None else np.asarray(kept_rows, dtype=np.int64)
+        row = _index_dtype(m)  # (int32 for any chain: read by every pass over Φq; 12 MB fewer at 10^6 bodies)
+        self.kept_rows = np.arange(m, dtype=row) if kept_rows is None else np.asarray(kept_rows).astype(row)
         if _is_every_row(self.kept_rows, m):  # then each row's index among the kept is its own: one array
             self.kept_row = self.kept_rows
         else:
-            self.kept_row = np.full(m, -1, dtype=np.int64)
+            self.kept_row = np.full(m, -1, dtype=row)
             self.kept_row[self.kept_rows] = np.arange(self.kept_rows.size)
         self.size = n + self.kept_rows.size
         n_laws = self.loads.n_laws
