@@ -137,7 +137,9 @@ class DynamicSystem:
         self.size = n + self.kept_rows.size
         n_laws = self.loads.n_laws
         self.law_values, self._law_rates, self._law_accelerations = np.zeros(n_laws), np.zeros(n_laws), np.zeros(n_laws)
-        self._q, self._qd, self._qdd = np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3)
+        # the kernels' q, qd, qdd with the ground appended; qd is the assembler's own (each side
+        # writes the velocities into it before every read, the ground's entries stay 0): one array fewer
+        self._q, self._qd, self._qdd = np.zeros(n + 3), self.assembler.filled_motion()[1], np.zeros(n + 3)
         self._turns = np.zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
         self._actuator_weights = np.zeros(n_laws)
