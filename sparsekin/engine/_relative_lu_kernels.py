@@ -15,7 +15,10 @@ row pointers are not held, its counts are.  `refactor_lu` and `refactor_lu_gathe
 `_lu_kernels.refactor_lu` and `refactor_lu_gathered` on such patterns: the same operations
 in the same order, so the same factors bit for bit; the solves before compaction are
 `_compact_lu_kernels`' with the structural counts (every entry, zeros included: again the
-same operations).
+same operations).  `refactor_lu_by_rows` is `refactor_lu_gathered` finding B's column j as
+row ``column_of[j]`` of the CSR matrix (perm_c's inverse, which the compact solves hold
+anyway) instead of through B's column pointers and offsets: at 10^6 bodies 48 MB fewer held
+(docs/design-notes.md, "Memory at the end of the large run").
 """
 
 from __future__ import annotations
