@@ -47,11 +47,12 @@ def structural_factors(solver: RefactorSolver, jacobian: csr_array) -> tuple:
     l_indices, u_indices, u_indptr = structural_rows(solver)
     lower = (solver._l_indptr, l_indices, np.zeros(l_indices.size))
     upper = (u_indptr, u_indices, np.zeros(u_indices.size), np.zeros(solver._n))
-    b_rows = np.empty(jacobian.nnz, dtype=solver._b_indptr.dtype)
-    _lu_kernels.fill_column_rows(solver._indices, solver._offsets, solver._b_indptr, solver._perm_r, b_rows)
+    b_indptr, offsets = solver._b_layout()  # (made again where a lean solver holds `_column_of` instead)
+    b_rows = np.empty(jacobian.nnz, dtype=b_indptr.dtype)
+    _lu_kernels.fill_column_rows(solver._indices, offsets, b_indptr, solver._perm_r, b_rows)
     stats = np.zeros(_lu_kernels.N_STATS)
-    _lu_kernels.refactor_lu(jacobian.data, False, (solver._b_indptr, b_rows, solver._offsets), lower, upper,
-                            np.zeros(solver._n), stats)  # fmt: skip
+    _lu_kernels.refactor_lu(jacobian.data, False, (b_indptr, b_rows, offsets), lower, upper, np.zeros(solver._n),
+                            stats)  # fmt: skip
     assert stats[_lu_kernels.STAT_BAD_COLUMN] == -1.0
     return (solver._perm_r, solver._perm_c, lower, upper)
 
@@ -206,9 +207,10 @@ def solves_of(solver: RefactorSolver, matrices: list[csr_array], rng_seed: int) 
 
 @pytest.mark.parametrize("lean", [False, True])
 def test_relative_patterns_give_the_factors_of_absolute_ones(lean, rng, monkeypatch):
-    """L's and U's rows held as a byte each (`_relative_lu_kernels`, the chain's local order):
-    the factors and every solve bit for bit those of int32 rows, before and after the
-    compaction, and after new pivots (values that trip the guard)."""
+    """L's and U's rows held as a byte each (`_relative_lu_kernels`, the chain's local order;
+    lean: B's columns found through `column_of`, `refactor_lu_by_rows`): the factors and every
+    solve bit for bit those of int32 rows, before and after the compaction, and after new
+    pivots (values that trip the guard)."""
     matrices = chain_saddle_matrices(6, 3)
     scaled = matrices[-1].copy()
     scaled.data *= (10.0 ** rng.uniform(-6.0, 6.0, scaled.shape[0]))[scaled.indices]
@@ -216,6 +218,9 @@ def test_relative_patterns_give_the_factors_of_absolute_ones(lean, rng, monkeypa
     relative = RefactorSolver(lean=lean)
     relative.factor(matrices[0])
     assert relative._relative is not None and relative._l_indices.dtype == np.int8
+    if lean:  # B's columns through `column_of` (perm_c's inverse), not B's pointers and offsets
+        assert relative._b_indptr is None and relative._offsets is None
+        np.testing.assert_array_equal(relative._perm_c[relative._column_of], np.arange(relative._n))
     expected_rows = structural_rows(relative)
     got = solves_of(relative, matrices, 7)
     assert relative.n_fallbacks == 1

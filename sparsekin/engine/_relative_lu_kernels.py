@@ -15,7 +15,10 @@ row pointers are not held, its counts are.  `refactor_lu` and `refactor_lu_gathe
 `_lu_kernels.refactor_lu` and `refactor_lu_gathered` on such patterns: the same operations
 in the same order, so the same factors bit for bit; the solves before compaction are
 `_compact_lu_kernels`' with the structural counts (every entry, zeros included: again the
-same operations).
+same operations).  `refactor_lu_by_rows` is `refactor_lu_gathered` finding B's column j as
+row ``column_of[j]`` of the CSR matrix (perm_c's inverse, which the compact solves hold
+anyway) instead of through B's column pointers and offsets: at 10^6 bodies 48 MB fewer held
+(docs/design-notes.md, "Memory at the end of the large run").
 """
 
 from __future__ import annotations
@@ -52,21 +55,46 @@ def refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats):
     """`_lu_kernels.refactor_lu` with L's and U's rows as offsets from their columns:
     `lower` is ``(indptr, offsets, values)``, `upper` ``(counts, offsets, values, inverse
     of the diagonal)``."""
-    _left_looking_lu(values, in_factor_order, b_pattern, None, lower, upper, work, stats)
+    _left_looking_lu(values, in_factor_order, b_pattern, None, None, lower, upper, work, stats)
 
 
 @njit(**_JIT)
 def refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats):
     """`_lu_kernels.refactor_lu_gathered` with L's and U's rows as offsets (`refactor_lu`)."""
-    _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, work, stats)
+    _left_looking_lu(values, in_factor_order, b_pattern, rows, None, lower, upper, work, stats)
 
 
 @njit(**_JIT)
-def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, work, stats):
-    """`_lu_kernels._left_looking_lu` (see there), L's and U's rows read as ``column + offset``."""
+def refactor_lu_by_rows(values, csr, perm_r, column_of, lower, upper, work, stats):
+    """`refactor_lu_gathered` with B's columns located through `column_of` instead of B's
+    column pointers and offsets (two arrays of n fewer held): column j of B is row
+    ``column_of[j]`` of the CSR matrix ``csr = (indptr, indices)`` whose transpose is
+    factored, values ``values[indptr[c]:indptr[c + 1]]`` (CSR order) in rows
+    ``perm_r[indices[p]]``: the same entries added in the same order, the same factors."""
+    b_pattern = (csr[0], csr[1], column_of)  # (typed as `scatter_column`'s, which this specialization never calls)
+    _left_looking_lu(values, False, b_pattern, (csr[1], perm_r), column_of, lower, upper, work, stats)
+
+
+@njit(inline="always", **_JIT)
+def _scatter_row(values, indptr, rows, c, work, max_b):
+    """Row c of the CSR matrix (B's column ``perm_c[c]``) added into `work` at rows
+    ``perm_r[indices[p]]``; returns the largest |entry| so far (`scatter_column`'s gathered
+    form, the same run of values)."""
+    indices, perm_r = rows
+    for p in range(_wide(indptr[c]), _wide(indptr[c + 1])):
+        value = values[p]
+        work[_index(perm_r[_index(indices[p])])] += value
+        max_b = max(max_b, abs(value))
+    return max_b
+
+
+@njit(**_JIT)
+def _left_looking_lu(values, in_factor_order, b_pattern, rows, column_of, lower, upper, work, stats):
+    """`_lu_kernels._left_looking_lu` (see there), L's and U's rows read as ``column + offset``;
+    with `column_of` (`refactor_lu_by_rows`) ``b_pattern[0]`` is the CSR matrix's row pointers."""
     l_indptr, l_offsets, l_values = lower
     u_counts, u_offsets, u_values, u_inverse = upper
-    n = b_pattern[0].size - 1
+    n = u_counts.size
     max_l = 1.0
     max_u = 0.0
     max_b = 0.0
@@ -74,7 +102,10 @@ def _left_looking_lu(values, in_factor_order, b_pattern, rows, lower, upper, wor
     stats[STAT_BAD_COLUMN] = -1.0
     u_end = 0  # U's column j ends here
     for j in range(n):
-        max_b = scatter_column(values, in_factor_order, b_pattern, rows, j, work, max_b)
+        if column_of is None:
+            max_b = scatter_column(values, in_factor_order, b_pattern, rows, j, work, max_b)
+        else:
+            max_b = _scatter_row(values, b_pattern[0], rows, _wide(column_of[j]), work, max_b)
         u_start = u_end
         u_end += _wide(u_counts[j])
         for p in range(u_start, u_end):  # in topological order

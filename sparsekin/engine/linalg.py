@@ -118,16 +118,10 @@ def _checked_rhs(rhs, n: int, out) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"`rhs` must have shape ({n},) or ({n}, n_rhs), got {rhs.shape}.")
     if out is None:
         return rhs, np.empty(rhs.shape)
-    if not (
-        isinstance(out, np.ndarray)
-        and out.shape == rhs.shape
-        and out.dtype == np.float64
-        and out.flags.c_contiguous
-    ):
-        raise ValueError(
-            f"`out` must be a C-contiguous float64 array of shape {rhs.shape}, got "
-            f"{getattr(out, 'shape', type(out).__name__)}."
-        )
+    if not (isinstance(out, np.ndarray) and out.shape == rhs.shape and out.dtype == np.float64
+            and out.flags.c_contiguous):  # fmt: skip
+        raise ValueError(f"`out` must be a C-contiguous float64 array of shape {rhs.shape}, got "
+                         f"{getattr(out, 'shape', type(out).__name__)}.")  # fmt: skip
     return rhs, out
 
 
@@ -323,8 +317,10 @@ class RefactorSolver:
         Hold no permuted copy of the pattern (B's row indices, 4 bytes per entry): each
         refactorization reads them through ``perm_r`` from the matrix's own indices
         (`_lu_kernels.refactor_lu_gathered`: the same factors, ~18 % slower on the 10^5-body
-        chain's saddle).  For a solver that refactors rarely and holds a large pattern
-        (forward dynamics' held iteration matrix).
+        chain's saddle), and on relative patterns finds B's columns through perm_c's
+        inverse instead of B's column pointers and offsets (n indices, not 2 n + 1:
+        `_relative_lu_kernels.refactor_lu_by_rows`).  For a solver that refactors rarely and
+        holds a large pattern (forward dynamics' held iteration matrix).
 
     Attributes
     ----------
@@ -399,10 +395,10 @@ class RefactorSolver:
         self._l_indices = self._u_indices = None  # L's and U's patterns, made by `_analyse`
         self._relative = None  # their counts when their rows are offsets (`_relative_lu_kernels`)
         self._inverses = None  # (perm_r, perm_c, their inverses) for the compact solves (`_inverse_permutations`)
-        self._factored = False
+        self._b_indptr = self._offsets = self._column_of = None  # B's columns in A (`_b_layout`)
+        self._factored, self._suggested = False, None
         self._stats = np.zeros(_lu_kernels.N_STATS)
         self._probe = np.zeros(1)
-        self._suggested = None
 
     # ------------------------------------------------------------------ public
     @property
@@ -412,8 +408,8 @@ class RefactorSolver:
         never asks, forward dynamics, does not hold)."""
         self._require_analysis()
         if self._value_positions is None:
-            nnz = self._nnz
-            gather = np.repeat(self._offsets, np.diff(self._b_indptr)) + np.arange(nnz, dtype=np.int64)
+            nnz, (b_indptr, offsets) = self._nnz, self._b_layout()
+            gather = np.repeat(offsets, np.diff(b_indptr)) + np.arange(nnz, dtype=np.int64)
             self._value_positions = np.empty(nnz, dtype=np.int64)
             self._value_positions[gather] = np.arange(nnz, dtype=np.int64)
         return self._value_positions
@@ -475,16 +471,10 @@ class RefactorSolver:
             change `value_positions` (see `layout_version`).
         """
         self._require_analysis()
-        if not (
-            isinstance(values, np.ndarray)
-            and values.shape == (self._nnz,)
-            and values.dtype == np.float64
-            and values.flags.c_contiguous
-        ):
-            raise ValueError(
-                f"`values` must be a contiguous float64 array of shape ({self._nnz},), got "
-                f"{getattr(values, 'shape', type(values).__name__)}."
-            )
+        if not (isinstance(values, np.ndarray) and values.shape == (self._nnz,) and values.dtype == np.float64
+                and values.flags.c_contiguous):  # fmt: skip
+            raise ValueError(f"`values` must be a contiguous float64 array of shape ({self._nnz},), got "
+                             f"{getattr(values, 'shape', type(values).__name__)}.")  # fmt: skip
         self._factored = False
         self.n_refactorizations += 1
         if not (self._numeric(values, True) and self._guard_accepts()):
@@ -613,8 +603,9 @@ class RefactorSolver:
         held_perm_r, l_capacity, u_capacity = self._perm_r, self._l_indices.size, self._u_indices.size
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None  # freed first
         self._l_values = self._u_values = self._compact = self._inverses = None
+        self._b_indptr, self._offsets = layout = self._b_layout()  # (held until `_analyse` drops them again)
         perm_r, bad_column, l_entries, u_entries = _pivoting_kernels.partial_pivoting_rows(
-            values, in_factor_order, (self._b_indptr, self._offsets), self._indices, (held_perm_r, self._perm_c),
+            values, in_factor_order, layout, self._indices, (held_perm_r, self._perm_c),
             NEW_PIVOT_THRESHOLD, l_capacity + l_capacity // 4, self._zeroed_work()
         )  # (the kernel leaves the work array zero; L a quarter larger than the held factors' mapped,
         # not copied: at the chain's crossing 6 % more, and doubling held 3 of its L at once)
@@ -673,19 +664,14 @@ class RefactorSolver:
     def _analyse(self, perm_r: np.ndarray, perm_c: np.ndarray, l_capacity: int, u_capacity: int) -> None:
         """Pattern of ``B = Pr A Pc`` by columns, the maps to A's values, L and U patterns
         (their first allocations: `l_capacity` and `u_capacity` entries)."""
-        n, nnz, indptr, indices = self._n, self._nnz, self._indptr, self._indices
+        n, nnz, indices = self._n, self._nnz, self._indices
         index = _index_dtype(max(n, nnz))
         if self._perm_c is None or not np.array_equal(perm_c, self._perm_c):
-            # Column j of B is column c = column_of[j] of A, i.e. row c of the CSR Jacobian,
-            # its entries in the CSR order: a contiguous run of jacobian.data, which starts
-            # `offsets[j]` after B's column j (n offsets instead of a gather index per entry).
-            # (one kernel: the permutation's inverse, a cumulative sum and a difference in numpy
-            # made seven temporaries of n, each a fresh mapping at 10^6 bodies)
-            self._b_indptr, self._offsets = np.empty(n + 1, dtype=index), np.empty(n, dtype=index)  # |offset| < nnz
-            _lu_kernels.fill_column_layout(indptr, perm_c, self._b_indptr, self._offsets)
+            self._b_indptr = self._offsets = self._column_of = None  # (`_b_layout` makes them for perm_c)
             self._value_positions = None  # made when asked for (`value_positions`)
             self._perm_c = perm_c.astype(index)
             self.layout_version += 1
+        self._b_indptr, self._offsets = self._b_layout()
         self._perm_r = perm_r.astype(index, copy=False)  # (new pivots: the kernel's own array)
         # the last pattern's, freed before the new one is made
         self._l_indptr = self._u_indptr = self._l_indices = self._u_indices = self._relative = None
@@ -697,9 +683,8 @@ class RefactorSolver:
         b_rows = np.empty(nnz, dtype=index)
         _lu_kernels.fill_column_rows(indices, self._offsets, self._b_indptr, self._perm_r, b_rows)
         # (untrimmed: trimming copied L's and U's rows, which the relative patterns then replace)
-        l_indptr, l_indices, u_indptr, u_indices = _lu_kernels.analyse_lu_pattern(
-            self._b_indptr, b_rows, l_capacity, u_capacity, False
-        )
+        l_indptr, l_indices, u_indptr, u_indices = _lu_kernels.analyse_lu_pattern(self._b_indptr, b_rows, l_capacity,
+                                                                                   u_capacity, False)  # fmt: skip
         self._b_rows = np.empty(0, dtype=index) if self.lean else b_rows  # lean: freed before the values
         del b_rows
         # rows a byte each where they fit (a local order: the chain's), not 4 (`_relative_lu_kernels`)
@@ -708,6 +693,11 @@ class RefactorSolver:
         if relative is not None:
             (l_counts, self._l_indices), (u_counts, self._u_indices) = relative
             self._relative, u_indptr = (l_counts, u_counts), None  # (U's columns are read in order)
+            if self.lean:  # B's columns found through `column_of` (n entries, not 2 n + 1: `refactor_lu_by_rows`)
+                if self._column_of is None:
+                    self._column_of = np.empty_like(self._perm_c)
+                    _compact_lu_kernels.inverse_permutation(self._perm_c, self._column_of)
+                self._b_indptr = self._offsets = None
         else:  # trimmed (no copy where the capacity was exact)
             self._l_indices, self._u_indices = (rows if rows.size == indptr[-1] else rows[: indptr[-1]].copy()
                                                 for indptr, rows in ((l_indptr, l_indices), (u_indptr, u_indices)))
@@ -740,16 +730,21 @@ class RefactorSolver:
         """Numeric factorization on the fixed patterns; False on a zero or non-finite pivot."""
         stats = self._stats
         work = self._zeroed_work()
-        b_pattern = (self._b_indptr, self._b_rows, self._offsets)
         lower = (self._l_indptr, self._l_indices, self._l_values)
         kernels, u_columns = (_lu_kernels, self._u_indptr) if self._relative is None else (_relative_lu_kernels,
                                                                                             self._relative[1])  # fmt: skip
         upper = (u_columns, self._u_indices, self._u_values, self._u_inverse)
-        if self.lean:
-            rows = (self._indices, self._perm_r)
-            kernels.refactor_lu_gathered(values, in_factor_order, b_pattern, rows, lower, upper, work, stats)
+        rows = (self._indices, self._perm_r)
+        if self._b_indptr is None and not in_factor_order:  # (lean on relative patterns)
+            kernels.refactor_lu_by_rows(values, (self._indptr, self._indices), self._perm_r, self._column_of, lower,
+                                        upper, work, stats)  # fmt: skip
+        elif self.lean:
+            b_indptr, offsets = self._b_layout()
+            kernels.refactor_lu_gathered(values, in_factor_order, (b_indptr, self._b_rows, offsets), rows, lower,
+                                         upper, work, stats)  # fmt: skip
         else:
-            kernels.refactor_lu(values, in_factor_order, b_pattern, lower, upper, work, stats)
+            kernels.refactor_lu(values, in_factor_order, (self._b_indptr, self._b_rows, self._offsets), lower, upper,
+                                work, stats)  # fmt: skip
         ratio, largest_u, largest_b, bad_column, non_finite = stats.tolist()
         self.growth = largest_u / largest_b if largest_b > 0.0 else math.inf
         if bad_column >= 0 or non_finite != 0.0:
@@ -783,11 +778,23 @@ class RefactorSolver:
         made again when the permutations are new arrays (each `_analyse` makes them)."""
         held = self._inverses
         if held is None or held[0] is not self._perm_r or held[1] is not self._perm_c:
-            inverses = (np.empty_like(self._perm_r), np.empty_like(self._perm_c))
+            inverses = (np.empty_like(self._perm_r), self._column_of)  # (a lean solver's: perm_c's inverse)
             _compact_lu_kernels.inverse_permutation(self._perm_r, inverses[0])
-            _compact_lu_kernels.inverse_permutation(self._perm_c, inverses[1])
+            if inverses[1] is None:
+                inverses = (inverses[0], np.empty_like(self._perm_c))
+                _compact_lu_kernels.inverse_permutation(self._perm_c, inverses[1])
             self._inverses = held = (self._perm_r, self._perm_c, inverses)
         return held[2]
+
+    def _b_layout(self) -> tuple:
+        """B's column pointers and offsets (`_lu_kernels.fill_column_layout`): held, or made
+        for perm_c where a lean solver holds `_column_of` instead (new pivots, factor order)."""
+        if self._b_indptr is not None:
+            return self._b_indptr, self._offsets
+        layout = np.empty(2 * self._n + 1, dtype=self._perm_c.dtype)  # (one block: mapped, given back whole)
+        b_indptr, offsets = layout[: self._n + 1], layout[self._n + 1 :]  # (|offset| < nnz)
+        _lu_kernels.fill_column_layout(self._indptr, self._perm_c, b_indptr, offsets)
+        return b_indptr, offsets
 
     def _guard_accepts(self) -> bool:
         return self.pivot_ratio >= self.min_pivot_ratio and self.growth <= self.max_growth

@@ -93,6 +93,16 @@ def _index_dtype(largest: int) -> type:
     return np.int32 if largest < np.iinfo(np.int32).max - 1 else np.int64
 
 
+def _untouched_zeros(shape) -> np.ndarray:
+    """float64 zeros in an anonymous mapping of their own, resident only where written
+    (``np.zeros`` of a chunk glibc reuses clears it, which makes every page resident at once:
+    at 10^6 bodies 40 MB for the kernels' q and turns, which the chain's steps never write)."""
+    import mmap
+
+    size = int(np.prod(shape))
+    return np.frombuffer(mmap.mmap(-1, max(8 * size, 1)), dtype=np.float64, count=size).reshape(shape)
+
+
 class DynamicSystem:
     """Residual of the equations of motion and the saddle matrix of a mechanism, in place.
 
@@ -128,17 +138,22 @@ class DynamicSystem:
         self.actuators = self.loads.actuators
         n, m = pattern.n_coordinates, pattern.n_equations
         self.n = n
-        self.kept_rows = np.arange(m, dtype=np.int64) if kept_rows is None else np.asarray(kept_rows, dtype=np.int64)
+        row = _index_dtype(m)  # (int32 for any chain: read by every pass over Φq; 12 MB fewer at 10^6 bodies)
+        self.kept_rows = np.arange(m, dtype=row) if kept_rows is None else np.asarray(kept_rows).astype(row)
         if _is_every_row(self.kept_rows, m):  # then each row's index among the kept is its own: one array
             self.kept_row = self.kept_rows
         else:
-            self.kept_row = np.full(m, -1, dtype=np.int64)
+            self.kept_row = np.full(m, -1, dtype=row)
             self.kept_row[self.kept_rows] = np.arange(self.kept_rows.size)
         self.size = n + self.kept_rows.size
         n_laws = self.loads.n_laws
         self.law_values, self._law_rates, self._law_accelerations = np.zeros(n_laws), np.zeros(n_laws), np.zeros(n_laws)
-        self._q, self._qd, self._qdd = np.zeros(n + 3), np.zeros(n + 3), np.zeros(n + 3)
-        self._turns = np.zeros((pattern.n_bodies + 1, 2))
+        # the kernels' q, qd, qdd with the ground appended; qd is the assembler's own (each side
+        # writes the velocities into it before every read, the ground's entries stay 0): one array fewer
+        # q and the turns are written only where a call is not at the constraints' last refill
+        # (`_shared`): in the chain's steps never, so they are kept out of the resident memory
+        self._q, self._qd, self._qdd = _untouched_zeros(n + 3), self.assembler.filled_motion()[1], np.zeros(n + 3)
+        self._turns = _untouched_zeros((pattern.n_bodies + 1, 2))
         self._applied = np.zeros(n + 3)
         self._actuator_weights = np.zeros(n_laws)
         self._actuator_arrays = actuator_kernel_arrays(self.actuators, n_laws, pattern.n_bodies)
@@ -274,16 +289,11 @@ class DynamicSystem:
         return out
 
     # ------------------------------------------------------------------ motion
-    def _load(self, coordinates, velocities, accelerations) -> None:
-        """The kernels' q, qd, qdd and turns (from the constraints' last refill when it was
-        at these coordinates), in one pass."""
-        filled, _, turns = self.assembler.filled_motion()
-        kernels.load_motion(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
-                            self._turns)  # fmt: skip
-
     def _shared(self, coordinates, velocities, accelerations) -> tuple[np.ndarray, np.ndarray]:
-        """`_load`, returning the kernels' q and turns: the constraints' own arrays when their
-        last refill was at these coordinates (no copy; `kernels.load_shared`), else ours."""
+        """The kernels' qd, qdd loaded, and their q and turns: the constraints' own arrays when
+        their last refill was at these coordinates (no copy; `kernels.load_shared`), else ours,
+        loaded (`kernels.load_motion`'s numbers either way; ours are then never written in a
+        run whose every call is at the refilled coordinates: not resident)."""
         filled, _, turns = self.assembler.filled_motion()
         if kernels.load_shared(coordinates, velocities, accelerations, self._q, self._qd, self._qdd, filled, turns,
                                self._turns):  # fmt: skip
@@ -292,9 +302,9 @@ class DynamicSystem:
 
     def applied_forces(self, coordinates, velocities, accelerations, out: np.ndarray) -> np.ndarray:
         """``out = Q − M qdd − h``: gravity, loads and actuators minus the inertial forces."""
-        self._load(coordinates, velocities, accelerations)
-        _motion_kernels.fill_motion_forces(self.loads.arrays, self._actuator_arrays, self._q, self._qd, self._qdd,
-                                           self._turns, self.law_values, self._applied, out)  # fmt: skip
+        q, turns = self._shared(coordinates, velocities, accelerations)
+        _motion_kernels.fill_motion_forces(self.loads.arrays, self._actuator_arrays, q, self._qd, self._qdd, turns,
+                                           self.law_values, self._applied, out)  # fmt: skip
         return out
 
     def residual(self, coordinates, velocities, accelerations, multipliers, out: np.ndarray) -> np.ndarray:
@@ -367,12 +377,12 @@ class DynamicSystem:
 
     def _fill_block_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """The triplets of ``a M + b C_t + c K_t`` (from the first on); returns their count."""
-        self._load(coordinates, velocities, accelerations)
+        q, turns = self._shared(coordinates, velocities, accelerations)
         self._block_compact = False  # (`residuals` fills its own again)
         return self._motion.fill_block_triplets(self.loads.arrays, self.pattern.primitives, self._actuator_arrays,
-                                                   self._q, self._qd, self._qdd, self._turns, self.law_values,
-                                                   multipliers, self._actuator_weights, (a, b, c), self._scratch,
-                                                   self._rows, self._cols, self._vals)  # fmt: skip
+                                                q, self._qd, self._qdd, turns, self.law_values, multipliers,
+                                                self._actuator_weights, (a, b, c), self._scratch, self._rows,
+                                                self._cols, self._vals)  # fmt: skip
 
     def _fill_triplets(self, coordinates, velocities, accelerations, multipliers, a, b, c) -> int:
         """Every triplet of S (the pattern's run): the block's, Φq's and Φqᵀ's, the (2, 2)
