@@ -66,7 +66,8 @@ class TypedCall:
     def __init__(self, kernel) -> None:
         self.kernel = kernel
         self._entry, self._held, self._keys = None, (), ()
-        # a plain function (``NUMBA_DISABLE_JIT=1``) or a dispatcher without what `_bind` reads: always called as it is
+        # a plain function (``NUMBA_DISABLE_JIT=1``) or a dispatcher without what `_bind` reads:
+        # always called as it is
         self._misses = 0 if hasattr(kernel, "overloads") and hasattr(kernel, "typeof_pyval") else MAX_MISSES
 
     def __call__(self, *args):
@@ -98,7 +99,7 @@ class TypedCall:
             signature = tuple(kernel.typeof_pyval(value) for value in args)
             compiled = kernel.overloads.get(signature)
             entry = None if compiled is None else compiled.entry_point
-        except (AttributeError, TypeError, ValueError):  # (numba's internals changed: the dispatcher from now on)
+        except (AttributeError, TypeError, ValueError):  # numba's internals changed: the dispatcher from now on
             compiled, entry, self._misses = None, None, MAX_MISSES
         if entry is None:  # (a conversion numba made on the way: always through the dispatcher)
             self._entry = None
