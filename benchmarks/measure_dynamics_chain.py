@@ -301,14 +301,7 @@ def markdown(rows: list[dict]) -> str:
             lines.append(f"\n{row['analysis']} at {row['bodies']} bodies, {row['steps']} steps: B0 error "
                          f"{row['b0_error_m']:.3g} m, {_seconds(row['seconds_per_step'])} per step"
                          + (f" ({_seconds(cpu)} of CPU)" if cpu else ""))  # fmt: skip
-    loads = [row["load_average"] for row in rows if "load_average" in row]
-    if loads:
-        lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
-    runs = sorted({(row["utc"], row["commit"]) for row in rows if "utc" in row})
-    if runs:
-        commits = ", ".join(sorted({commit for _, commit in runs}))
-        lines.append(f"Taken {runs[0][0]} to {runs[-1][0]} UTC at commit {commits} (2 cores shared by six sessions).")
-    return "\n".join(lines)
+    return "\n".join(lines + _provenance(rows))
 
 
 def tolerance_markdown(rows: list[dict]) -> str:
@@ -360,6 +353,12 @@ def tolerance_markdown(rows: list[dict]) -> str:
                      f"{errors[0]:.3g}" + (f"–{errors[-1]:.3g}" if errors[-1] != errors[0] else "")
                      + f" m, {_seconds(median(runs, 'seconds_per_step'))} per step"
                      + (f" ({_seconds(cpu)} of CPU)" if cpu else "") + f", {len(runs)} rounds")  # fmt: skip
+    return "\n".join(lines + _provenance(rows))
+
+
+def _provenance(rows: list[dict]) -> list[str]:
+    """The lines' load range, times and commits, for the end of a table."""
+    lines = []
     loads = [row["load_average"] for row in rows if "load_average" in row]
     if loads:
         lines.append(f"\nLoad average (1 min) during the runs: {min(loads):.1f} to {max(loads):.1f}.")
@@ -367,7 +366,7 @@ def tolerance_markdown(rows: list[dict]) -> str:
     if runs:
         commits = ", ".join(sorted({commit for _, commit in runs}))
         lines.append(f"Taken {runs[0][0]} to {runs[-1][0]} UTC at commit {commits} (2 cores shared by six sessions).")
-    return "\n".join(lines)
+    return lines
 
 
 def _seconds(value: float | None) -> str:
