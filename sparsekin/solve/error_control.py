@@ -263,8 +263,8 @@ def step_velocity_bound(tolerance: float, h: float) -> float:
 #: generalized-α leaves undamped (ρ∞ near 1) and that 1/σ amplifies at a flat crossing
 #: (docs/dynamics-theory.md, "Singular configurations"), so when it acts is stability's
 #: choice, not accuracy's.  Opened at a looser tolerance it fell silent, λ's second difference
-#: reached 3x λ 12 ms before the crossing, and the 10^4-body chain at 1e-6 in 0.5 ms steps
-#: stopped there.  A drift within the tolerance's bound takes one pass (from zero, no
+#: was 3x λ 14 ms before the crossing (the default's 0.03x), and the 10^4-body chain at 1e-6
+#: in 0.5 ms steps stopped there.  A drift within the tolerance's bound takes one pass (from zero, no
 #: refinement): enough to damp the oscillation, 0.76 of the default's CPU at 10^4 and 1e-6.
 ACCELERATION_TOLERANCE = 1e-10
 
