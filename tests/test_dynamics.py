@@ -418,8 +418,8 @@ def test_n_four_bar_chain_at_loose_tolerances_passes_its_flat_crossing():
     (`ACCELERATION_TOLERANCE`), however loose the tolerance: opened at the tolerance's it fell
     silent, λ's undamped (−1)ⁿ oscillation grew through 1/σ and Newton failed at the crossing
     (here 18, 14 and 3 halvings at 1 ms, 22, 12 and 11 at 0.5 ms; the 10^4-body chain at 1e-6
-    in 0.5 ms steps stopped).  Now none at 1e-4, and at most 2 where Newton itself stops at
-    1e-3 and 1e-2 of the model size.  At 1e-4, B0 against the exact motion within 1.4x the
+    in 0.5 ms steps stopped, and so does the 1001-body chain at 1e-2).  Now none at 1e-4, and
+    at most 2 where Newton itself stops at 1e-3 and 1e-2 of the model size.  At 1e-4, B0 against the exact motion within 1.4x the
     default tolerance's (1.33e-5 and 3.32e-6 m; 1.78e-5 and 4.42e-6) and falling as h²."""
     loops = 100
     times = np.arange(1, 101) * 0.01
@@ -443,6 +443,18 @@ def test_n_four_bar_chain_at_loose_tolerances_passes_its_flat_crossing():
                 assert errors[-1] <= 1.4 * default_error
         if tolerance == 1e-4:
             assert 3.8 <= errors[0] / errors[1] <= 4.2
+    # 1001 bodies at 1e-2 in 1 ms steps: main stopped at 0.7214 s after 24 halvings
+    loops = 500
+    position, _ = n_four_bar_b0(times, n_loops=loops)
+    stepper = GeneralizedAlphaStepper(n_four_bar(loops), 1e-3, tolerance=1e-2)
+    stepper.start(0.0)
+    b0 = np.empty((times.size, 2))
+    for k, t in enumerate(times):
+        stepper.advance(t)
+        q = stepper.state.coordinates
+        b0[k] = q[0] + np.cos(q[2]), q[1] + np.sin(q[2])
+    assert stepper.n_subdivisions <= 2
+    assert np.abs(b0 - position).max() <= 1e-4  # m (5.7e-5; the default tolerance 1.33e-5)
 
 
 def _loose_run(times, h: float, tolerance: float, dense_max: int | None):
