@@ -68,7 +68,7 @@ from ._compiled_dynamics import block_stepper
 from ._dynamics_start import assembled, initial_momenta, initial_velocities, redundant_equations, undetermined
 from ._state_arrays import StateArrays
 from .error_control import StepFailed as _StepFailed
-from .error_control import StepSizeController, advance_controlled, step_velocity_bound
+from .error_control import StepSizeController, advance_controlled, step_acceleration_bound, step_velocity_bound
 from .kinematics import recorded_result
 from .observers import RecordedVariables
 from .options import DynamicsOptions, Request, SolveOptions, check_progress, check_times, checked_rho_inf
@@ -619,7 +619,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         (`_apply_acceleration_change` applies it to q̈, ã and λ, so that M q̈ + Φqᵀλ keeps
         its value)."""
         drift, bound, noise = self._acceleration_target(q, v, a, coefficients, self._projection_work[2])
-        return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise)
+        return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise, self._acceleration_opening)
 
     def _acceleration_target(self, q, v, a, coefficients, out, made: bool = False) -> tuple:
         """The acceleration projection's drift Φq q̈ − γ(q, v) (every equation, into `out`),
@@ -629,14 +629,15 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         multipliers amplify by 1/σ where Φq loses rank for an instant (σ its smallest
         singular value): Newton then failed at the N-four-bar's flat crossings.  ALI3-P
         projects the accelerations for the same reason.  The drift left is at most
-        ``tolerance · max(1, ‖q̈‖)``: an acceleration error e is a velocity error γ h e in
-        the next step, tolerance · h per second like the others.  (With `out` None: γ made,
-        unless `made` (there already), None in the drift's place.)"""
+        ``tolerance · max(1, ‖q̈‖)``; it opens above `_acceleration_opening`, from at most
+        `ACCELERATION_TOLERANCE` (stability's, `step_acceleration_bound`; one pass within the
+        bound).  (With `out` None: γ made, unless `made`, None in the drift's place.)"""
         assembler = self.assembler
         if not made:
             assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
+        self._acceleration_opening = max(step_acceleration_bound(self.tolerance) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
         drift = None if out is None else self.system.jacobian_product(a, assembler.acceleration_rhs, out)
         return drift, bound, noise

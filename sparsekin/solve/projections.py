@@ -44,7 +44,8 @@ SAME_STEP = 1e-9
 class ConstraintProjections:
     """The projections' solves, a base of `sparsekin.solve.dynamics.GeneralizedAlphaStepper`."""
 
-    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0):
+    def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0,
+                 opening: float | None = None):
         """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
         velocities or accelerations minus their target, every equation) and its
         multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
@@ -68,7 +69,7 @@ class ConstraintProjections:
         weights = system.kept(self.assembler.weights)
         drift = system.kept(drift)
         before = _dynamics_kernels.weighted_norm(drift, weights)
-        if before <= bound:
+        if before <= (bound if opening is None else min(bound, opening)):  # (`_Column`'s `opening`)
             return None
         # in two arrays made at `start` (10^6 bodies: no temporaries), the increments solved in
         # place of the residual [0; drift] − S · solution
@@ -170,7 +171,8 @@ class ConstraintProjections:
         warm_moves = warm and last[1] and not cold("velocity", last[3], velocity[2])
         warm_follows = warm and last[2] and not cold("acceleration", last[4], acceleration[2])
         moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm_moves)
-        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm_follows)
+        follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm_follows,
+                          self._acceleration_opening)  # fmt: skip
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain, paired = False, False, None, hasattr(self.solver, "solve_pair")
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
@@ -401,7 +403,7 @@ class _Column:
     (``solution``, and ``residual``, in which its increments are solved) and its state."""
 
     def __init__(self, what: str, drift, bound: float, noise: float, solution, residual, weights, system,
-                 warm: bool = False) -> None:  # fmt: skip
+                 warm: bool = False, opening: float | None = None) -> None:  # fmt: skip
         self.what, self.bound, self.noise, self.weights = what, bound, noise, weights
         self.drift = system.kept(drift)
         self.before = _dynamics_kernels.weighted_norm(self.drift, weights)
@@ -411,6 +413,8 @@ class _Column:
         self.warm_started, self.opening, self.solves = False, 0.0, 0  # (opening: its first increment from 0)
         if self.before > bound:
             self.warm() if warm else self.start(measured=True)
+        elif opening is not None and self.before > opening:  # within its bound, not its opening: one pass
+            self.start(measured=True)
 
     def start(self, measured: bool = False) -> None:
         """From no change: the residual [0; drift] (`measured`: `before` is its drift's norm
