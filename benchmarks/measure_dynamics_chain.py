@@ -384,9 +384,11 @@ def latest(rows: list[dict]) -> list[dict]:
 
 def results_section(rows: list[dict]) -> list[str]:
     """benchmarks/RESULTS.md's section (`make_results.py`) from the lines of `DYNAMICS_CHAIN`
-    (the latest of each measurement)."""
+    (the latest of each measurement; of the lines of a tolerance given, the latest commit's)."""
     compared = [row for row in rows if "against" in row]
-    given = [row for row in rows if "tolerance" in row and "against" not in row]  # every round: medians
+    given = [row for row in rows if "tolerance" in row and "against" not in row]
+    # every round of the latest commit's tolerance lines (medians); an earlier commit's stay as history
+    given = [row for row in given if row.get("commit") == given[-1].get("commit")] if given else []
     rows = latest([row for row in rows if "against" not in row])
     before = [] if not compared else [
         "", "The dynamic run against the tree before a change (`against`, the lines with ``against``",
