@@ -248,8 +248,8 @@ def test_solve_with_inverse_permutations_is_the_scattered_solve(rng, compact_at_
     assert kernels is _compact_lu_kernels
     perm_r, perm_c = factors[:2]
     inverses = (np.empty_like(perm_r), np.empty_like(perm_c))
-    _compact_lu_kernels.inverse_permutation(perm_r, inverses[0])
-    _compact_lu_kernels.inverse_permutation(perm_c, inverses[1])
+    _lu_kernels.inverse_permutation(perm_r, inverses[0])
+    _lu_kernels.inverse_permutation(perm_c, inverses[1])
     np.testing.assert_array_equal(perm_r[inverses[0]], np.arange(perm_r.size))
     np.testing.assert_array_equal(inverses, solver._inverse_permutations())
     inverted = inverses + factors[2:]

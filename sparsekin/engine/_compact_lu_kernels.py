@@ -209,16 +209,9 @@ def solve_lu_transposed_pair(factors, x0, x1, work, probe):
 
 
 @njit(**_JIT)
-def inverse_permutation(permutation, out):
-    """``out[permutation[i]] = i``: the inverse of a permutation (`out` of its dtype and size)."""
-    for i in range(permutation.size):
-        out[permutation[i]] = i
-
-
-@njit(**_JIT)
 def solve_lu_transposed_inverted(factors, rhs, work, out, probe):
     """`solve_lu_transposed` on factors that carry the permutations' inverses in place of
-    the permutations, ``(inverse_r, inverse_c, lower, upper)`` (`inverse_permutation` of
+    the permutations, ``(inverse_r, inverse_c, lower, upper)`` (`_lu_kernels.inverse_permutation` of
     ``perm_r`` and ``perm_c``): column j of U's sweep starts from ``rhs[inverse_c[j]]`` and
     L's sweep writes each unknown to ``out[inverse_r[j]]`` as it is made, instead of a
     scatter and a gather of their own (two passes over n-sized arrays fewer: the same

@@ -641,6 +641,13 @@ def ordered_columns(indptr, indices, order):
 
 
 @njit(**_JIT)
+def inverse_permutation(permutation, out):
+    """``out[permutation[i]] = i``: the inverse of a permutation (`out` of its dtype and size)."""
+    for i in range(permutation.size):
+        out[permutation[i]] = i
+
+
+@njit(**_JIT)
 def fill_column_layout(indptr, perm_c, b_indptr, offsets):
     """Column j of B (A's columns in the order `perm_c`: column c of A is column
     ``perm_c[c]`` of B) is column c of A, i.e. row c of the CSR matrix whose transpose A
@@ -649,8 +656,7 @@ def fill_column_layout(indptr, perm_c, b_indptr, offsets):
     b_indptr[j]``, where that run starts after B's column j."""
     n = perm_c.size
     column_of = np.empty(n, dtype=np.int64)
-    for c in range(n):
-        column_of[perm_c[c]] = c
+    inverse_permutation(perm_c, column_of)
     b_indptr[0] = 0
     for j in range(n):
         c = column_of[j]

@@ -696,7 +696,7 @@ class RefactorSolver:
             if self.lean:  # B's columns found through `column_of` (n entries, not 2 n + 1: `refactor_lu_by_rows`)
                 if self._column_of is None:
                     self._column_of = np.empty_like(self._perm_c)
-                    _compact_lu_kernels.inverse_permutation(self._perm_c, self._column_of)
+                    _lu_kernels.inverse_permutation(self._perm_c, self._column_of)
                 self._b_indptr = self._offsets = None
         else:  # trimmed (no copy where the capacity was exact)
             self._l_indices, self._u_indices = (rows if rows.size == indptr[-1] else rows[: indptr[-1]].copy()
@@ -774,15 +774,15 @@ class RefactorSolver:
                              (self._u_indptr, self._u_indices, self._u_values, self._u_inverse))  # fmt: skip
 
     def _inverse_permutations(self) -> tuple:
-        """The inverses of ``perm_r`` and ``perm_c`` (`_compact_lu_kernels.inverse_permutation`),
+        """The inverses of ``perm_r`` and ``perm_c`` (`_lu_kernels.inverse_permutation`),
         made again when the permutations are new arrays (each `_analyse` makes them)."""
         held = self._inverses
         if held is None or held[0] is not self._perm_r or held[1] is not self._perm_c:
             inverses = (np.empty_like(self._perm_r), self._column_of)  # (a lean solver's: perm_c's inverse)
-            _compact_lu_kernels.inverse_permutation(self._perm_r, inverses[0])
+            _lu_kernels.inverse_permutation(self._perm_r, inverses[0])
             if inverses[1] is None:
                 inverses = (inverses[0], np.empty_like(self._perm_c))
-                _compact_lu_kernels.inverse_permutation(self._perm_c, inverses[1])
+                _lu_kernels.inverse_permutation(self._perm_c, inverses[1])
             self._inverses = held = (self._perm_r, self._perm_c, inverses)
         return held[2]
 

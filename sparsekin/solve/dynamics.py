@@ -619,7 +619,8 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         (`_apply_acceleration_change` applies it to q̈, ã and λ, so that M q̈ + Φqᵀλ keeps
         its value)."""
         drift, bound, noise = self._acceleration_target(q, v, a, coefficients, self._projection_work[2])
-        return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise, self._acceleration_opening)
+        return self._project(q, v, lam, coefficients, drift, bound, "acceleration", noise,
+                             self._acceleration_acts_above)  # fmt: skip
 
     def _acceleration_target(self, q, v, a, coefficients, out, made: bool = False) -> tuple:
         """The acceleration projection's drift Φq q̈ − γ(q, v) (every equation, into `out`),
@@ -629,7 +630,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
         multipliers amplify by 1/σ where Φq loses rank for an instant (σ its smallest
         singular value): Newton then failed at the N-four-bar's flat crossings.  ALI3-P
         projects the accelerations for the same reason.  The drift left is at most
-        ``tolerance · max(1, ‖q̈‖)``; it opens above `_acceleration_opening`, from at most
+        ``tolerance · max(1, ‖q̈‖)``; it acts above `_acceleration_acts_above`, from at most
         `ACCELERATION_TOLERANCE` (stability's, `step_acceleration_bound`; one pass within the
         bound).  (With `out` None: γ made, unless `made`, None in the drift's place.)"""
         assembler = self.assembler
@@ -637,7 +638,7 @@ class GeneralizedAlphaStepper(ConstraintProjections):
             assembler.fill_acceleration_rhs(q, v)
         scale = max(1.0, _dynamics_kernels.weighted_norm(a, self._weights))
         bound = max(self.tolerance * scale, ROUNDING * NOISE * scale)
-        self._acceleration_opening = max(step_acceleration_bound(self.tolerance) * scale, ROUNDING * NOISE * scale)
+        self._acceleration_acts_above = max(step_acceleration_bound(self.tolerance) * scale, ROUNDING * NOISE * scale)
         noise = self._floor.projection_noise(1.0 / coefficients[2])  # β′
         drift = None if out is None else self.system.jacobian_product(a, assembler.acceleration_rhs, out)
         return drift, bound, noise

@@ -45,7 +45,7 @@ class ConstraintProjections:
     """The projections' solves, a base of `sparsekin.solve.dynamics.GeneralizedAlphaStepper`."""
 
     def _project(self, q, v, lam, coefficients, drift, bound: float, what: str, noise: float = 0.0,
-                 opening: float | None = None):
+                 acts_above: float | None = None):
         """The smallest change Δ, in the metric A, that removes `drift` (Φq times the
         velocities or accelerations minus their target, every equation) and its
         multipliers μ, ``[Δ; μ]`` (None if the drift is within `bound` already):
@@ -63,13 +63,15 @@ class ConstraintProjections:
         the rest lies along Φq's vanishing singular values σ, where the drift is σ times
         the velocity error and removing it would take a change drift / σ along a direction
         that the rounding decides.  An increment below `noise` ends the refinement once the
-        drift left is within `bound`.  On the large path the refinement's residual is formed
-        without assembling the matrix (`DynamicSystem.product`)."""
+        drift left is within `bound`.  With `acts_above` below `bound` a drift between the two
+        takes one pass (the acceleration projection's stability target, whatever the
+        tolerance: `error_control.ACCELERATION_TOLERANCE`).  On the large path the
+        refinement's residual is formed without assembling the matrix (`DynamicSystem.product`)."""
         system, n = self.system, self.system.n
         weights = system.kept(self.assembler.weights)
         drift = system.kept(drift)
         before = _dynamics_kernels.weighted_norm(drift, weights)
-        if before <= (bound if opening is None else min(bound, opening)):  # (`_Column`'s `opening`)
+        if before <= (bound if acts_above is None else min(bound, acts_above)):  # (as `_Column`)
             return None
         # in two arrays made at `start` (10^6 bodies: no temporaries), the increments solved in
         # place of the residual [0; drift] − S · solution
@@ -172,7 +174,7 @@ class ConstraintProjections:
         warm_follows = warm and last[2] and not cold("acceleration", last[4], acceleration[2])
         moves = _Column("velocity", *velocity, work[0], work[1], weights, system, warm_moves)
         follows = _Column("acceleration", *acceleration, *self._pair_work[:2], weights, system, warm_follows,
-                          self._acceleration_opening)  # fmt: skip
+                          self._acceleration_acts_above)  # fmt: skip
         columns = (moves, follows)  # the velocities move; the accelerations' target follows them
         fresh, filled, gain, paired = False, False, None, hasattr(self.solver, "solve_pair")
         self._last_projections = None  # their solution arrays hold this step's changes only once it is done
@@ -403,7 +405,7 @@ class _Column:
     (``solution``, and ``residual``, in which its increments are solved) and its state."""
 
     def __init__(self, what: str, drift, bound: float, noise: float, solution, residual, weights, system,
-                 warm: bool = False, opening: float | None = None) -> None:  # fmt: skip
+                 warm: bool = False, acts_above: float | None = None) -> None:  # fmt: skip
         self.what, self.bound, self.noise, self.weights = what, bound, noise, weights
         self.drift = system.kept(drift)
         self.before = _dynamics_kernels.weighted_norm(self.drift, weights)
@@ -413,7 +415,7 @@ class _Column:
         self.warm_started, self.opening, self.solves = False, 0.0, 0  # (opening: its first increment from 0)
         if self.before > bound:
             self.warm() if warm else self.start(measured=True)
-        elif opening is not None and self.before > opening:  # within its bound, not its opening: one pass
+        elif acts_above is not None and self.before > acts_above:  # within its bound, not below: one pass
             self.start(measured=True)
 
     def start(self, measured: bool = False) -> None:
